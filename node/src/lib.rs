@@ -1,0 +1,4 @@
+//! The StereoSplat node: transport, pipeline and the `stereosplat` command line.
+//!
+//! For now it holds the command line's rendering and benchmark subcommands; the streaming
+//! node (zenoh in and out, binning, worker, global map) arrives with its issue.

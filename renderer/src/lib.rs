@@ -1,0 +1,21 @@
+//! The renderer: shared 3D Gaussian geometry and the two rasterizers that draw it.
+//!
+//! It owns the types every other crate speaks (a [`GaussianSet`], a pinhole [`Camera`],
+//! [`RenderOutput`]), the CPU reference rasterizer ([`cpu`], forward and backward, the oracle
+//! that training differentiates through), the wgpu rasterizer ([`gpu`], forward, what the node
+//! draws with), and file formats ([`ply`] for maps, [`picture`] for PNG).
+//!
+//! It must not know about networks, data sets or transport: those live in `model` and `node`,
+//! which depend on this crate and never the other way round.
+
+pub mod camera;
+pub mod cpu;
+pub mod gaussians;
+pub mod output;
+pub mod real;
+pub mod scene;
+
+pub use camera::{Camera, CameraParams, Intrinsics};
+pub use gaussians::{Gaussian, GaussianSet, SplatsView};
+pub use output::{RenderOutput, RenderSettings};
+pub use real::Real;

@@ -25,7 +25,11 @@ struct Loss {
 impl Loss {
     fn random(seed: u64, pixels: usize) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let mut v = |n: usize, s: f64| (0..n).map(|_| rng.random_range(-s..s)).collect::<Vec<f64>>();
+        let mut v = |n: usize, s: f64| {
+            (0..n)
+                .map(|_| rng.random_range(-s..s))
+                .collect::<Vec<f64>>()
+        };
         Self {
             rgb: v(3 * pixels, 1.0),
             depth: v(pixels, 0.1),
@@ -35,7 +39,12 @@ impl Loss {
         }
     }
 
-    fn value(&self, s: &SplatsOwned<f64>, cam: &CameraParams<f64>, settings: &RenderSettings) -> f64 {
+    fn value(
+        &self,
+        s: &SplatsOwned<f64>,
+        cam: &CameraParams<f64>,
+        settings: &RenderSettings,
+    ) -> f64 {
         let o = render(&s.view(), cam, settings).output;
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
         dot(&o.rgb, &self.rgb)
@@ -66,7 +75,12 @@ fn sigmoid(x: f64) -> f64 {
 
 /// Checks every raw parameter of every Gaussian of a seeded scene (after `edit`); returns
 /// how many were checked and the worst relative error.
-fn check_scene(seed: u64, n: usize, background: [f32; 3], edit: impl Fn(&mut renderer::GaussianSet)) -> (usize, f64) {
+fn check_scene(
+    seed: u64,
+    n: usize,
+    background: [f32; 3],
+    edit: impl Fn(&mut renderer::GaussianSet),
+) -> (usize, f64) {
     let k = Intrinsics::from_hfov(40, 36, 70.0);
     let mut set = scene::small_overlapping(seed, n, &k);
     edit(&mut set);
@@ -78,37 +92,60 @@ fn check_scene(seed: u64, n: usize, background: [f32; 3], edit: impl Fn(&mut ren
     };
     let loss = Loss::random(seed + 100, (k.width * k.height) as usize);
     let fwd = render(&base.view(), &cam, &settings);
-    assert!(fwd.output.alpha.iter().any(|&a| a > 0.5), "scene must be visible");
+    assert!(
+        fwd.output.alpha.iter().any(|&a| a > 0.5),
+        "scene must be visible"
+    );
     let g: SplatGrads<f64> = backward(&base.view(), &cam, &settings, &fwd, &loss.grads());
 
     let h = 1e-6;
     let mut checked = 0;
     let mut worst: f64 = 0.0;
-    let mut compare = |what: String, analytic: f64, perturb: &dyn Fn(&mut SplatsOwned<f64>, f64)| {
+    let mut compare = |what: String,
+                       analytic: f64,
+                       perturb: &dyn Fn(&mut SplatsOwned<f64>, f64)| {
         let (mut plus, mut minus) = (base.clone(), base.clone());
         perturb(&mut plus, h);
         perturb(&mut minus, -h);
-        let numeric = (loss.value(&plus, &cam, &settings) - loss.value(&minus, &cam, &settings)) / (2.0 * h);
+        let numeric =
+            (loss.value(&plus, &cam, &settings) - loss.value(&minus, &cam, &settings)) / (2.0 * h);
         let err = (analytic - numeric).abs();
         let tol = 1e-6 + 1e-5 * analytic.abs().max(numeric.abs());
-        assert!(err <= tol, "seed {seed} {what}: analytic {analytic:.9e} numeric {numeric:.9e}");
+        assert!(
+            err <= tol,
+            "seed {seed} {what}: analytic {analytic:.9e} numeric {numeric:.9e}"
+        );
         worst = worst.max(err / (1e-6 + analytic.abs().max(numeric.abs())));
         checked += 1;
     };
     for i in 0..n {
         for d in 0..3 {
-            compare(format!("mean[{i}][{d}]"), g.means[i][d], &|s, e| s.means[i][d] += e);
-            compare(format!("log_scale[{i}][{d}]"), g.log_scales[i][d], &|s, e| s.log_scales[i][d] += e);
-            compare(format!("color[{i}][{d}]"), g.colors[i][d], &|s, e| s.colors[i][d] += e);
+            compare(format!("mean[{i}][{d}]"), g.means[i][d], &|s, e| {
+                s.means[i][d] += e
+            });
+            compare(
+                format!("log_scale[{i}][{d}]"),
+                g.log_scales[i][d],
+                &|s, e| s.log_scales[i][d] += e,
+            );
+            compare(format!("color[{i}][{d}]"), g.colors[i][d], &|s, e| {
+                s.colors[i][d] += e
+            });
         }
         // Quaternions are perturbed off the unit sphere: the gradient is for the raw input.
         for d in 0..4 {
-            compare(format!("rotation[{i}][{d}]"), g.rotations[i][d], &|s, e| s.rotations[i][d] += e);
+            compare(format!("rotation[{i}][{d}]"), g.rotations[i][d], &|s, e| {
+                s.rotations[i][d] += e
+            });
         }
-        compare(format!("opacity_logit[{i}]"), g.opacity_logits[i], &|s, e| {
-            s.opacities[i] = sigmoid(logit(s.opacities[i]) + e)
+        compare(
+            format!("opacity_logit[{i}]"),
+            g.opacity_logits[i],
+            &|s, e| s.opacities[i] = sigmoid(logit(s.opacities[i]) + e),
+        );
+        compare(format!("confidence[{i}]"), g.confidences[i], &|s, e| {
+            s.confidences[i] += e
         });
-        compare(format!("confidence[{i}]"), g.confidences[i], &|s, e| s.confidences[i] += e);
     }
     (checked, worst)
 }
@@ -155,13 +192,16 @@ fn gradients_hold_for_non_unit_quaternions() {
     let g = backward(&base.view(), &cam, &settings, &fwd, &loss.grads());
     for i in 0..4 {
         // Scaling a quaternion leaves the image unchanged, so the gradient is orthogonal to it.
-        let dot: f64 = (0..4).map(|d| g.rotations[i][d] * base.rotations[i][d]).sum();
+        let dot: f64 = (0..4)
+            .map(|d| g.rotations[i][d] * base.rotations[i][d])
+            .sum();
         assert!(dot.abs() < 1e-9, "gradient not tangent: {dot}");
         for d in 0..4 {
             let (mut p, mut m) = (base.clone(), base.clone());
             p.rotations[i][d] += 1e-6;
             m.rotations[i][d] -= 1e-6;
-            let numeric = (loss.value(&p, &cam, &settings) - loss.value(&m, &cam, &settings)) / 2e-6;
+            let numeric =
+                (loss.value(&p, &cam, &settings) - loss.value(&m, &cam, &settings)) / 2e-6;
             assert!((numeric - g.rotations[i][d]).abs() <= 1e-6 + 1e-5 * numeric.abs());
         }
     }
@@ -175,13 +215,24 @@ fn f32_gradients_agree_with_f64() {
     let loss = Loss::random(4, 40 * 36);
     let cam64: CameraParams<f64> = Camera::identity(k).params();
     let s64 = SplatsOwned::<f64>::from_set(&set);
-    let g64 = backward(&s64.view(), &cam64, &settings, &render(&s64.view(), &cam64, &settings), &loss.grads());
+    let g64 = backward(
+        &s64.view(),
+        &cam64,
+        &settings,
+        &render(&s64.view(), &cam64, &settings),
+        &loss.grads(),
+    );
 
     let cam32: CameraParams<f32> = Camera::identity(k).params();
     let v32 = set.view().unwrap();
     let l32 = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
-    let (rgb, depth, depth_raw, alpha, conf) =
-        (l32(&loss.rgb), l32(&loss.depth), l32(&loss.depth_raw), l32(&loss.alpha), l32(&loss.confidence));
+    let (rgb, depth, depth_raw, alpha, conf) = (
+        l32(&loss.rgb),
+        l32(&loss.depth),
+        l32(&loss.depth_raw),
+        l32(&loss.alpha),
+        l32(&loss.confidence),
+    );
     let grads = OutputGrads {
         rgb: Some(&rgb),
         depth: Some(&depth),
@@ -189,8 +240,18 @@ fn f32_gradients_agree_with_f64() {
         alpha: Some(&alpha),
         confidence: Some(&conf),
     };
-    let g32 = backward(&v32, &cam32, &settings, &render(&v32, &cam32, &settings), &grads);
-    let scale = g64.means.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let g32 = backward(
+        &v32,
+        &cam32,
+        &settings,
+        &render(&v32, &cam32, &settings),
+        &grads,
+    );
+    let scale = g64
+        .means
+        .iter()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
     for (a, b) in g32.means.iter().flatten().zip(g64.means.iter().flatten()) {
         assert!((*a as f64 - b).abs() <= 1e-3 * scale, "f32 {a} vs f64 {b}");
     }

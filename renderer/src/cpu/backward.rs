@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use super::composite::{pixel_alpha, tile_pixels, ForwardPass};
+use super::composite::{ForwardPass, TileSplats};
 use super::project::{project_backward, ProjectedGrads};
 use crate::camera::CameraParams;
 use crate::gaussians::SplatsView;
@@ -96,59 +96,64 @@ pub fn backward<T: Real>(
     let per_tile: Vec<Vec<EntryGrads<T>>> = (0..bins.tile_count())
         .into_par_iter()
         .map(|t| {
-            let ids = bins.tile(t);
-            let mut acc = vec![EntryGrads::default(); ids.len()];
-            for (x, y) in tile_pixels(t, bins.grid[0], w, h) {
-                let i = (y * w + x) as usize;
-                let g = pixel_grads(grads, fwd, i);
-                let (px, py) = (T::c(x as f64), T::c(y as f64));
-                let t_final = fwd.final_t[i];
-                let mut t_cur = t_final;
-                let mut rec = [T::zero(); 5]; // rgb, depth, confidence behind the current one
-                let mut last = [T::zero(); 5];
-                let mut last_alpha = T::zero();
-                let bg_dot = (0..3).fold(T::zero(), |s, k| s + bg[k] * g.rgb[k]);
-                let gv = [g.rgb[0], g.rgb[1], g.rgb[2], g.depth_raw, g.confidence];
-                for pos in (0..fwd.n_contrib[i] as usize).rev() {
-                    let Some(p) = fwd.projected[ids[pos] as usize] else {
-                        continue;
-                    };
-                    let Some((alpha, gauss, clamped)) = pixel_alpha(&p, px, py) else {
-                        continue;
-                    };
-                    t_cur = t_cur / (T::one() - alpha);
-                    let wgt = alpha * t_cur;
-                    let vals = [p.color[0], p.color[1], p.color[2], p.depth, p.confidence];
-                    let mut d_alpha = T::zero();
-                    for k in 0..5 {
-                        rec[k] = last_alpha * last[k] + (T::one() - last_alpha) * rec[k];
-                        d_alpha = d_alpha + (vals[k] - rec[k]) * gv[k];
-                    }
-                    last = vals;
-                    last_alpha = alpha;
-                    d_alpha = d_alpha * t_cur;
-                    let through = t_final / (T::one() - alpha);
-                    d_alpha = d_alpha - through * bg_dot + through * g.alpha;
+            let splats = TileSplats::new(bins, &fwd.projected, t);
+            let mut acc = vec![EntryGrads::default(); splats.list.len()];
+            for ([x0, x1, y0, y1], cands) in splats.blocks(t, bins.grid[0], w, h) {
+                for (x, y) in (y0..=y1).flat_map(|y| (x0..=x1).map(move |x| (x, y))) {
+                    let i = (y * w + x) as usize;
+                    let g = pixel_grads(grads, fwd, i);
+                    let (px, py) = (T::c(x as f64), T::c(y as f64));
+                    let t_final = fwd.final_t[i];
+                    let mut t_cur = t_final;
+                    let mut rec = [T::zero(); 5]; // rgb, depth, confidence behind the current one
+                    let mut last = [T::zero(); 5];
+                    let mut last_alpha = T::zero();
+                    let bg_dot = (0..3).fold(T::zero(), |s, k| s + bg[k] * g.rgb[k]);
+                    let gv = [g.rgb[0], g.rgb[1], g.rgb[2], g.depth_raw, g.confidence];
+                    for &pos in cands
+                        .iter()
+                        .rev()
+                        .skip_while(|&&pos| pos >= fwd.n_contrib[i])
+                    {
+                        let Some((alpha, gauss, clamped)) = splats.alpha_at(pos, px, py) else {
+                            continue;
+                        };
+                        let p = &splats.list[pos as usize];
+                        let pos = pos as usize;
+                        t_cur = t_cur / (T::one() - alpha);
+                        let wgt = alpha * t_cur;
+                        let vals = [p.color[0], p.color[1], p.color[2], p.depth, p.confidence];
+                        let mut d_alpha = T::zero();
+                        for k in 0..5 {
+                            rec[k] = last_alpha * last[k] + (T::one() - last_alpha) * rec[k];
+                            d_alpha = d_alpha + (vals[k] - rec[k]) * gv[k];
+                        }
+                        last = vals;
+                        last_alpha = alpha;
+                        d_alpha = d_alpha * t_cur;
+                        let through = t_final / (T::one() - alpha);
+                        d_alpha = d_alpha - through * bg_dot + through * g.alpha;
 
-                    let e = &mut acc[pos];
-                    for k in 0..3 {
-                        e.color[k] = e.color[k] + wgt * g.rgb[k];
+                        let e = &mut acc[pos];
+                        for k in 0..3 {
+                            e.color[k] = e.color[k] + wgt * g.rgb[k];
+                        }
+                        e.confidence = e.confidence + wgt * g.confidence;
+                        e.screen.depth = e.screen.depth + wgt * g.depth_raw;
+                        if clamped {
+                            continue;
+                        }
+                        e.screen.opacity = e.screen.opacity + gauss * d_alpha;
+                        let d_power = p.opacity * gauss * d_alpha;
+                        let dx = p.mean2d[0] - px;
+                        let dy = p.mean2d[1] - py;
+                        let [a, b, c] = p.conic;
+                        e.screen.mean2d[0] = e.screen.mean2d[0] - d_power * (a * dx + b * dy);
+                        e.screen.mean2d[1] = e.screen.mean2d[1] - d_power * (b * dx + c * dy);
+                        e.screen.conic[0] = e.screen.conic[0] - T::c(0.5) * dx * dx * d_power;
+                        e.screen.conic[1] = e.screen.conic[1] - dx * dy * d_power;
+                        e.screen.conic[2] = e.screen.conic[2] - T::c(0.5) * dy * dy * d_power;
                     }
-                    e.confidence = e.confidence + wgt * g.confidence;
-                    e.screen.depth = e.screen.depth + wgt * g.depth_raw;
-                    if clamped {
-                        continue;
-                    }
-                    e.screen.opacity = e.screen.opacity + gauss * d_alpha;
-                    let d_power = p.opacity * gauss * d_alpha;
-                    let dx = p.mean2d[0] - px;
-                    let dy = p.mean2d[1] - py;
-                    let [a, b, c] = p.conic;
-                    e.screen.mean2d[0] = e.screen.mean2d[0] - d_power * (a * dx + b * dy);
-                    e.screen.mean2d[1] = e.screen.mean2d[1] - d_power * (b * dx + c * dy);
-                    e.screen.conic[0] = e.screen.conic[0] - T::c(0.5) * dx * dx * d_power;
-                    e.screen.conic[1] = e.screen.conic[1] - dx * dy * d_power;
-                    e.screen.conic[2] = e.screen.conic[2] - T::c(0.5) * dy * dy * d_power;
                 }
             }
             acc
@@ -162,8 +167,13 @@ pub fn backward<T: Real>(
         confidences: vec![T::zero(); n],
         ..Default::default()
     };
+    // Entries of culled Gaussians were dropped from the tile lists, so zip with the visible ones.
     for (t, acc) in per_tile.iter().enumerate() {
-        for (&id, e) in bins.tile(t).iter().zip(acc) {
+        let visible = bins
+            .tile(t)
+            .iter()
+            .filter(|&&i| fwd.projected[i as usize].is_some());
+        for (&id, e) in visible.zip(acc) {
             let id = id as usize;
             let s = &mut screen[id];
             for k in 0..2 {

@@ -55,24 +55,149 @@ struct PixelResult<T> {
     n_contrib: u32,
 }
 
-/// Pixel coordinates of the pixels of tile `t` that lie inside the image.
-pub(crate) fn tile_pixels(t: usize, grid_x: u32, width: u32, height: u32) -> impl Iterator<Item = (u32, u32)> {
-    let tx = t as u32 % grid_x;
-    let ty = t as u32 / grid_x;
-    let x0 = tx * TILE_SIZE;
-    let y0 = ty * TILE_SIZE;
-    (y0..(y0 + TILE_SIZE).min(height)).flat_map(move |y| (x0..(x0 + TILE_SIZE).min(width)).map(move |x| (x, y)))
+/// Edge of the square pixel blocks a tile is split into for candidate culling.
+const BLOCK: u32 = 4;
+
+/// A tile's Gaussians in list order, with the pixel box outside of which each one's alpha is
+/// below [`MIN_ALPHA`] (from `d^T Q d <= 2 ln(255 o)`, widened slightly for rounding). Blocks
+/// of [`BLOCK`]x[`BLOCK`] pixels composite only the Gaussians whose box they meet; since
+/// every Gaussian left out would have been skipped at every pixel of the block anyway, the
+/// result is exactly that of walking the whole list, which the wgpu rasterizer does.
+pub(crate) struct TileSplats<T> {
+    /// The tile's Gaussians, front to back.
+    pub list: Vec<Projected<T>>,
+    boxes: Vec<[T; 4]>,
+    /// Per Gaussian, an exponent below which its alpha is surely under [`MIN_ALPHA`]:
+    /// `ln(MIN_ALPHA / opacity)` less a margin far above `exp`'s rounding, so the test only
+    /// saves the `exp` and never changes a result.
+    min_power: Vec<T>,
 }
 
-fn composite_pixel<T: Real>(list: &[Projected<T>], px: T, py: T) -> PixelResult<T> {
+impl<T: Real> TileSplats<T> {
+    /// Gathers tile `t`'s Gaussians.
+    pub fn new(bins: &TileBins, projected: &[Option<Projected<T>>], t: usize) -> Self {
+        let list: Vec<Projected<T>> = bins
+            .tile(t)
+            .iter()
+            .filter_map(|&i| projected[i as usize])
+            .collect();
+        let boxes = list.iter().map(alpha_box).collect();
+        let min_power = list
+            .iter()
+            .map(|p| (T::c(MIN_ALPHA) / p.opacity).ln() - T::c(1e-3))
+            .collect();
+        Self {
+            list,
+            boxes,
+            min_power,
+        }
+    }
+
+    /// [`pixel_alpha`] of the Gaussian at `pos`, skipping the `exp` where it cannot matter.
+    #[inline]
+    pub fn alpha_at(&self, pos: u32, px: T, py: T) -> Option<(T, T, bool)> {
+        let p = &self.list[pos as usize];
+        let dx = p.mean2d[0] - px;
+        let dy = p.mean2d[1] - py;
+        let power =
+            T::c(-0.5) * (p.conic[0] * dx * dx + p.conic[2] * dy * dy) - p.conic[1] * dx * dy;
+        if power < self.min_power[pos as usize] {
+            return None;
+        }
+        pixel_alpha(p, px, py)
+    }
+
+    /// The blocks of tile `t` inside the image, each with the positions (in list order) of
+    /// the Gaussians whose box meets it.
+    pub fn blocks(
+        &self,
+        t: usize,
+        grid_x: u32,
+        width: u32,
+        height: u32,
+    ) -> Vec<([u32; 4], Vec<u32>)> {
+        let tx = t as u32 % grid_x * TILE_SIZE;
+        let ty = t as u32 / grid_x * TILE_SIZE;
+        let nx = ((tx + TILE_SIZE).min(width) - tx).div_ceil(BLOCK);
+        let ny = ((ty + TILE_SIZE).min(height) - ty).div_ceil(BLOCK);
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); (nx * ny) as usize];
+        // Block index range a box covers, clamped to the tile.
+        let span = |lo: T, hi: T, origin: u32, n: u32| {
+            let b = T::c(BLOCK as f64);
+            let first = ((lo - T::c(origin as f64)) / b).floor().max(T::zero());
+            let last = ((hi - T::c(origin as f64)) / b)
+                .floor()
+                .min(T::c(n as f64 - 1.0));
+            (first <= last).then(|| (first.to_u32().unwrap_or(0), last.to_u32().unwrap_or(0)))
+        };
+        for (pos, bx) in self.boxes.iter().enumerate() {
+            let (Some((x0, x1)), Some((y0, y1))) =
+                (span(bx[0], bx[1], tx, nx), span(bx[2], bx[3], ty, ny))
+            else {
+                continue;
+            };
+            for by in y0..=y1 {
+                for bxi in x0..=x1 {
+                    lists[(by * nx + bxi) as usize].push(pos as u32);
+                }
+            }
+        }
+        lists
+            .into_iter()
+            .enumerate()
+            .map(|(k, list)| {
+                let x0 = tx + (k as u32 % nx) * BLOCK;
+                let y0 = ty + (k as u32 / nx) * BLOCK;
+                (
+                    [
+                        x0,
+                        (x0 + BLOCK).min(width) - 1,
+                        y0,
+                        (y0 + BLOCK).min(height) - 1,
+                    ],
+                    list,
+                )
+            })
+            .collect()
+    }
+}
+
+/// The pixel box (x min, x max, y min, y max) beyond which a Gaussian's alpha is below
+/// [`MIN_ALPHA`]; empty (min > max) when its opacity is too low to ever reach it.
+fn alpha_box<T: Real>(p: &Projected<T>) -> [T; 4] {
+    let level = T::c(2.0) * (p.opacity / T::c(MIN_ALPHA)).ln();
+    let [a, b, c] = p.conic;
+    let det = a * c - b * b;
+    if !(level > T::zero()) || !(det > T::zero()) {
+        return [T::one(), T::zero(), T::one(), T::zero()];
+    }
+    // Extent of {d : d^T Q d <= level} is sqrt(level * (Q^-1)_ii); widened for rounding.
+    let widen = T::c(1.001);
+    let hx = (level * widen * c / det).sqrt() + T::c(0.01);
+    let hy = (level * widen * a / det).sqrt() + T::c(0.01);
+    [
+        p.mean2d[0] - hx,
+        p.mean2d[0] + hx,
+        p.mean2d[1] - hy,
+        p.mean2d[1] + hy,
+    ]
+}
+
+fn composite_pixel<T: Real>(
+    splats: &TileSplats<T>,
+    candidates: &[u32],
+    px: T,
+    py: T,
+) -> PixelResult<T> {
     let mut r = PixelResult {
         final_t: T::one(),
         ..Default::default()
     };
-    for (pos, p) in list.iter().enumerate() {
-        let Some((alpha, _, _)) = pixel_alpha(p, px, py) else {
+    for &pos in candidates {
+        let Some((alpha, _, _)) = splats.alpha_at(pos, px, py) else {
             continue;
         };
+        let p = &splats.list[pos as usize];
         let next_t = r.final_t * (T::one() - alpha);
         if next_t < T::c(MIN_TRANSMITTANCE) {
             break;
@@ -84,26 +209,37 @@ fn composite_pixel<T: Real>(list: &[Projected<T>], px: T, py: T) -> PixelResult<
         r.depth_raw = r.depth_raw + w * p.depth;
         r.confidence = r.confidence + w * p.confidence;
         r.final_t = next_t;
-        r.n_contrib = pos as u32 + 1;
+        r.n_contrib = pos + 1;
     }
     r
 }
 
 /// Renders `splats` from `cam`, keeping what the backward pass needs.
-pub fn render<T: Real>(splats: &SplatsView<'_, T>, cam: &CameraParams<T>, settings: &RenderSettings) -> ForwardPass<T> {
+pub fn render<T: Real>(
+    splats: &SplatsView<'_, T>,
+    cam: &CameraParams<T>,
+    settings: &RenderSettings,
+) -> ForwardPass<T> {
     let projected: Vec<Option<Projected<T>>> = (0..splats.len())
         .into_par_iter()
         .map(|i| project(splats, i, cam, settings))
         .collect();
     let bins = bin(&projected, cam.width, cam.height);
     let (w, h) = (cam.width, cam.height);
-    let per_tile: Vec<Vec<PixelResult<T>>> = (0..bins.tile_count())
+    let per_tile: Vec<Vec<((u32, u32), PixelResult<T>)>> = (0..bins.tile_count())
         .into_par_iter()
         .map(|t| {
-            let list: Vec<Projected<T>> = bins.tile(t).iter().filter_map(|&i| projected[i as usize]).collect();
-            tile_pixels(t, bins.grid[0], w, h)
-                .map(|(x, y)| composite_pixel(&list, T::c(x as f64), T::c(y as f64)))
-                .collect()
+            let splats = TileSplats::new(&bins, &projected, t);
+            let mut results = Vec::with_capacity((TILE_SIZE * TILE_SIZE) as usize);
+            for ([x0, x1, y0, y1], cands) in splats.blocks(t, bins.grid[0], w, h) {
+                for y in y0..=y1 {
+                    for x in x0..=x1 {
+                        let r = composite_pixel(&splats, &cands, T::c(x as f64), T::c(y as f64));
+                        results.push(((x, y), r));
+                    }
+                }
+            }
+            results
         })
         .collect();
 
@@ -112,15 +248,19 @@ pub fn render<T: Real>(splats: &SplatsView<'_, T>, cam: &CameraParams<T>, settin
     let n = out.pixels();
     let mut final_t = vec![T::one(); n];
     let mut n_contrib = vec![0u32; n];
-    for (t, results) in per_tile.iter().enumerate() {
-        for ((x, y), r) in tile_pixels(t, bins.grid[0], w, h).zip(results) {
+    for results in &per_tile {
+        for &((x, y), r) in results {
             let i = (y * w + x) as usize;
             let alpha = T::one() - r.final_t;
             for k in 0..3 {
                 out.rgb[3 * i + k] = r.rgb[k] + r.final_t * bg[k];
             }
             out.depth_raw[i] = r.depth_raw;
-            out.depth[i] = if alpha > T::c(MIN_DEPTH_ALPHA) { r.depth_raw / alpha } else { T::zero() };
+            out.depth[i] = if alpha > T::c(MIN_DEPTH_ALPHA) {
+                r.depth_raw / alpha
+            } else {
+                T::zero()
+            };
             out.alpha[i] = alpha;
             out.confidence[i] = r.confidence;
             final_t[i] = r.final_t;

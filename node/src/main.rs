@@ -1,1 +1,36 @@
-fn main() {}
+//! `stereosplat`: the one command line of the project (see DESIGN.md for the subcommands).
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+use node::cli::{bench, render};
+
+/// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
+#[derive(Parser)]
+#[command(name = "stereosplat", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a PLY map, or a generated scene, to PNG pictures (RGB, depth, alpha).
+    Render(render::RenderArgs),
+    /// Benchmarks that print JSON on stdout.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Rasterizer speed: CPU forward and backward, wgpu forward.
+    Render(bench::BenchRenderArgs),
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Command::Render(args) => render::run(&args),
+        Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
+    }
+}

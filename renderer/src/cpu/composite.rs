@@ -45,6 +45,9 @@ pub(crate) fn pixel_alpha<T: Real>(p: &Projected<T>, px: T, py: T) -> Option<(T,
     (alpha >= T::c(MIN_ALPHA)).then_some((alpha, g, raw >= T::c(MAX_ALPHA)))
 }
 
+/// A tile's composited pixels with their image coordinates.
+type TileResults<T> = Vec<((u32, u32), PixelResult<T>)>;
+
 /// One pixel's composited values.
 #[derive(Clone, Copy, Default)]
 struct PixelResult<T> {
@@ -168,7 +171,7 @@ fn alpha_box<T: Real>(p: &Projected<T>) -> [T; 4] {
     let level = T::c(2.0) * (p.opacity / T::c(MIN_ALPHA)).ln();
     let [a, b, c] = p.conic;
     let det = a * c - b * b;
-    if !(level > T::zero()) || !(det > T::zero()) {
+    if level.is_nan() || level <= T::zero() || det.is_nan() || det <= T::zero() {
         return [T::one(), T::zero(), T::one(), T::zero()];
     }
     // Extent of {d : d^T Q d <= level} is sqrt(level * (Q^-1)_ii); widened for rounding.
@@ -226,7 +229,7 @@ pub fn render<T: Real>(
         .collect();
     let bins = bin(&projected, cam.width, cam.height);
     let (w, h) = (cam.width, cam.height);
-    let per_tile: Vec<Vec<((u32, u32), PixelResult<T>)>> = (0..bins.tile_count())
+    let per_tile: Vec<TileResults<T>> = (0..bins.tile_count())
         .into_par_iter()
         .map(|t| {
             let splats = TileSplats::new(&bins, &projected, t);
@@ -252,8 +255,8 @@ pub fn render<T: Real>(
         for &((x, y), r) in results {
             let i = (y * w + x) as usize;
             let alpha = T::one() - r.final_t;
-            for k in 0..3 {
-                out.rgb[3 * i + k] = r.rgb[k] + r.final_t * bg[k];
+            for (o, (c, b)) in out.rgb[3 * i..3 * i + 3].iter_mut().zip(r.rgb.iter().zip(&bg)) {
+                *o = *c + r.final_t * *b;
             }
             out.depth_raw[i] = r.depth_raw;
             out.depth[i] = if alpha > T::c(MIN_DEPTH_ALPHA) {

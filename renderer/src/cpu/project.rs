@@ -138,7 +138,7 @@ pub fn project<T: Real>(
     let a = a0 + T::c(COV2D_DILATION);
     let c = c0 + T::c(COV2D_DILATION);
     let det = a * c - b * b;
-    if !(det > T::zero()) || !det.is_finite() {
+    if !det.is_finite() || det <= T::zero() {
         return None;
     }
     let conic = [c / det, -b / det, a / det];

@@ -12,6 +12,7 @@ pub mod camera;
 pub mod cpu;
 pub mod gaussians;
 pub mod output;
+pub mod picture;
 pub mod ply;
 pub mod real;
 pub mod scene;

@@ -131,8 +131,12 @@ pub fn write_ply(set: &GaussianSet, mut w: impl Write) -> Result<(), PlyError> {
     header += "comment 3D Gaussian splats: f_dc = (rgb - 0.5) / C0, opacity = logit, ";
     header += "scale = ln(std dev), rot = (w, x, y, z)\n";
     header += &format!("element vertex {}\n", set.len());
-    let names = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2", "opacity"];
-    let more = ["scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"];
+    let names = [
+        "x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+    ];
+    let more = [
+        "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3",
+    ];
     for name in names.iter().chain(&more).chain(&["confidence"]) {
         header += &format!("property float {name}\n");
     }

@@ -46,7 +46,11 @@ pub fn random_in_view(seed: u64, n: usize, k: &Intrinsics) -> GaussianSet {
 /// horizon, facades 6 m to either side, the sky (far) above; capped at `max_depth`.
 fn street_depth(dx: f32, dy: f32, max_depth: f32) -> f32 {
     let road = if dy > 1e-3 { 1.5 / dy } else { f32::INFINITY };
-    let facade = if dx.abs() > 1e-3 { 6.0 / dx.abs() } else { f32::INFINITY };
+    let facade = if dx.abs() > 1e-3 {
+        6.0 / dx.abs()
+    } else {
+        f32::INFINITY
+    };
     road.min(facade).min(max_depth)
 }
 
@@ -90,7 +94,11 @@ pub fn small_overlapping(seed: u64, n: usize, k: &Intrinsics) -> GaussianSet {
         let v: f32 = rng.random_range(0.2..0.8) * k.height as f32;
         let mean = Vec3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z);
         let px = z / k.fx;
-        let s = Vec3::new(rng.random_range(1.5..5.0), rng.random_range(1.5..5.0), rng.random_range(1.5..5.0));
+        let s = Vec3::new(
+            rng.random_range(1.5..5.0),
+            rng.random_range(1.5..5.0),
+            rng.random_range(1.5..5.0),
+        );
         set.push(Gaussian {
             mean,
             log_scale: (s * px).ln(),

@@ -56,12 +56,18 @@ struct PixelResult<T> {
 }
 
 /// Pixel coordinates of the pixels of tile `t` that lie inside the image.
-pub(crate) fn tile_pixels(t: usize, grid_x: u32, width: u32, height: u32) -> impl Iterator<Item = (u32, u32)> {
+pub(crate) fn tile_pixels(
+    t: usize,
+    grid_x: u32,
+    width: u32,
+    height: u32,
+) -> impl Iterator<Item = (u32, u32)> {
     let tx = t as u32 % grid_x;
     let ty = t as u32 / grid_x;
     let x0 = tx * TILE_SIZE;
     let y0 = ty * TILE_SIZE;
-    (y0..(y0 + TILE_SIZE).min(height)).flat_map(move |y| (x0..(x0 + TILE_SIZE).min(width)).map(move |x| (x, y)))
+    (y0..(y0 + TILE_SIZE).min(height))
+        .flat_map(move |y| (x0..(x0 + TILE_SIZE).min(width)).map(move |x| (x, y)))
 }
 
 fn composite_pixel<T: Real>(list: &[Projected<T>], px: T, py: T) -> PixelResult<T> {
@@ -90,7 +96,11 @@ fn composite_pixel<T: Real>(list: &[Projected<T>], px: T, py: T) -> PixelResult<
 }
 
 /// Renders `splats` from `cam`, keeping what the backward pass needs.
-pub fn render<T: Real>(splats: &SplatsView<'_, T>, cam: &CameraParams<T>, settings: &RenderSettings) -> ForwardPass<T> {
+pub fn render<T: Real>(
+    splats: &SplatsView<'_, T>,
+    cam: &CameraParams<T>,
+    settings: &RenderSettings,
+) -> ForwardPass<T> {
     let projected: Vec<Option<Projected<T>>> = (0..splats.len())
         .into_par_iter()
         .map(|i| project(splats, i, cam, settings))
@@ -100,7 +110,11 @@ pub fn render<T: Real>(splats: &SplatsView<'_, T>, cam: &CameraParams<T>, settin
     let per_tile: Vec<Vec<PixelResult<T>>> = (0..bins.tile_count())
         .into_par_iter()
         .map(|t| {
-            let list: Vec<Projected<T>> = bins.tile(t).iter().filter_map(|&i| projected[i as usize]).collect();
+            let list: Vec<Projected<T>> = bins
+                .tile(t)
+                .iter()
+                .filter_map(|&i| projected[i as usize])
+                .collect();
             tile_pixels(t, bins.grid[0], w, h)
                 .map(|(x, y)| composite_pixel(&list, T::c(x as f64), T::c(y as f64)))
                 .collect()
@@ -120,7 +134,11 @@ pub fn render<T: Real>(splats: &SplatsView<'_, T>, cam: &CameraParams<T>, settin
                 out.rgb[3 * i + k] = r.rgb[k] + r.final_t * bg[k];
             }
             out.depth_raw[i] = r.depth_raw;
-            out.depth[i] = if alpha > T::c(MIN_DEPTH_ALPHA) { r.depth_raw / alpha } else { T::zero() };
+            out.depth[i] = if alpha > T::c(MIN_DEPTH_ALPHA) {
+                r.depth_raw / alpha
+            } else {
+                T::zero()
+            };
             out.alpha[i] = alpha;
             out.confidence[i] = r.confidence;
             final_t[i] = r.final_t;

@@ -87,11 +87,9 @@ pub fn quat_to_mat_backward<T: Real>(q: &[T; 4], g: &M3<T>) -> [T; 4] {
             + z * (g[1][2] + g[2][1])
             + w * (g[0][2] - g[2][0]));
     let gz = two
-        * (x * (g[0][2] + g[2][0]) + y * (g[1][2] + g[2][1])
-            - two * z * (g[0][0] + g[1][1])
+        * (x * (g[0][2] + g[2][0]) + y * (g[1][2] + g[2][1]) - two * z * (g[0][0] + g[1][1])
             + w * (g[1][0] - g[0][1]));
-    let gw = two
-        * (x * (g[2][1] - g[1][2]) + y * (g[0][2] - g[2][0]) + z * (g[1][0] - g[0][1]));
+    let gw = two * (x * (g[2][1] - g[1][2]) + y * (g[0][2] - g[2][0]) + z * (g[1][0] - g[0][1]));
     [gx, gy, gz, gw]
 }
 
@@ -129,7 +127,10 @@ mod tests {
         let g = [[0.3, -1.0, 0.5], [0.7, 0.2, -0.1], [-0.6, 0.4, 0.9]];
         let loss = |q: &[f64; 4]| {
             let m = quat_to_mat(&normalize_quat(q));
-            (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| m[i][j] * g[i][j]).sum::<f64>()
+            (0..3)
+                .flat_map(|i| (0..3).map(move |j| (i, j)))
+                .map(|(i, j)| m[i][j] * g[i][j])
+                .sum::<f64>()
         };
         let analytic = normalize_quat_backward(&q, &quat_to_mat_backward(&normalize_quat(&q), &g));
         for k in 0..4 {
@@ -137,7 +138,11 @@ mod tests {
             a[k] += 1e-6;
             b[k] -= 1e-6;
             let fd = (loss(&a) - loss(&b)) / 2e-6;
-            assert!((fd - analytic[k]).abs() < 1e-7, "component {k}: fd {fd} analytic {}", analytic[k]);
+            assert!(
+                (fd - analytic[k]).abs() < 1e-7,
+                "component {k}: fd {fd} analytic {}",
+                analytic[k]
+            );
         }
     }
 

@@ -96,7 +96,8 @@ fn camera_covariance<T: Real>(w: &M3<T>, m: &M3<T>) -> M3<T> {
 
 /// `J S J^T` for the 2x3 `J` and symmetric 3x3 `S`, as (a, b, c).
 fn project_cov<T: Real>(j: &[[T; 3]; 2], s: &M3<T>) -> [T; 3] {
-    let js = [0, 1].map(|r| [0, 1, 2].map(|c| j[r][0] * s[0][c] + j[r][1] * s[1][c] + j[r][2] * s[2][c]));
+    let js = [0, 1]
+        .map(|r| [0, 1, 2].map(|c| j[r][0] * s[0][c] + j[r][1] * s[1][c] + j[r][2] * s[2][c]));
     let dot = |a: &[T; 3], b: &[T; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     [dot(&js[0], &j[0]), dot(&js[0], &j[1]), dot(&js[1], &j[1])]
 }
@@ -166,7 +167,12 @@ pub fn project<T: Real>(
 /// The tiles a footprint of `radius` pixels around `mean2d` touches, clamped to the grid.
 /// Clamping happens in floating point before the conversion, so huge or far-off footprints
 /// convert without overflow (the GPU stage does the same).
-pub fn tile_rect<T: Real>(mean2d: [T; 2], radius: T, width: u32, height: u32) -> ([u32; 2], [u32; 2]) {
+pub fn tile_rect<T: Real>(
+    mean2d: [T; 2],
+    radius: T,
+    width: u32,
+    height: u32,
+) -> ([u32; 2], [u32; 2]) {
     let grid = [width.div_ceil(TILE_SIZE), height.div_ceil(TILE_SIZE)];
     let t = T::c(TILE_SIZE as f64);
     let to_tile = |v: T, g: u32| v.max(T::zero()).min(T::c(g as f64)).to_u32().unwrap_or(0);
@@ -227,7 +233,10 @@ pub fn project_backward<T: Real>(
 
     // Conic -> screen covariance: dL/dSigma2 = -Q G_Q Q, with G_Q symmetric (b split in two).
     let half = T::c(0.5);
-    let gq = [[g.conic[0], half * g.conic[1]], [half * g.conic[1], g.conic[2]]];
+    let gq = [
+        [g.conic[0], half * g.conic[1]],
+        [half * g.conic[1], g.conic[2]],
+    ];
     let mul2 = |x: &[[T; 2]; 2], y: &[[T; 2]; 2]| {
         [0, 1].map(|r| [0, 1].map(|c| x[r][0] * y[0][c] + x[r][1] * y[1][c]))
     };
@@ -297,6 +306,10 @@ pub fn project_backward<T: Real>(
         mean: mean_grad,
         log_scale: g_log_scale,
         rotation,
-        opacity_logit: if inside { g.opacity * o * (T::one() - o) } else { T::zero() },
+        opacity_logit: if inside {
+            g.opacity * o * (T::one() - o)
+        } else {
+            T::zero()
+        },
     }
 }

@@ -133,7 +133,11 @@ fn read_binary(
     let count = usize::try_from(vertex.count).map_err(|_| too_large(vertex, needed, available))?;
     let chunk = (CHUNK_BYTES / stride).max(1);
     // With the length known the count is validated, else memory grows with the data read.
-    let reserve = if available.is_some() { count } else { count.min(chunk) };
+    let reserve = if available.is_some() {
+        count
+    } else {
+        count.min(chunk)
+    };
     let mut set = GaussianSet::with_capacity(reserve);
     let mut buf = vec![0u8; count.min(chunk) * stride];
     let mut left = count;

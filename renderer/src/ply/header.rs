@@ -200,4 +200,3 @@ pub(super) fn read_header(r: &mut impl BufRead) -> Result<Header, PlyError> {
     }
     unreachable!("the header loop returns")
 }
-

@@ -17,8 +17,12 @@
 //! The reader accepts `binary_little_endian 1.0` and `ascii 1.0` files with any elements
 //! besides `vertex` (skipped by their declared sizes), scalar properties of any PLY type
 //! (converted to `f32`), and unknown extra properties (ignored, e.g. the `f_rest_*` of a
-//! degree-3 file). `confidence` is optional and defaults to 1. It never panics and never
-//! allocates much more than the data actually present, whatever the header declares.
+//! degree-3 file). `confidence` is optional and defaults to 1. Integer-typed properties are
+//! converted by value (no rescaling of `uchar` to [0, 1]). List properties are allowed in
+//! other elements, before or after `vertex` (each record's lists are walked to skip it),
+//! but not in `vertex`. Rotations are read as stored: not normalised (trainers write raw
+//! quaternions; the rasterizers normalise). It never panics and never allocates much more
+//! than the data actually present, whatever the header declares.
 
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read, Write};

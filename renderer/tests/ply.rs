@@ -163,6 +163,7 @@ impl Le {
 /// confidence, a `face` element after. Returns the file and the byte length through vertex.
 fn foreign_file(format: &str) -> (Vec<u8>, usize) {
     let mut h = format!("ply\r\nformat {format} 1.0\ncomment made by hand\nobj_info x\n");
+    h += "comment caf\u{e9}\n"; // Latin-1 below: comments need not be UTF-8.
     h += "element camera 2\nproperty float fx\nproperty list uchar int ids\nproperty short k\n";
     h += "element vertex 2\nproperty double x\nproperty float y\nproperty float z\n";
     h += "property float nx\nproperty float ny\nproperty float nz\n";
@@ -179,7 +180,9 @@ fn foreign_file(format: &str) -> (Vec<u8>, usize) {
         h += &format!("property float {k}\n");
     }
     h += "property uchar red\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
-    let mut b = Le(h.into_bytes());
+    let mut b = Le(h.replace('\u{e9}', "\u{1}").into_bytes());
+    let latin1 = b.0.iter().position(|&c| c == 1).unwrap();
+    b.0[latin1] = 0xe9;
     b.f32(500.0).bytes(&[2, 1, 0, 0, 0, 2, 0, 0, 0, 7, 0]); // camera 0: two ids
     b.f32(600.0).bytes(&[0, 0xff, 0xff]); // camera 1: no ids, k = -1
     for i in 0..2 {
@@ -230,15 +233,14 @@ fn a_foreign_binary_file_reads() {
 /// The same records as [`foreign_file`] in an ascii file.
 fn foreign_ascii() -> Vec<u8> {
     let (binary, _) = foreign_file("ascii");
-    let mut text = String::from_utf8(binary[..body_start(&binary)].to_vec()).unwrap();
-    text += "500 2 1 2 7\n600 0 -1\n";
+    let mut text = String::from("500 2 1 2 7\n600 0 -1\n");
     for i in 0..2 {
         text += &format!("{} 2 3 0 0 1 0 1 -1 ", 1 + i);
         text += &(0..45).map(|k| format!("{k} ")).collect::<String>();
         text += &format!("0 1 0 0 {i} -1 -2 -3 200\n");
     }
     text += "3 0 1 2\n";
-    text.into_bytes()
+    [&binary[..body_start(&binary)], text.as_bytes()].concat()
 }
 
 /// Where the data starts: just after `end_header\n`.

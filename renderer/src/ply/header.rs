@@ -138,6 +138,10 @@ pub(super) fn read_header(r: &mut impl BufRead) -> Result<Header, PlyError> {
             };
             return Err(bad(line, reason));
         }
+        let first = buf.split(|c| c.is_ascii_whitespace()).next();
+        if first == Some(b"comment") || first == Some(b"obj_info") {
+            continue; // Free text, in whatever encoding the writer used.
+        }
         let text = std::str::from_utf8(&buf).map_err(|_| bad(line, "not UTF-8 text"))?;
         let words: Vec<&str> = text.split_ascii_whitespace().collect();
         match words.as_slice() {

@@ -12,6 +12,8 @@ pub mod camera;
 pub mod cpu;
 pub mod gaussians;
 pub mod output;
+pub mod picture;
+pub mod ply;
 pub mod real;
 pub mod scene;
 

@@ -34,7 +34,11 @@ const MIN_ALPHA: f32 = 1.0 / 255.0;
 const MIN_TRANSMITTANCE: f32 = 1e-4;
 const MIN_DEPTH_ALPHA: f32 = 1e-6;
 
-var<workgroup> batch: array<Splat, BATCH>;
+// The batch, split so the test for whether a splat touches a pixel reads 8 floats and the
+// colour, depth and confidence are read only when it contributes.
+var<workgroup> batch_shape: array<vec4<f32>, BATCH>; // mean2d.xy, conic a, conic b
+var<workgroup> batch_weight: array<vec4<f32>, BATCH>; // conic c, opacity, depth, confidence
+var<workgroup> batch_color: array<vec4<f32>, BATCH>; // rgb, unused
 var<workgroup> done_count: atomic<u32>;
 var<workgroup> done_snapshot: u32;
 
@@ -76,20 +80,23 @@ fn main(
         }
         let start = range.x + b * BATCH;
         if start + lid < range.y {
-            batch[lid] = splats[sorted[start + lid]];
+            let s = splats[sorted[start + lid]];
+            batch_shape[lid] = vec4<f32>(s.mean_opacity_depth.xy, s.conic_confidence.xy);
+            batch_weight[lid] = vec4<f32>(s.conic_confidence.z, s.mean_opacity_depth.zw, s.conic_confidence.w);
+            batch_color[lid] = s.color_radius;
         }
         workgroupBarrier();
         let count = min(BATCH, range.y - start);
         for (var j = 0u; j < count && !done; j++) {
-            let s = batch[j];
-            let dx = s.mean_opacity_depth.x - px;
-            let dy = s.mean_opacity_depth.y - py;
-            let conic = s.conic_confidence.xyz;
-            let power = -0.5 * (conic.x * dx * dx + conic.z * dy * dy) - conic.y * dx * dy;
+            let shape = batch_shape[j];
+            let weight = batch_weight[j];
+            let dx = shape.x - px;
+            let dy = shape.y - py;
+            let power = -0.5 * (shape.z * dx * dx + weight.x * dy * dy) - shape.w * dx * dy;
             if power > 0.0 {
                 continue;
             }
-            let alpha = min(MAX_ALPHA, s.mean_opacity_depth.z * exp(power));
+            let alpha = min(MAX_ALPHA, weight.y * exp(power));
             if alpha < MIN_ALPHA {
                 continue;
             }
@@ -100,9 +107,9 @@ fn main(
                 break;
             }
             let w = alpha * t;
-            rgb += w * s.color_radius.xyz;
-            depth_raw += w * s.mean_opacity_depth.w;
-            confidence += w * s.conic_confidence.w;
+            rgb += w * batch_color[j].xyz;
+            depth_raw += w * weight.z;
+            confidence += w * weight.w;
             t = next_t;
         }
     }

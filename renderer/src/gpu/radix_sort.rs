@@ -1,5 +1,5 @@
 //! Stage 4, radix sort (`radix_sort.wgsl`): a stable LSD radix sort of 64-bit (tile, depth)
-//! keys with `u32` values, 4 bits a pass. Each pass counts digits per block of 256 keys, scans
+//! keys with `u32` values, 4 bits a pass. Each pass counts digits per block of 1024 keys, scans
 //! the `[digit][block]` counts with the [`PrefixSum`] stage, and scatters every key to its
 //! digit's offset plus its rank within the block, which keeps ties in input order.
 //!
@@ -16,8 +16,8 @@ pub(crate) const KEY_BYTES: u64 = 8;
 /// Bytes of one value (a Gaussian index).
 pub(crate) const VALUE_BYTES: u64 = 4;
 
-/// Keys per block (one per invocation).
-const BLOCK: u32 = 256;
+/// Keys per block (256 invocations, four keys each).
+const BLOCK: u32 = 1024;
 /// Bits sorted per pass.
 const DIGIT_BITS: u32 = 4;
 /// Distinct digits.

@@ -258,3 +258,12 @@ fn split_dispatches_give_the_same_results() {
         .fold(0.0, f32::max);
     assert!(err <= 2e-3, "max rgb error {err}");
 }
+
+/// The error converts into `anyhow::Error` (Send + Sync + 'static) and a rasterizer can move
+/// to another thread.
+#[test]
+fn errors_and_the_rasterizer_cross_threads() {
+    fn send_sync<T: Send + Sync + 'static>() {}
+    send_sync::<super::GpuError>();
+    send_sync::<GpuRasterizer>();
+}

@@ -2,11 +2,11 @@
 //! 3DGS / gsplat way, and the same function (it is tested against the CPU stage by stage).
 //!
 //! A frame runs six stages, each a WGSL file beside the Rust that launches it:
-//! [`project`] (per Gaussian: splat, tile rectangle, tiles touched), [`prefix_sum`] (offsets
+//! `project` (per Gaussian: splat, tile rectangle, tiles touched), `prefix_sum` (offsets
 //! of each Gaussian's keys; the total is read back, one 4-byte map, to size the sort),
-//! [`emit_keys`] ((depth, tile) keys in Gaussian-index order), [`radix_sort`] (stable LSD
-//! radix sort, so ties keep index order as on the CPU), [`tile_ranges`] (each tile's run in
-//! the sorted keys) and [`composite`] (one workgroup per 16x16 tile).
+//! `emit_keys` ((depth, tile) keys in Gaussian-index order), `radix_sort` (stable LSD
+//! radix sort, so ties keep index order as on the CPU), `tile_ranges` (each tile's run in
+//! the sorted keys) and `composite` (one workgroup per 16x16 tile).
 //!
 //! Buffers are created once and reused: they grow (capacity doubling) only when a frame
 //! needs more than any frame before, so rendering a scene of a steady size allocates no GPU

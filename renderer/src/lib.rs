@@ -11,6 +11,7 @@
 pub mod camera;
 pub mod cpu;
 pub mod gaussians;
+pub mod gpu;
 pub mod output;
 pub mod picture;
 pub mod ply;

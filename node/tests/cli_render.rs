@@ -18,10 +18,15 @@ fn render_writes_the_scene_and_its_pictures_on_both_rasterizers() {
     for (flag, name) in [(None, "gpu"), (Some("--cpu"), "cpu")] {
         let out = temp_dir(&format!("render-{name}"));
         let mut cmd = stereosplat();
-        cmd.args(["render", "--width", "96", "--height", "40", "--out"]).arg(&out);
+        cmd.args(["render", "--width", "96", "--height", "40", "--out"])
+            .arg(&out);
         cmd.args(flag);
         let run = cmd.output().unwrap();
-        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
         let set = renderer::ply::load_ply(out.join("scene.ply")).unwrap();
         assert_eq!(set.len(), 2 * 96 * 40);
         for png in ["rgb.png", "depth.png", "alpha.png"] {
@@ -35,11 +40,24 @@ fn render_writes_the_scene_and_its_pictures_on_both_rasterizers() {
 #[test]
 fn bench_render_prints_json_with_cpu_and_gpu_timings() {
     let run = stereosplat()
-        .args(["bench", "render", "--scene", "random", "--gaussians", "2000"])
-        .args(["--width", "128", "--height", "64", "--runs", "2", "--warmup", "1"])
+        .args([
+            "bench",
+            "render",
+            "--scene",
+            "random",
+            "--gaussians",
+            "2000",
+        ])
+        .args([
+            "--width", "128", "--height", "64", "--runs", "2", "--warmup", "1",
+        ])
         .output()
         .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(json["gaussians"], 2000);
     assert!(json["cpu"]["forward"]["median_ms"].as_f64().unwrap() > 0.0);
@@ -58,6 +76,9 @@ fn a_missing_ply_is_a_clear_error_not_a_panic() {
         .unwrap();
     assert!(!run.status.success());
     let err = String::from_utf8_lossy(&run.stderr);
-    assert!(err.contains("map.ply") || err.to_lowercase().contains("no such file"), "{err}");
+    assert!(
+        err.contains("map.ply") || err.to_lowercase().contains("no such file"),
+        "{err}"
+    );
     assert!(!err.contains("panicked"), "{err}");
 }

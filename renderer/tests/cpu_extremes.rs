@@ -15,7 +15,11 @@ fn cam() -> Camera {
 /// A point at depth `z` that projects exactly onto the centre of pixel (W/2, H/2).
 fn on_pixel(z: f32) -> Vec3 {
     let k = cam().intrinsics;
-    Vec3::new((W as f32 / 2.0 - k.cx) / k.fx * z, (H as f32 / 2.0 - k.cy) / k.fy * z, z)
+    Vec3::new(
+        (W as f32 / 2.0 - k.cx) / k.fx * z,
+        (H as f32 / 2.0 - k.cy) / k.fy * z,
+        z,
+    )
 }
 
 fn gaussian(mean: Vec3, scale: f32) -> Gaussian {
@@ -53,7 +57,10 @@ fn render_checked(set: &GaussianSet, cam: &Camera) -> (RenderOutput, f32) {
         ("alpha", &o.alpha),
         ("confidence", &o.confidence),
     ] {
-        assert!(v.iter().all(|x| x.is_finite()), "{name} has a non-finite value");
+        assert!(
+            v.iter().all(|x| x.is_finite()),
+            "{name} has a non-finite value"
+        );
     }
     let ones3 = vec![1.0f32; o.rgb.len()];
     let ones = vec![1.0f32; o.alpha.len()];
@@ -88,8 +95,14 @@ fn is_background(o: &RenderOutput) -> bool {
 
 #[test]
 fn depth_near_zero_is_culled_and_very_far_is_drawn() {
-    let (near, _) = render_checked(&set_of(&[gaussian(Vec3::new(0.0, 0.0, 1e-4), 1e-4)]), &cam());
-    assert!(is_background(&near), "a centre at 1e-4 m is inside the 0.01 m near plane");
+    let (near, _) = render_checked(
+        &set_of(&[gaussian(Vec3::new(0.0, 0.0, 1e-4), 1e-4)]),
+        &cam(),
+    );
+    assert!(
+        is_background(&near),
+        "a centre at 1e-4 m is inside the 0.01 m near plane"
+    );
     let (far, _) = render_checked(&set_of(&[gaussian(on_pixel(1e5), 500.0)]), &cam());
     let centre = (H / 2 * W + W / 2) as usize;
     assert!(far.alpha[centre] > 0.5);
@@ -120,7 +133,11 @@ fn zero_and_unnormalised_quaternions_follow_the_rule() {
     let (unit, _) = render_checked(&set_of(&[g]), &cam());
     g.rotation = q * 123.0;
     let (scaled, _) = render_checked(&set_of(&[g]), &cam());
-    let max = unit.rgb.iter().zip(&scaled.rgb).fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+    let max = unit
+        .rgb
+        .iter()
+        .zip(&scaled.rgb)
+        .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
     assert!(max < 1e-5, "a quaternion's norm must not matter: {max}");
     assert_ne!(unit, identity);
 }
@@ -134,7 +151,10 @@ fn opacity_zero_contributes_nothing_and_one_is_clamped() {
     g.opacity = 1.0;
     let (opaque, _) = render_checked(&set_of(&[g]), &cam());
     let max_alpha = opaque.alpha.iter().fold(0.0f32, |m, &a| m.max(a));
-    assert!((max_alpha - MAX_ALPHA as f32).abs() < 1e-6, "one Gaussian leaves 1% through: {max_alpha}");
+    assert!(
+        (max_alpha - MAX_ALPHA as f32).abs() < 1e-6,
+        "one Gaussian leaves 1% through: {max_alpha}"
+    );
     // Out-of-range opacities are clamped to [0, 1].
     g.opacity = 7.0;
     assert_eq!(render_checked(&set_of(&[g]), &cam()).0, opaque);
@@ -180,7 +200,10 @@ fn non_finite_input_is_skipped_never_propagated() {
     bad.push(gaussian(Vec3::new(0.0, 0.0, 3.0), f32::MAX));
     bad.push(good);
     let (mixed, _) = render_checked(&set_of(&bad), &cam());
-    assert_eq!(mixed, clean, "bad Gaussians must be skipped, leaving the good one's image");
+    assert_eq!(
+        mixed, clean,
+        "bad Gaussians must be skipped, leaving the good one's image"
+    );
 }
 
 #[test]
@@ -190,20 +213,37 @@ fn a_camera_far_from_the_origin_sees_the_same_image() {
     let local: Vec<Gaussian> = (0..40)
         .map(|i| {
             let f = i as f32;
-            let mut g = gaussian(Vec3::new((f * 7.0 % 13.0 - 6.0) / 4.0, (f * 5.0 % 9.0 - 4.0) / 8.0, 3.0 + f / 8.0), 0.15);
+            let mut g = gaussian(
+                Vec3::new(
+                    (f * 7.0 % 13.0 - 6.0) / 4.0,
+                    (f * 5.0 % 9.0 - 4.0) / 8.0,
+                    3.0 + f / 8.0,
+                ),
+                0.15,
+            );
             g.color = Vec3::new(f / 40.0, 1.0 - f / 40.0, 0.5);
             g
         })
         .collect();
     let offset = Vec3::new(1.0e5, -1.0e5, 1.0e5);
-    let far_set: Vec<Gaussian> = local.iter().map(|g| Gaussian { mean: g.mean + offset, ..*g }).collect();
+    let far_set: Vec<Gaussian> = local
+        .iter()
+        .map(|g| Gaussian {
+            mean: g.mean + offset,
+            ..*g
+        })
+        .collect();
     let k = Intrinsics::from_hfov(W, H, 90.0);
     let rot = Quat::from_rotation_y(0.05);
     let cam_here = Camera::from_camera_to_world(k, rot, Vec3::ZERO);
     let cam_far = Camera::from_camera_to_world(k, rot, offset);
     let (here, _) = render_checked(&set_of(&local), &cam_here);
     let (far, _) = render_checked(&set_of(&far_set), &cam_far);
-    let max = here.rgb.iter().zip(&far.rgb).fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+    let max = here
+        .rgb
+        .iter()
+        .zip(&far.rgb)
+        .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
     assert!(max < 1e-5, "max rgb difference {max}");
     assert!(here.alpha.iter().any(|&a| a > 0.5));
 }

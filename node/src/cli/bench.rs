@@ -130,7 +130,8 @@ pub fn run_render(args: &BenchRenderArgs) -> Result<()> {
     let gpu = if args.no_gpu {
         None
     } else {
-        let mut gpu = GpuRasterizer::new().context("no wgpu adapter (install Mesa's lavapipe, see README)")?;
+        let mut gpu = GpuRasterizer::new()
+            .context("no wgpu adapter (install Mesa's lavapipe, see README)")?;
         let info = gpu.adapter_info().clone();
         let forward = time(args.warmup, args.runs, || {
             std::hint::black_box(gpu.render(&set, &cam, &settings)?);

@@ -31,7 +31,8 @@ pub struct RenderArgs {
 pub fn run(args: &RenderArgs) -> Result<()> {
     let cam = args.scene.camera()?;
     let set = args.scene.gaussians(&cam)?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     if args.scene.ply.is_none() {
         let ply = args.out.join("scene.ply");
         renderer::ply::save_ply(&set, &ply)?;
@@ -40,9 +41,13 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let settings = RenderSettings::default();
     let (out, device): (RenderOutput, String) = if args.cpu {
         let params = cam.params::<f32>();
-        (cpu::render(&set.view()?, &params, &settings).output, "CPU reference".into())
+        (
+            cpu::render(&set.view()?, &params, &settings).output,
+            "CPU reference".into(),
+        )
     } else {
-        let mut gpu = GpuRasterizer::new().context("no wgpu adapter (install Mesa's lavapipe, see README)")?;
+        let mut gpu = GpuRasterizer::new()
+            .context("no wgpu adapter (install Mesa's lavapipe, see README)")?;
         let info = gpu.adapter_info();
         let device = format!("wgpu {} ({:?})", info.name, info.backend);
         (gpu.render(&set, &cam, &settings)?, device)

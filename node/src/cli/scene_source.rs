@@ -45,12 +45,23 @@ impl SceneArgs {
     /// The camera: at the origin, looking down +z.
     pub fn camera(&self) -> Result<Camera> {
         if self.width == 0 || self.height == 0 {
-            bail!("image size must be positive, got {}x{}", self.width, self.height);
+            bail!(
+                "image size must be positive, got {}x{}",
+                self.width,
+                self.height
+            );
         }
         if !(self.hfov > 0.0 && self.hfov < 180.0) {
-            bail!("--hfov must be between 0 and 180 degrees, got {}", self.hfov);
+            bail!(
+                "--hfov must be between 0 and 180 degrees, got {}",
+                self.hfov
+            );
         }
-        Ok(Camera::identity(Intrinsics::from_hfov(self.width, self.height, self.hfov)))
+        Ok(Camera::identity(Intrinsics::from_hfov(
+            self.width,
+            self.height,
+            self.hfov,
+        )))
     }
 
     /// The Gaussians: loaded from `--ply`, or generated.
@@ -59,8 +70,12 @@ impl SceneArgs {
             return Ok(renderer::ply::load_ply(path)?);
         }
         Ok(match self.scene {
-            GeneratedScene::PixelAligned => scene::pixel_aligned(self.seed, &cam.intrinsics, 2, 0.6),
-            GeneratedScene::Random => scene::random_in_view(self.seed, self.gaussians, &cam.intrinsics),
+            GeneratedScene::PixelAligned => {
+                scene::pixel_aligned(self.seed, &cam.intrinsics, 2, 0.6)
+            }
+            GeneratedScene::Random => {
+                scene::random_in_view(self.seed, self.gaussians, &cam.intrinsics)
+            }
         })
     }
 }

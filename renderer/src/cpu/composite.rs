@@ -255,7 +255,10 @@ pub fn render<T: Real>(
         for &((x, y), r) in results {
             let i = (y * w + x) as usize;
             let alpha = T::one() - r.final_t;
-            for (o, (c, b)) in out.rgb[3 * i..3 * i + 3].iter_mut().zip(r.rgb.iter().zip(&bg)) {
+            for (o, (c, b)) in out.rgb[3 * i..3 * i + 3]
+                .iter_mut()
+                .zip(r.rgb.iter().zip(&bg))
+            {
                 *o = *c + r.final_t * *b;
             }
             out.depth_raw[i] = r.depth_raw;

@@ -5,9 +5,9 @@
 //! trains through its backward pass. It is generic over [`crate::Real`] so the same code runs
 //! in `f32` (speed) and `f64` (finite-difference gradient checks).
 //!
-//! Stages, each a module: [`project`] (3D Gaussian to screen-space conic, depth and tile
+//! Stages, each a module: [`mod@project`] (3D Gaussian to screen-space conic, depth and tile
 //! rectangle), [`tiles`] (which Gaussians touch which 16x16 tile, depth sorted),
-//! [`composite`] (front-to-back blending per pixel), and [`backward`] (gradients).
+//! [`composite`] (front-to-back blending per pixel), and [`mod@backward`] (gradients).
 
 pub mod backward;
 pub mod composite;

@@ -22,35 +22,25 @@ struct Params {
 
 /// The compositing pipeline.
 pub(crate) struct Composite {
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
+    kernel: context::Kernel,
     bind_groups: Cached<[wgpu::BindGroup; 2]>,
 }
 
 impl Composite {
     /// Compiles the stage.
     pub fn new(ctx: &Context) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::include_wgsl!("composite.wgsl"));
-        let layout = ctx.layout(
-            "composite",
-            &[
-                context::storage(true),
-                context::storage(true),
-                context::storage(true),
-                context::storage(false),
-                context::uniform(false),
-            ],
-        );
         Self {
-            pipeline: ctx.pipeline("composite", &module, &layout, "main"),
-            layout,
-            params: ctx.buffer(
-                "composite settings",
+            kernel: ctx.kernel(
+                "composite",
+                wgpu::include_wgsl!("composite.wgsl"),
+                &[
+                    context::storage(true),
+                    context::storage(true),
+                    context::storage(true),
+                    context::storage(false),
+                    context::uniform(false),
+                ],
                 std::mem::size_of::<Params>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             bind_groups: Cached::empty(),
         }
@@ -77,24 +67,24 @@ impl Composite {
             background: [r, g, b, 0.0],
         };
         ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            .write_buffer(&self.kernel.uniform, 0, bytemuck::bytes_of(&params));
         let groups = self.bind_groups.get(ctx, || {
             [0, 1].map(|k| {
                 ctx.bind_group(
                     "composite",
-                    &self.layout,
+                    &self.kernel.layout,
                     &[
                         bufs.splats.get().as_entire_binding(),
                         bufs.values[k].get().as_entire_binding(),
                         bufs.ranges.get().as_entire_binding(),
                         bufs.image.get().as_entire_binding(),
-                        self.params.as_entire_binding(),
+                        self.kernel.uniform.as_entire_binding(),
                     ],
                 )
             })
         });
         let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.kernel.pipeline);
         pass.set_bind_group(0, &groups[sorted], &[]);
         pass.dispatch_workgroups(grid[0], grid[1], 1);
     }

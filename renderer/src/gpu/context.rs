@@ -128,6 +128,28 @@ impl Context {
             })
     }
 
+    /// A compute kernel with one entry point `main`, its bind-group layout and its settings
+    /// uniform: what every single-pipeline stage needs, compiled once.
+    pub fn kernel(
+        &self,
+        label: &str,
+        shader: wgpu::ShaderModuleDescriptor<'_>,
+        bindings: &[wgpu::BindingType],
+        uniform_bytes: u64,
+    ) -> Kernel {
+        let module = self.device.create_shader_module(shader);
+        let layout = self.layout(label, bindings);
+        Kernel {
+            pipeline: self.pipeline(label, &module, &layout, "main"),
+            uniform: self.buffer(
+                &format!("{label} settings"),
+                uniform_bytes,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            layout,
+        }
+    }
+
     /// A bind group whose bindings are numbered in the order given.
     pub fn bind_group(
         &self,
@@ -193,6 +215,17 @@ impl Context {
 }
 
 /// A read-only or writable storage-buffer binding.
+/// A compiled single-entry stage (see [`Context::kernel`]).
+pub(crate) struct Kernel {
+    /// The pipeline running the shader's `main`.
+    pub pipeline: wgpu::ComputePipeline,
+    /// Its bind-group layout.
+    pub layout: wgpu::BindGroupLayout,
+    /// Its settings uniform, written before each dispatch.
+    pub uniform: wgpu::Buffer,
+}
+
+/// A storage-buffer binding.
 pub(crate) fn storage(read_only: bool) -> wgpu::BindingType {
     wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only },

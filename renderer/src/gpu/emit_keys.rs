@@ -6,36 +6,26 @@ use super::FrameBuffers;
 
 /// The key-generation pipeline.
 pub(crate) struct EmitKeys {
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
+    kernel: context::Kernel,
     bind_group: Cached<wgpu::BindGroup>,
 }
 
 impl EmitKeys {
     /// Compiles the stage.
     pub fn new(ctx: &Context) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::include_wgsl!("emit_keys.wgsl"));
-        let layout = ctx.layout(
-            "emit keys",
-            &[
-                context::storage(true),
-                context::storage(true),
-                context::storage(true),
-                context::storage(false),
-                context::storage(false),
-                context::uniform(false),
-            ],
-        );
         Self {
-            pipeline: ctx.pipeline("emit keys", &module, &layout, "main"),
-            layout,
-            params: ctx.buffer(
-                "emit keys settings",
+            kernel: ctx.kernel(
+                "emit keys",
+                wgpu::include_wgsl!("emit_keys.wgsl"),
+                &[
+                    context::storage(true),
+                    context::storage(true),
+                    context::storage(true),
+                    context::storage(false),
+                    context::storage(false),
+                    context::uniform(false),
+                ],
                 16,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             bind_group: Cached::empty(),
         }
@@ -51,23 +41,32 @@ impl EmitKeys {
         n: u32,
         grid_x: u32,
     ) {
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::cast_slice(&[n, grid_x, 0, 0]));
+        ctx.queue.write_buffer(
+            &self.kernel.uniform,
+            0,
+            bytemuck::cast_slice(&[n, grid_x, 0, 0]),
+        );
         let group = self.bind_group.get(ctx, || {
             ctx.bind_group(
                 "emit keys",
-                &self.layout,
+                &self.kernel.layout,
                 &[
                     bufs.splats.get().as_entire_binding(),
                     bufs.rects.get().as_entire_binding(),
                     bufs.offsets.get().as_entire_binding(),
                     bufs.keys[0].get().as_entire_binding(),
                     bufs.values[0].get().as_entire_binding(),
-                    self.params.as_entire_binding(),
+                    self.kernel.uniform.as_entire_binding(),
                 ],
             )
         });
         let mut pass = encoder.begin_compute_pass(&Default::default());
-        ctx.dispatch(&mut pass, &self.pipeline, group, &[], n.div_ceil(WORKGROUP));
+        ctx.dispatch(
+            &mut pass,
+            &self.kernel.pipeline,
+            group,
+            &[],
+            n.div_ceil(WORKGROUP),
+        );
     }
 }

@@ -85,35 +85,25 @@ pub(crate) fn pack_gaussians(set: &GaussianSet, out: &mut Vec<[f32; 16]>) {
 
 /// The projection pipeline and its camera uniform.
 pub(crate) struct Project {
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
-    camera: wgpu::Buffer,
+    kernel: context::Kernel,
     bind_group: Cached<wgpu::BindGroup>,
 }
 
 impl Project {
     /// Compiles the stage.
     pub fn new(ctx: &Context) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::include_wgsl!("project.wgsl"));
-        let layout = ctx.layout(
-            "project",
-            &[
-                context::storage(true),
-                context::uniform(false),
-                context::storage(false),
-                context::storage(false),
-                context::storage(false),
-            ],
-        );
         Self {
-            pipeline: ctx.pipeline("project", &module, &layout, "main"),
-            layout,
-            camera: ctx.buffer(
-                "camera",
+            kernel: ctx.kernel(
+                "project",
+                wgpu::include_wgsl!("project.wgsl"),
+                &[
+                    context::storage(true),
+                    context::uniform(false),
+                    context::storage(false),
+                    context::storage(false),
+                    context::storage(false),
+                ],
                 std::mem::size_of::<CameraUniform>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             bind_group: Cached::empty(),
         }
@@ -132,14 +122,14 @@ impl Project {
         let grid = super::tile_grid(cam.intrinsics.width, cam.intrinsics.height);
         let uniform = CameraUniform::new(cam, settings, grid, n);
         ctx.queue
-            .write_buffer(&self.camera, 0, bytemuck::bytes_of(&uniform));
+            .write_buffer(&self.kernel.uniform, 0, bytemuck::bytes_of(&uniform));
         let group = self.bind_group.get(ctx, || {
             ctx.bind_group(
                 "project",
-                &self.layout,
+                &self.kernel.layout,
                 &[
                     bufs.gaussians.get().as_entire_binding(),
-                    self.camera.as_entire_binding(),
+                    self.kernel.uniform.as_entire_binding(),
                     bufs.splats.get().as_entire_binding(),
                     bufs.rects.get().as_entire_binding(),
                     bufs.offsets.get().as_entire_binding(),
@@ -147,6 +137,12 @@ impl Project {
             )
         });
         let mut pass = encoder.begin_compute_pass(&Default::default());
-        ctx.dispatch(&mut pass, &self.pipeline, group, &[], n.div_ceil(WORKGROUP));
+        ctx.dispatch(
+            &mut pass,
+            &self.kernel.pipeline,
+            group,
+            &[],
+            n.div_ceil(WORKGROUP),
+        );
     }
 }

@@ -9,33 +9,23 @@ pub(crate) const RANGE_BYTES: u64 = 8;
 
 /// The tile-range pipeline.
 pub(crate) struct TileRanges {
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
-    params: wgpu::Buffer,
+    kernel: context::Kernel,
     bind_groups: Cached<[wgpu::BindGroup; 2]>,
 }
 
 impl TileRanges {
     /// Compiles the stage.
     pub fn new(ctx: &Context) -> Self {
-        let module = ctx
-            .device
-            .create_shader_module(wgpu::include_wgsl!("tile_ranges.wgsl"));
-        let layout = ctx.layout(
-            "tile ranges",
-            &[
-                context::storage(true),
-                context::storage(false),
-                context::uniform(false),
-            ],
-        );
         Self {
-            pipeline: ctx.pipeline("tile ranges", &module, &layout, "main"),
-            layout,
-            params: ctx.buffer(
-                "tile ranges settings",
+            kernel: ctx.kernel(
+                "tile ranges",
+                wgpu::include_wgsl!("tile_ranges.wgsl"),
+                &[
+                    context::storage(true),
+                    context::storage(false),
+                    context::uniform(false),
+                ],
                 16,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             bind_groups: Cached::empty(),
         }
@@ -52,16 +42,16 @@ impl TileRanges {
         n: u32,
     ) {
         ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::cast_slice(&[n, 0, 0, 0]));
+            .write_buffer(&self.kernel.uniform, 0, bytemuck::cast_slice(&[n, 0, 0, 0]));
         let groups = self.bind_groups.get(ctx, || {
             [0, 1].map(|k| {
                 ctx.bind_group(
                     "tile ranges",
-                    &self.layout,
+                    &self.kernel.layout,
                     &[
                         bufs.keys[k].get().as_entire_binding(),
                         bufs.ranges.get().as_entire_binding(),
-                        self.params.as_entire_binding(),
+                        self.kernel.uniform.as_entire_binding(),
                     ],
                 )
             })
@@ -69,7 +59,7 @@ impl TileRanges {
         let mut pass = encoder.begin_compute_pass(&Default::default());
         ctx.dispatch(
             &mut pass,
-            &self.pipeline,
+            &self.kernel.pipeline,
             &groups[sorted],
             &[],
             n.div_ceil(WORKGROUP),

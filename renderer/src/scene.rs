@@ -42,16 +42,42 @@ pub fn random_in_view(seed: u64, n: usize, k: &Intrinsics) -> GaussianSet {
     set
 }
 
-/// Depth of a simple street seen from a camera 1.5 m above the road: the road below the
-/// horizon, facades 6 m to either side, the sky (far) above; capped at `max_depth`.
-fn street_depth(dx: f32, dy: f32, max_depth: f32) -> f32 {
+/// Where a viewing ray of a simple street hits, seen from a camera 1.5 m above the road:
+/// the road below the horizon, facades 6 m to either side, the sky (at `max_depth`) above.
+/// Returns the depth and the surface's colour (lane markings on the road, window rows on the
+/// facades), so rendered pictures read as a street.
+fn street_hit(dx: f32, dy: f32, max_depth: f32) -> (f32, Vec3) {
     let road = if dy > 1e-3 { 1.5 / dy } else { f32::INFINITY };
     let facade = if dx.abs() > 1e-3 {
         6.0 / dx.abs()
     } else {
         f32::INFINITY
     };
-    road.min(facade).min(max_depth)
+    let z = road.min(facade).min(max_depth);
+    let (x, y) = (dx * z, dy * z);
+    let color = if z >= max_depth {
+        Vec3::new(0.55, 0.7, 0.9) - Vec3::splat(0.3 * dy.max(-1.0))
+    } else if road <= facade {
+        let lane = x.abs() < 0.08 && (z % 6.0) < 3.0;
+        if lane {
+            Vec3::splat(0.9)
+        } else {
+            Vec3::splat(0.35)
+        }
+    } else {
+        let window = (y.rem_euclid(3.0)) < 1.4 && (z.rem_euclid(4.0)) < 2.2 && y < 0.5;
+        let tone = if x > 0.0 {
+            Vec3::new(0.7, 0.45, 0.35)
+        } else {
+            Vec3::new(0.8, 0.75, 0.6)
+        };
+        if window {
+            Vec3::new(0.15, 0.2, 0.3)
+        } else {
+            tone
+        }
+    };
+    (z, color)
 }
 
 /// One pixel-aligned Gaussian per pixel of each view, as a feed-forward model emits them:
@@ -67,14 +93,16 @@ pub fn pixel_aligned(seed: u64, k: &Intrinsics, views: usize, baseline: f32) -> 
             for x in 0..k.width {
                 let dx = (x as f32 - k.cx) / k.fx;
                 let dy = (y as f32 - k.cy) / k.fy;
-                let z = street_depth(dx, dy, 80.0) * rng.random_range(0.98..1.02);
+                let (z, color) = street_hit(dx, dy, 80.0);
+                let z = z * rng.random_range(0.98..1.02);
+                let color = color + Vec3::splat(rng.random_range(-0.05..0.05));
                 let footprint = z / k.fx;
                 set.push(Gaussian {
                     mean: origin + Vec3::new(dx * z, dy * z, z),
                     log_scale: Vec3::splat((footprint * rng.random_range(0.6..1.2)).ln()),
                     rotation: random_rotation(&mut rng),
                     opacity: rng.random_range(0.3..1.0),
-                    color: random_color(&mut rng),
+                    color,
                     confidence: rng.random(),
                 });
             }

@@ -29,13 +29,20 @@ pub struct ForwardPass<T> {
     pub output: RenderOutput<T>,
 }
 
-/// The blend of one Gaussian at one pixel, or `None` when it is skipped there.
-/// Returns (alpha, exp(power), whether alpha hit the [`MAX_ALPHA`] clamp).
-#[inline]
-pub(crate) fn pixel_alpha<T: Real>(p: &Projected<T>, px: T, py: T) -> Option<(T, T, bool)> {
+/// The Gaussian's exponent at pixel centre `(px, py)`: `-0.5 d^T Q d` with `d = mean2d - p`.
+/// Every path (per pixel, per block, backward) computes it with this one expression, so they
+/// agree to the bit.
+#[inline(always)]
+fn power_at<T: Real>(p: &Projected<T>, px: T, py: T) -> T {
     let dx = p.mean2d[0] - px;
     let dy = p.mean2d[1] - py;
-    let power = T::c(-0.5) * (p.conic[0] * dx * dx + p.conic[2] * dy * dy) - p.conic[1] * dx * dy;
+    T::c(-0.5) * (p.conic[0] * dx * dx + p.conic[2] * dy * dy) - p.conic[1] * dx * dy
+}
+
+/// The blend of a Gaussian given its exponent at a pixel, or `None` when it is skipped there.
+/// Returns (alpha, exp(power), whether alpha hit the [`MAX_ALPHA`] clamp).
+#[inline]
+fn alpha_from_power<T: Real>(p: &Projected<T>, power: T) -> Option<(T, T, bool)> {
     if power > T::zero() {
         return None;
     }
@@ -96,18 +103,16 @@ impl<T: Real> TileSplats<T> {
         }
     }
 
-    /// [`pixel_alpha`] of the Gaussian at `pos`, skipping the `exp` where it cannot matter.
+    /// The blend of the Gaussian at `pos` at pixel `(px, py)` (`None` where it is skipped),
+    /// skipping the `exp` where it cannot matter.
     #[inline]
     pub fn alpha_at(&self, pos: u32, px: T, py: T) -> Option<(T, T, bool)> {
         let p = &self.list[pos as usize];
-        let dx = p.mean2d[0] - px;
-        let dy = p.mean2d[1] - py;
-        let power =
-            T::c(-0.5) * (p.conic[0] * dx * dx + p.conic[2] * dy * dy) - p.conic[1] * dx * dy;
+        let power = power_at(p, px, py);
         if power < self.min_power[pos as usize] {
             return None;
         }
-        pixel_alpha(p, px, py)
+        alpha_from_power(p, power)
     }
 
     /// The blocks of tile `t` inside the image, each with the positions (in list order) of
@@ -186,35 +191,76 @@ fn alpha_box<T: Real>(p: &Projected<T>) -> [T; 4] {
     ]
 }
 
-fn composite_pixel<T: Real>(
+/// Composites the pixels of one block, `[x0, x1] x [y0, y1]` (at most [`BLOCK`]^2 of them),
+/// over the block's candidates in list order. Each candidate's exponent is computed for all
+/// pixels at once (straight-line code the compiler vectorizes); only pixels above the
+/// candidate's `min_power` go on to the per-pixel rules, which are exactly those of a pixel
+/// walking the whole list: skip, blend, or stop before transmittance drops under
+/// [`MIN_TRANSMITTANCE`].
+fn composite_block<T: Real>(
     splats: &TileSplats<T>,
     candidates: &[u32],
-    px: T,
-    py: T,
-) -> PixelResult<T> {
-    let mut r = PixelResult {
+    rect: [u32; 4],
+) -> Vec<((u32, u32), PixelResult<T>)> {
+    const N: usize = (BLOCK * BLOCK) as usize;
+    let [x0, x1, y0, y1] = rect;
+    let bw = x1 - x0 + 1;
+    let count = (bw * (y1 - y0 + 1)) as usize;
+    let mut px = [T::zero(); N];
+    let mut py = [T::zero(); N];
+    for j in 0..N {
+        // Lanes past the block's edge repeat its first pixel and are never live.
+        let k = if j < count { j as u32 } else { 0 };
+        px[j] = T::c((x0 + k % bw) as f64);
+        py[j] = T::c((y0 + k / bw) as f64);
+    }
+    let mut res = [PixelResult {
         final_t: T::one(),
         ..Default::default()
+    }; N];
+    let mut live: u32 = if count == N {
+        u32::MAX >> (32 - N)
+    } else {
+        (1 << count) - 1
     };
+    let mut power = [T::zero(); N];
     for &pos in candidates {
-        let Some((alpha, _, _)) = splats.alpha_at(pos, px, py) else {
-            continue;
-        };
-        let p = &splats.list[pos as usize];
-        let next_t = r.final_t * (T::one() - alpha);
-        if next_t < T::c(MIN_TRANSMITTANCE) {
+        if live == 0 {
             break;
         }
-        let w = alpha * r.final_t;
-        for k in 0..3 {
-            r.rgb[k] = r.rgb[k] + w * p.color[k];
+        let p = &splats.list[pos as usize];
+        let floor = splats.min_power[pos as usize];
+        let mut hit = 0u32;
+        for j in 0..N {
+            power[j] = power_at(p, px[j], py[j]);
+            hit |= u32::from(power[j] >= floor) << j;
         }
-        r.depth_raw = r.depth_raw + w * p.depth;
-        r.confidence = r.confidence + w * p.confidence;
-        r.final_t = next_t;
-        r.n_contrib = pos + 1;
+        hit &= live;
+        while hit != 0 {
+            let j = hit.trailing_zeros() as usize;
+            hit &= hit - 1;
+            let Some((alpha, _, _)) = alpha_from_power(p, power[j]) else {
+                continue;
+            };
+            let r = &mut res[j];
+            let next_t = r.final_t * (T::one() - alpha);
+            if next_t < T::c(MIN_TRANSMITTANCE) {
+                live &= !(1 << j);
+                continue;
+            }
+            let w = alpha * r.final_t;
+            for k in 0..3 {
+                r.rgb[k] = r.rgb[k] + w * p.color[k];
+            }
+            r.depth_raw = r.depth_raw + w * p.depth;
+            r.confidence = r.confidence + w * p.confidence;
+            r.final_t = next_t;
+            r.n_contrib = pos + 1;
+        }
     }
-    r
+    (0..count)
+        .map(|j| ((x0 + j as u32 % bw, y0 + j as u32 / bw), res[j]))
+        .collect()
 }
 
 /// Renders `splats` from `cam`, keeping what the backward pass needs.
@@ -234,13 +280,8 @@ pub fn render<T: Real>(
         .map(|t| {
             let splats = TileSplats::new(&bins, &projected, t);
             let mut results = Vec::with_capacity((TILE_SIZE * TILE_SIZE) as usize);
-            for ([x0, x1, y0, y1], cands) in splats.blocks(t, bins.grid[0], w, h) {
-                for y in y0..=y1 {
-                    for x in x0..=x1 {
-                        let r = composite_pixel(&splats, &cands, T::c(x as f64), T::c(y as f64));
-                        results.push(((x, y), r));
-                    }
-                }
+            for (rect, cands) in splats.blocks(t, bins.grid[0], w, h) {
+                results.extend(composite_block(&splats, &cands, rect));
             }
             results
         })

@@ -167,13 +167,8 @@ pub fn backward<T: Real>(
         confidences: vec![T::zero(); n],
         ..Default::default()
     };
-    // Entries of culled Gaussians were dropped from the tile lists, so zip with the visible ones.
     for (t, acc) in per_tile.iter().enumerate() {
-        let visible = bins
-            .tile(t)
-            .iter()
-            .filter(|&&i| fwd.projected[i as usize].is_some());
-        for (&id, e) in visible.zip(acc) {
+        for (&id, e) in bins.tile(t).iter().zip(acc) {
             let id = id as usize;
             let s = &mut screen[id];
             for k in 0..2 {

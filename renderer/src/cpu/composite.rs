@@ -84,7 +84,7 @@ pub(crate) struct TileSplats<T> {
 }
 
 impl<T: Real> TileSplats<T> {
-    /// Gathers tile `t`'s Gaussians.
+    /// Gathers tile `t`'s Gaussians (tile lists hold only Gaussians that were not culled).
     pub fn new(bins: &TileBins, projected: &[Option<Projected<T>>], t: usize) -> Self {
         let list: Vec<Projected<T>> = bins
             .tile(t)
@@ -201,7 +201,7 @@ fn composite_block<T: Real>(
     splats: &TileSplats<T>,
     candidates: &[u32],
     rect: [u32; 4],
-) -> Vec<((u32, u32), PixelResult<T>)> {
+) -> TileResults<T> {
     const N: usize = (BLOCK * BLOCK) as usize;
     let [x0, x1, y0, y1] = rect;
     let bw = x1 - x0 + 1;

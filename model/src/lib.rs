@@ -1,6 +1,10 @@
-//! The StereoSplat model: candle networks that turn stereo frames into Gaussian sets, their
-//! training, and the data they learn from (KITTI-360 layout readers, the synthetic street
-//! generator, binning, metrics).
+//! The StereoSplat model side: the data it learns from and is judged on (KITTI-360 layout
+//! reader, the synthetic street generator, bins, metrics), the reconstructors that turn
+//! stereo frames into Gaussian sets (the classical baseline now, the candle network later),
+//! and the evaluation protocol of the paper's section 4.
 //!
-//! Nothing is here yet: the data issue and the model issue fill it. It depends on `renderer`
-//! for the Gaussian and camera types and must not know about transport (`node`).
+//! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
+//! about transport (`node`).
+
+pub mod frame;
+pub mod reconstruct;

@@ -7,5 +7,8 @@
 //! about transport (`node`).
 
 pub mod bins;
+pub mod eval;
 pub mod frame;
+pub mod generate;
+pub mod methods;
 pub mod reconstruct;

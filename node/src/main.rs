@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use node::cli::{bench, render};
+use node::cli::{bench, eval, render, synth};
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
 #[derive(Parser)]
@@ -17,6 +17,12 @@ struct Cli {
 enum Command {
     /// Render a PLY map, or a generated scene, to PNG pictures (RGB, depth, alpha).
     Render(render::RenderArgs),
+    /// Write a synthetic drive in the KITTI-360 layout (training seeds).
+    Synth(synth::SynthArgs),
+    /// Write held-out synthetic drives (seeds training never uses) for evaluation.
+    SynthHeldout(synth::HeldoutArgs),
+    /// The paper's evaluation protocol on a data root: table, JSON, pictures.
+    Eval(eval::EvalArgs),
     /// Benchmarks that print JSON on stdout.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -31,6 +37,9 @@ enum BenchCommand {
 fn main() -> Result<()> {
     match Cli::parse().command {
         Command::Render(args) => render::run(&args),
+        Command::Synth(args) => synth::run(&args),
+        Command::SynthHeldout(args) => synth::run_heldout(&args),
+        Command::Eval(args) => eval::run(&args),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
     }
 }

@@ -1,5 +1,8 @@
 //! Subcommands of the `stereosplat` binary, one module each, plus what they share.
 
 pub mod bench;
+pub mod eval;
+pub mod progress;
 pub mod render;
 pub mod scene_source;
+pub mod synth;

@@ -1,0 +1,230 @@
+//! Runs the protocol over the bins of a sequence.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use renderer::{RenderOutput, RenderSettings};
+
+use super::pictures;
+use super::raster::Raster;
+use super::report::{BinReport, FrameScore, SkippedBin};
+use crate::bins::{make_bins, Bin, BinConfig};
+use crate::frame::{DepthMap, RgbImage, Side, StereoFrame};
+use crate::kitti360::{Kitti360Error, Sequence};
+use crate::metrics::{self, DepthFilter, MetricError};
+use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
+
+/// Settings of an evaluation run.
+#[derive(Clone, Debug)]
+pub struct EvalConfig {
+    /// How bins are cut (8 m, one per start frame, as the paper).
+    pub bins: BinConfig,
+    /// Which LiDAR pixels count for the depth scores.
+    pub depth: DepthFilter,
+    /// Evaluate at most this many bins per sequence, spread evenly over it (`None`: all).
+    pub max_bins: Option<usize>,
+    /// How many bins (spread evenly over the evaluated ones) get pictures.
+    pub picture_bins: usize,
+    /// Where pictures go (`None`: no pictures).
+    pub picture_dir: Option<PathBuf>,
+    /// Background and clipping of the renders.
+    pub render: RenderSettings,
+}
+
+impl Default for EvalConfig {
+    fn default() -> Self {
+        Self {
+            bins: BinConfig::default(),
+            depth: DepthFilter::default(),
+            max_bins: None,
+            picture_bins: 3,
+            picture_dir: None,
+            render: RenderSettings::default(),
+        }
+    }
+}
+
+/// Why an evaluation stopped (per-bin failures are skipped and counted instead).
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// A frame or its LiDAR could not be read.
+    #[error(transparent)]
+    Data(#[from] Kitti360Error),
+    /// The reconstructor failed.
+    #[error(transparent)]
+    Reconstruct(#[from] ReconstructError),
+    /// A render failed (GPU lost, sizes).
+    #[error("rendering failed: {0}")]
+    Render(#[from] renderer::gpu::GpuError),
+    /// A metric refused its inputs (sizes, non-finite values).
+    #[error(transparent)]
+    Metric(#[from] MetricError),
+    /// Writing a picture failed.
+    #[error("writing a picture failed: {0}")]
+    Picture(String),
+}
+
+/// The bins `config` evaluates on `sequence`: all of them, or `max_bins` spread evenly.
+pub fn select_bins(sequence: &Sequence, config: &EvalConfig) -> Vec<Bin> {
+    let poses: Vec<_> = sequence.frames().iter().map(|f| f.left_to_world).collect();
+    spread(make_bins(&poses, &config.bins), config.max_bins)
+}
+
+/// At most `n` of `items`, evenly spaced, first included.
+fn spread<T: Copy>(items: Vec<T>, n: Option<usize>) -> Vec<T> {
+    match n {
+        Some(n) if n < items.len() => (0..n).map(|k| items[k * items.len() / n]).collect(),
+        _ => items,
+    }
+}
+
+/// Evaluates `reconstructor` on every selected bin of `sequence`. `progress` is called after
+/// each bin with (bins done, bins in all). A bin whose frames fail to load or whose
+/// reconstruction fails is skipped with its reason; a failing render or metric stops the
+/// run (those are bugs, not bad data).
+pub fn evaluate(
+    sequence: &Sequence,
+    reconstructor: &mut dyn Reconstructor,
+    raster: &mut Raster,
+    config: &EvalConfig,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(Vec<BinReport>, Vec<SkippedBin>), EvalError> {
+    let bins = select_bins(sequence, config);
+    let with_pictures: Vec<Bin> = spread(bins.clone(), Some(config.picture_bins));
+    let mut reports = Vec::new();
+    let mut skipped = Vec::new();
+    for (k, bin) in bins.iter().enumerate() {
+        let first = sequence.frames()[bin.first].index;
+        match evaluate_bin(sequence, reconstructor, raster, config, bin) {
+            Ok((report, renders)) => {
+                if let (Some(dir), true) = (&config.picture_dir, with_pictures.contains(bin)) {
+                    pictures::write_bin(dir, sequence.name(), &report, &renders)
+                        .map_err(|e| EvalError::Picture(e.to_string()))?;
+                }
+                reports.push(report);
+            }
+            Err(e @ (EvalError::Data(_) | EvalError::Reconstruct(_))) => {
+                skipped.push(SkippedBin {
+                    sequence: sequence.name().to_string(),
+                    first,
+                    reason: e.to_string(),
+                })
+            }
+            Err(e) => return Err(e),
+        }
+        progress(k + 1, bins.len());
+    }
+    Ok((reports, skipped))
+}
+
+/// A rendered frame of a bin beside what it is scored against, kept for pictures.
+pub struct ScoredRender {
+    /// The score.
+    pub score: FrameScore,
+    /// The recorded image.
+    pub truth: RgbImage,
+    /// The render.
+    pub render: RenderOutput,
+}
+
+fn evaluate_bin(
+    sequence: &Sequence,
+    reconstructor: &mut dyn Reconstructor,
+    raster: &mut Raster,
+    config: &EvalConfig,
+    bin: &Bin,
+) -> Result<(BinReport, Vec<ScoredRender>), EvalError> {
+    let rig = sequence.rig();
+    let poses = sequence.frames();
+    let frames: Vec<StereoFrame> = bin
+        .frames()
+        .map(|i| sequence.load_frame(poses[i].index))
+        .collect::<Result<_, _>>()?;
+    let origin = frames[0].left_to_world;
+    let camera = |f: &StereoFrame, side| rig.local_camera(origin, f.left_to_world, side);
+    let input = StereoView {
+        left: &frames[0].left,
+        right: &frames[0].right,
+        left_camera: camera(&frames[0], Side::Left),
+        right_camera: camera(&frames[0], Side::Right),
+    };
+    let start = Instant::now();
+    let set = reconstructor.reconstruct(&[input])?;
+    let reconstruct_ms = start.elapsed().as_secs_f64() * 1e3;
+
+    let mut renders = Vec::new();
+    for (i, frame) in bin.frames().zip(&frames) {
+        for side in [Side::Left, Side::Right] {
+            let render = raster.render(&set, &camera(frame, side), &config.render)?;
+            let truth = match side {
+                Side::Left => &frame.left,
+                Side::Right => &frame.right,
+            };
+            let lidar = sequence.lidar_depth(frame.index, side);
+            let score = score_frame(frame.index, side, bin.role(i), truth, &render, lidar, config)?;
+            renders.push(ScoredRender {
+                score,
+                truth: truth.clone(),
+                render,
+            });
+        }
+    }
+    let report = BinReport {
+        sequence: sequence.name().to_string(),
+        first: poses[bin.first].index,
+        centre: poses[bin.centre].index,
+        last: poses[bin.last].index,
+        gaussians: set.len(),
+        reconstruct_ms,
+        frames: renders.iter().map(|r| r.score.clone()).collect(),
+    };
+    Ok((report, renders))
+}
+
+/// Scores one render. Missing LiDAR (no file, an empty scan, no point inside the depth
+/// range) leaves the depth scores empty rather than failing the bin.
+fn score_frame(
+    frame: u32,
+    side: Side,
+    role: Option<crate::bins::Role>,
+    truth: &RgbImage,
+    render: &RenderOutput,
+    lidar: Result<DepthMap, Kitti360Error>,
+    config: &EvalConfig,
+) -> Result<FrameScore, EvalError> {
+    let image = RgbImage {
+        width: render.width,
+        height: render.height,
+        data: render.rgb.clone(),
+    };
+    let psnr = metrics::psnr(&image, truth)?;
+    let ssim = metrics::ssim(&image, truth)?;
+    let depth = rendered_depth(render);
+    let errors = match lidar {
+        Ok(gt) => match metrics::depth_errors(&depth, &gt, &config.depth) {
+            Ok(e) => Some(e),
+            Err(MetricError::NoValidPixels) => None,
+            Err(e) => return Err(e.into()),
+        },
+        Err(_) => None,
+    };
+    Ok(FrameScore {
+        frame,
+        side,
+        role,
+        psnr,
+        ssim,
+        abs_rel: errors.as_ref().map(|e| e.abs_rel),
+        sq_rel: errors.as_ref().map(|e| e.sq_rel),
+        lidar_pixels: errors.as_ref().map_or(0, |e| e.valid),
+    })
+}
+
+/// The render's alpha-normalised depth as a depth map (0 where nothing was drawn).
+pub fn rendered_depth(render: &RenderOutput) -> DepthMap {
+    DepthMap {
+        width: render.width,
+        height: render.height,
+        data: render.depth.clone(),
+    }
+}

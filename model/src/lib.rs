@@ -6,5 +6,6 @@
 //! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
 //! about transport (`node`).
 
+pub mod baseline;
 pub mod frame;
 pub mod reconstruct;

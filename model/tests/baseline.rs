@@ -238,6 +238,23 @@ fn uniform_images_give_few_gaussians_and_nothing_non_finite() {
 }
 
 #[test]
+fn non_finite_pixels_give_finite_gaussians() {
+    let mut set = GaussianSet::default();
+    wall(&mut set, 8.0, 6);
+    let (mut left, _) = render(&set, &left_camera());
+    let (right, _) = render(&set, &right_camera());
+    for (i, v) in left.data.iter_mut().enumerate().step_by(97) {
+        *v = if i % 2 == 0 { f32::NAN } else { f32::INFINITY };
+    }
+    let out = SgmReconstructor::default()
+        .reconstruct(&[view(&left, &right)])
+        .unwrap();
+    println!("non-finite pixels: {} Gaussians", out.len());
+    assert!(out.len() > 30_000);
+    assert!(all_finite(&out));
+}
+
+#[test]
 fn identical_images_mean_zero_disparity_and_everything_is_pruned() {
     let mut set = GaussianSet::default();
     wall(&mut set, 8.0, 4);
@@ -281,6 +298,11 @@ fn the_gaussian_count_follows_stride_and_cap_and_views_concatenate() {
         quarter.len()
     );
     assert!(full.len() > 40_000);
+    let z = median(full.means.iter().map(|m| m.z).collect());
+    assert!(
+        (z - 8.0).abs() < 0.05,
+        "median Gaussian depth {z} for a plane at 8 m"
+    );
     assert!((0.22..0.28).contains(&ratio), "ratio {ratio}");
     let capped = SgmReconstructor::new(SgmConfig {
         max_gaussians: 1000,

@@ -15,7 +15,7 @@ pub mod census;
 pub mod disparity;
 pub mod unproject;
 
-use renderer::{Camera, GaussianSet};
+use renderer::GaussianSet;
 
 use crate::frame::RgbImage;
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
@@ -265,28 +265,17 @@ impl SgmReconstructor {
 
     /// The disparity map of one view with the disparity range derived from its rig.
     pub fn view_disparity(&self, view: &StereoView<'_>) -> Result<DisparityMap, ReconstructError> {
+        Ok(self.match_view(view)?.0)
+    }
+
+    /// The view's disparity map and baseline (metres), after checking it is rectified.
+    fn match_view(&self, view: &StereoView<'_>) -> Result<(DisparityMap, f32), ReconstructError> {
         let b = rectified_baseline(view)?;
         let levels = self
             .config
             .levels_for_rig(view.left_camera.intrinsics.fx, b);
-        disparity_with_levels(view.left, view.right, &self.config, levels)
-    }
-
-    /// The Gaussians of one view in the views' frame.
-    fn view_gaussians(
-        &self,
-        view: &StereoView<'_>,
-    ) -> Result<Vec<renderer::Gaussian>, ReconstructError> {
-        let map = self.view_disparity(view)?;
-        let b = rectified_baseline(view)?;
-        let camera: &Camera = &view.left_camera;
-        Ok(unproject::unproject(
-            &map,
-            view.left,
-            camera,
-            b,
-            &self.config,
-        ))
+        let map = disparity_with_levels(view.left, view.right, &self.config, levels)?;
+        Ok((map, b))
     }
 }
 
@@ -301,7 +290,14 @@ impl Reconstructor for SgmReconstructor {
         }
         let mut all = Vec::new();
         for view in views {
-            all.extend(self.view_gaussians(view)?);
+            let (map, b) = self.match_view(view)?;
+            all.extend(unproject::unproject(
+                &map,
+                view.left,
+                &view.left_camera,
+                b,
+                &self.config,
+            ));
         }
         if all.len() > self.config.max_gaussians {
             all.sort_by(|a, b| b.confidence.total_cmp(&a.confidence));

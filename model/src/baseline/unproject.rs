@@ -27,7 +27,9 @@ pub fn unproject(
         for x in (0..map.width as usize).step_by(stride) {
             let i = y * map.width as usize + x;
             let (d, conf) = (map.disparity[i], map.confidence[i]);
-            if !(d > 0.0) || !(conf >= config.min_confidence) {
+            // NaN disparity or confidence fails both comparisons and is skipped.
+            let usable = d > 0.0 && conf >= config.min_confidence;
+            if !usable {
                 continue;
             }
             let z = k.fx * baseline / d;
@@ -37,7 +39,14 @@ pub fn unproject(
             let ray = Vec3::new((x as f32 - k.cx) / k.fx, (y as f32 - k.cy) / k.fy, 1.0);
             let footprint = z / k.fx * stride as f32 * config.footprint_scale;
             let scale = Vec3::new(footprint, footprint, footprint * config.thickness);
-            let c = image.pixel(x as u32, y as u32).map(|v| v.clamp(0.0, 1.0));
+            // Non-finite input colours become black rather than poisoning the map.
+            let c = image.pixel(x as u32, y as u32).map(|v| {
+                if v.is_finite() {
+                    v.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            });
             out.push(Gaussian {
                 mean: to_world * (ray * z) + camera.position,
                 log_scale: scale.ln(),

@@ -117,7 +117,18 @@ fn a_textured_plane_gives_its_disparity_within_a_quarter_pixel() {
     wall(&mut set, z, 1);
     let (left, _) = render(&set, &left_camera());
     let (right, _) = render(&set, &right_camera());
-    let map = disparity(&left, &right, &SgmConfig::default()).unwrap();
+    for diagonals in [true, false] {
+        let config = SgmConfig {
+            diagonals,
+            ..SgmConfig::default()
+        };
+        let map = disparity(&left, &right, &config).unwrap();
+        check_plane(&map, z);
+    }
+}
+
+/// The disparity of the plane at depth `z` is valid and exact on the matchable columns.
+fn check_plane(map: &model::baseline::DisparityMap, z: f32) {
     let truth = intrinsics().fx * BASELINE / z;
     let w = map.width as usize;
     // Columns left of the largest disparity cannot be matched at all; judge the rest.
@@ -400,6 +411,37 @@ fn unrectified_or_mismatched_input_is_invalid() {
         disparity(&image, &small, &SgmConfig::default()),
         Err(ReconstructError::InvalidInput(_))
     ));
+    for config in [
+        SgmConfig {
+            p1: 100,
+            p2: 50,
+            ..SgmConfig::default()
+        },
+        SgmConfig {
+            p2: 9000,
+            ..SgmConfig::default()
+        },
+        SgmConfig {
+            stride: 0,
+            ..SgmConfig::default()
+        },
+        SgmConfig {
+            footprint_scale: -1.0,
+            ..SgmConfig::default()
+        },
+        SgmConfig {
+            max_depth: 1.0,
+            ..SgmConfig::default()
+        },
+    ] {
+        assert!(
+            matches!(
+                SgmReconstructor::new(config.clone()).reconstruct(&[pair]),
+                Err(ReconstructError::InvalidInput(_))
+            ),
+            "{config:?} accepted"
+        );
+    }
     assert!(matches!(
         SgmReconstructor::default().reconstruct(&[]),
         Err(ReconstructError::NoViews)

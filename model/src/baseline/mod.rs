@@ -102,6 +102,12 @@ impl SgmConfig {
         if !(self.min_depth > 0.0 && self.max_depth > self.min_depth) {
             return bad("need 0 < min_depth < max_depth");
         }
+        if !(self.footprint_scale > 0.0 && self.thickness > 0.0) {
+            return bad("footprint_scale and thickness must be positive");
+        }
+        if !(0.0..=1.0).contains(&self.opacity_floor) {
+            return bad("opacity_floor must lie in [0, 1]");
+        }
         Ok(())
     }
 

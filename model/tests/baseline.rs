@@ -112,12 +112,13 @@ fn all_finite(set: &GaussianSet) -> bool {
 
 #[test]
 fn a_textured_plane_gives_its_disparity_within_a_quarter_pixel() {
-    let z = 8.0;
-    let mut set = GaussianSet::default();
-    wall(&mut set, z, 1);
-    let (left, _) = render(&set, &left_camera());
-    let (right, _) = render(&set, &right_camera());
-    for diagonals in [true, false] {
+    // Disparities 15.98 px (near an integer) and 17.5 px (half way, where sub-pixel matters).
+    let fxb = intrinsics().fx * BASELINE;
+    for (z, diagonals) in [(8.0, true), (8.0, false), (fxb / 17.5, true)] {
+        let mut set = GaussianSet::default();
+        wall(&mut set, z, 1);
+        let (left, _) = render(&set, &left_camera());
+        let (right, _) = render(&set, &right_camera());
         let config = SgmConfig {
             diagonals,
             ..SgmConfig::default()

@@ -6,6 +6,7 @@
 //! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
 //! about transport (`node`).
 
+pub mod baseline;
 pub mod bins;
 pub mod eval;
 pub mod frame;

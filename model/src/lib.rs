@@ -7,4 +7,5 @@
 //! about transport (`node`).
 
 pub mod frame;
+pub mod metrics;
 pub mod reconstruct;

@@ -131,7 +131,22 @@ fn ssim_map_matches_scikit_image_full_map_with_reflect_border() {
         .iter()
         .fold((f64::MAX, f64::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
     assert!(hi - lo > 0.03, "map spans {lo}..{hi}");
-    assert_eq!(map.interior_mean(), ssim(&a, &b).expect("ssim"));
+    assert_eq!(map.interior_mean(), ssim(&a, &b));
+    let mut broken = map.clone();
+    broken.data.pop();
+    assert!(matches!(
+        broken.interior_mean(),
+        Err(MetricError::BadLength { input: "map", .. })
+    ));
+    let small = model::metrics::SsimMap {
+        width: 3,
+        height: 20,
+        data: vec![1.0; 60],
+    };
+    assert!(matches!(
+        small.interior_mean(),
+        Err(MetricError::TooSmall { .. })
+    ));
 }
 
 fn depth_from_json(v: &Value) -> DepthMap {

@@ -64,8 +64,8 @@ pub fn depth_errors(
     filter: &DepthFilter,
 ) -> Result<DepthErrors, MetricError> {
     check_same_size((pred.width, pred.height), (gt.width, gt.height))?;
-    check_length("pred", pred.width, pred.height, 1, &pred.data)?;
-    check_length("gt", gt.width, gt.height, 1, &gt.data)?;
+    check_length("pred", pred.width, pred.height, 1, pred.data.len())?;
+    check_length("gt", gt.width, gt.height, 1, gt.data.len())?;
     let (min_depth, max_depth) = (filter.min_depth, filter.max_depth);
     let range_ok = min_depth.is_finite() && max_depth.is_finite() && min_depth > 0.0;
     if !range_ok || min_depth >= max_depth {

@@ -12,4 +12,5 @@ pub mod eval;
 pub mod frame;
 pub mod generate;
 pub mod methods;
+pub mod metrics;
 pub mod reconstruct;

@@ -7,4 +7,5 @@
 //! about transport (`node`).
 
 pub mod frame;
+pub mod kitti360;
 pub mod reconstruct;

@@ -481,8 +481,17 @@ fn malformed_line_names_file_and_line() {
         "{err}"
     );
     assert!(err.to_string().contains("cam0_to_world.txt:2:"), "{err}");
+    // So does a bad timestamp line.
+    std::fs::write(&path, &good).unwrap();
+    let stamps = layout::image_timestamps(&root, SEQ, Side::Left);
+    std::fs::write(&stamps, "2013-05-28 08:46:02.482785814\n2013-05-28 8:46\n").unwrap();
+    let err = Sequence::open(&root, SEQ).unwrap_err();
+    assert!(
+        matches!(&err, Kitti360Error::Parse { path: p, line: 2, .. } if *p == stamps),
+        "{err}"
+    );
+    std::fs::remove_file(&stamps).unwrap();
     // A bad number in the calibration names its line too.
-    std::fs::write(&path, good).unwrap();
     let persp = layout::perspective(&root);
     let text = std::fs::read_to_string(&persp)
         .unwrap()

@@ -291,6 +291,18 @@ impl Calibration {
         })
     }
 
+    /// [`Calibration::rig`] for the calibration stored under `root`: a
+    /// [`Kitti360Error::NonRectified`] then names that root's `perspective.txt`.
+    pub(super) fn rig_under(&self, root: &Path) -> Result<StereoRig, Kitti360Error> {
+        self.rig().map_err(|e| match e {
+            Kitti360Error::NonRectified { reason, .. } => Kitti360Error::NonRectified {
+                path: layout::perspective(root),
+                reason,
+            },
+            other => other,
+        })
+    }
+
     /// KITTI-360's published calibration (sequence-independent) with the intrinsics scaled
     /// to `width` x `height` as [`Intrinsics::scaled`] does (pixel centres at integers) and
     /// `R_rect` = identity, so data made with it are exactly rectified. The baseline stays

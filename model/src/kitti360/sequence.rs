@@ -44,13 +44,7 @@ impl Sequence {
             });
         }
         let calibration = Calibration::read(root)?;
-        let rig = calibration.rig().map_err(|e| match e {
-            Kitti360Error::NonRectified { reason, .. } => Kitti360Error::NonRectified {
-                path: layout::perspective(root),
-                reason,
-            },
-            other => other,
-        })?;
+        let rig = calibration.rig_under(root)?;
         let cam0 = layout::cam0_to_world(root, seq);
         let (pose_file, poses, skipped) = if cam0.is_file() {
             let (poses, skipped) = read_pose_file(&cam0, PoseFormat::FourByFour)?;

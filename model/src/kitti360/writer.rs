@@ -44,13 +44,7 @@ impl SequenceWriter {
                 name: seq.into(),
             });
         }
-        calibration.rig().map_err(|e| match e {
-            Kitti360Error::NonRectified { reason, .. } => Kitti360Error::NonRectified {
-                path: layout::perspective(root),
-                reason,
-            },
-            other => other,
-        })?;
+        calibration.rig_under(root)?;
         for (path, text) in calibration.files(root) {
             match std::fs::read(&path) {
                 Ok(existing) if existing == text.as_bytes() => {}

@@ -11,6 +11,7 @@ pub mod bins;
 pub mod eval;
 pub mod frame;
 pub mod generate;
+pub mod kitti360;
 pub mod methods;
 pub mod metrics;
 pub mod reconstruct;

@@ -8,3 +8,4 @@
 
 pub mod frame;
 pub mod reconstruct;
+pub mod synth;

@@ -15,3 +15,4 @@ pub mod kitti360;
 pub mod methods;
 pub mod metrics;
 pub mod reconstruct;
+pub mod synth;

@@ -1,0 +1,183 @@
+//! Ray casting through one frame's world: nearest hit among the ground and the nearby
+//! objects (objects pre-sorted by distance from the shared ray origin so a ray stops testing
+//! once no remaining object can be nearer than its current hit), sun shadows and shading.
+
+use glam::{DVec2, DVec3};
+
+use super::primitives::{ground_hit, may_hit_sphere, Ray, Shape};
+use super::scene::Object;
+use super::shading::{material_albedo, Palette, SurfaceClass};
+use super::trajectory::Road;
+
+/// How far a shadow ray looks for an occluder, metres (taller than any building's shadow
+/// at the lowest sun is long).
+const SHADOW_REACH: f64 = 80.0;
+
+/// A surface point a ray found.
+#[derive(Clone, Copy, Debug)]
+pub struct Surface {
+    /// Ray parameter (z-depth for camera rays built with unit camera z).
+    pub t: f64,
+    /// World position.
+    pub point: DVec3,
+    /// Outward unit normal.
+    pub normal: DVec3,
+    /// Albedo (filtered for the ray's footprint).
+    pub albedo: DVec3,
+    /// Semantic class.
+    pub class: SurfaceClass,
+}
+
+/// One frame's world: road, palette and the objects near the vehicle.
+pub struct World<'a> {
+    road: &'a Road,
+    palette: &'a Palette,
+    objects: Vec<Object>,
+    arc: f64,
+    anchor: DVec3,
+    tangent: DVec2,
+}
+
+/// Objects ordered by the distance from one ray origin to their bounding spheres.
+pub struct Ordering {
+    origin: DVec3,
+    near: Vec<(f64, u32)>,
+}
+
+impl<'a> World<'a> {
+    /// The world around arc length `arc` (vehicle at `anchor`) with the given objects.
+    pub fn new(
+        road: &'a Road,
+        palette: &'a Palette,
+        objects: Vec<Object>,
+        arc: f64,
+        anchor: DVec3,
+    ) -> Self {
+        Self {
+            road,
+            palette,
+            objects,
+            arc,
+            anchor,
+            tangent: road.tangent(arc),
+        }
+    }
+
+    /// Objects sorted for rays leaving `origin` (ties broken by index: deterministic).
+    pub fn ordering(&self, origin: DVec3) -> Ordering {
+        let mut near: Vec<(f64, u32)> = self
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| ((o.centre - origin).length() - o.radius, i as u32))
+            .collect();
+        near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        Ordering { origin, near }
+    }
+
+    /// The nearest surface along `ray` (which must start at `order`'s origin) before
+    /// `t_max`; `pixel_angle` is the angular size of the ray's footprint (radians) for
+    /// texture filtering.
+    pub fn cast(
+        &self,
+        order: &Ordering,
+        ray: &Ray,
+        t_max: f64,
+        pixel_angle: f64,
+    ) -> Option<Surface> {
+        debug_assert!(order.origin == ray.origin);
+        let dir_len = ray.dir.length();
+        let mut best_t = ground_hit(ray).map_or(t_max, |t| t.min(t_max));
+        let mut best = None;
+        for &(near, i) in &order.near {
+            if near > best_t * dir_len {
+                break;
+            }
+            let object = &self.objects[i as usize];
+            if !may_hit_sphere(ray, object.centre, object.radius, best_t) {
+                continue;
+            }
+            if let Some(hit) = object.shape.intersect(ray, best_t) {
+                best_t = hit.t;
+                best = Some((i, hit));
+            }
+        }
+        let dist = best_t * dir_len;
+        let unit = ray.dir / dir_len;
+        if let Some((i, hit)) = best {
+            let object = &self.objects[i as usize];
+            let cosine = hit.normal.dot(unit).abs().max(0.15);
+            let w = dist * pixel_angle / cosine;
+            let u = match object.shape {
+                Shape::Cylinder { radius, .. } => hit.local.y.atan2(hit.local.x) * radius,
+                _ => hit.local.x + hit.local.y,
+            };
+            let (albedo, class) =
+                material_albedo(&object.material, hit.local, u, hit.normal.z > 0.5, w);
+            return Some(Surface {
+                t: hit.t,
+                point: ray.at(hit.t),
+                normal: hit.normal,
+                albedo,
+                class,
+            });
+        }
+        if best_t >= t_max {
+            return None;
+        }
+        let point = ray.at(best_t);
+        let cosine = (-unit.z).max(0.15);
+        let w = dist * pixel_angle / cosine;
+        let guess = self.arc + (point - self.anchor).truncate().dot(self.tangent);
+        let (s, lateral) = self.road.project(point.truncate(), guess);
+        let (albedo, class) = self.palette.ground(s, lateral, w, point.truncate());
+        Some(Surface {
+            t: best_t,
+            point,
+            normal: DVec3::Z,
+            albedo,
+            class,
+        })
+    }
+
+    /// Whether the sun is hidden from `point` (with outward `normal`) by an object.
+    fn shadowed(&self, point: DVec3, normal: DVec3) -> bool {
+        let sun = self.palette.sun_dir;
+        if normal.dot(sun) <= 0.0 {
+            return false;
+        }
+        let ray = Ray {
+            origin: point + normal * 1e-4,
+            dir: sun,
+        };
+        self.objects.iter().any(|o| {
+            may_hit_sphere(&ray, o.centre, o.radius, SHADOW_REACH)
+                && o.shape.intersect(&ray, SHADOW_REACH).is_some()
+        })
+    }
+
+    /// Colour seen along a ray: the shaded surface (with sun shadows and haze) or the sky.
+    /// Also returns the surface found, if any.
+    pub fn radiance(
+        &self,
+        order: &Ordering,
+        ray: &Ray,
+        pixel_angle: f64,
+    ) -> (DVec3, Option<Surface>) {
+        match self.cast(order, ray, f64::INFINITY, pixel_angle) {
+            Some(surface) => {
+                let lit = if self.shadowed(surface.point, surface.normal) {
+                    0.0
+                } else {
+                    1.0
+                };
+                let dist = surface.t * ray.dir.length();
+                let colour = self
+                    .palette
+                    .shade(surface.albedo, surface.normal, lit, dist);
+                (colour, Some(surface))
+            }
+            None => (self.palette.sky(ray.dir), None),
+        }
+    }
+}

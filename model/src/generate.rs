@@ -25,7 +25,7 @@ pub fn write_synthetic(
 ) -> Result<String, Kitti360Error> {
     let calibration = Calibration::synthetic(config.width, config.height);
     let rig = calibration.rig()?;
-    let sequence = SynthSequence::new(config.clone(), rig, calibration.cam_to_velo);
+    let sequence = SynthSequence::new(*config, rig, calibration.cam_to_velo);
     let name = sequence_name(config.seed);
     let mut writer = SequenceWriter::create(root, &name, &calibration)?;
     for i in 0..sequence.len() {

@@ -30,12 +30,24 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
     let data = temp_dir("eval-data");
     let out = temp_dir("eval-out");
     let size = ["--frames", "40", "--width", "272", "--height", "72"];
-    stereosplat(&[&["synth-heldout"][..], &size, &["--out"]].concat(), &[&data]);
+    stereosplat(
+        &[&["synth-heldout"][..], &size, &["--out"]].concat(),
+        &[&data],
+    );
     let seq = data.join("data_2d_raw/synth_drive_1000000_sync/image_00/data_rect");
     assert_eq!(std::fs::read_dir(&seq).unwrap().count(), 40);
 
     let table = stereosplat(
-        &["eval", "--method", "sgm", "--max-bins", "4", "--pictures", "1", "--data"],
+        &[
+            "eval",
+            "--method",
+            "sgm",
+            "--max-bins",
+            "4",
+            "--pictures",
+            "1",
+            "--data",
+        ],
         &[&data, Path::new("--out"), &out],
     );
     assert!(table.contains("| sgm |"), "{table}");

@@ -214,7 +214,10 @@ impl EvalReport {
         if !self.skipped.is_empty() {
             s.push_str("\nSkipped bins:\n\n");
             for b in &self.skipped {
-                s.push_str(&format!("- {} frame {}: {}\n", b.sequence, b.first, b.reason));
+                s.push_str(&format!(
+                    "- {} frame {}: {}\n",
+                    b.sequence, b.first, b.reason
+                ));
             }
         }
         s

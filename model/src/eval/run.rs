@@ -103,13 +103,11 @@ pub fn evaluate(
                 }
                 reports.push(report);
             }
-            Err(e @ (EvalError::Data(_) | EvalError::Reconstruct(_))) => {
-                skipped.push(SkippedBin {
-                    sequence: sequence.name().to_string(),
-                    first,
-                    reason: e.to_string(),
-                })
-            }
+            Err(e @ (EvalError::Data(_) | EvalError::Reconstruct(_))) => skipped.push(SkippedBin {
+                sequence: sequence.name().to_string(),
+                first,
+                reason: e.to_string(),
+            }),
             Err(e) => return Err(e),
         }
         progress(k + 1, bins.len());
@@ -161,7 +159,15 @@ fn evaluate_bin(
                 Side::Right => &frame.right,
             };
             let lidar = sequence.lidar_depth(frame.index, side);
-            let score = score_frame(frame.index, side, bin.role(i), truth, &render, lidar, config)?;
+            let score = score_frame(
+                frame.index,
+                side,
+                bin.role(i),
+                truth,
+                &render,
+                lidar,
+                config,
+            )?;
             renders.push(ScoredRender {
                 score,
                 truth: truth.clone(),

@@ -64,7 +64,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         true => Raster::Gpu(Box::new(GpuRasterizer::new().context("no wgpu adapter")?)),
         false => Raster::Cpu,
     };
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
     let config = EvalConfig {
         bins: BinConfig {
             length_m: args.bin_length,

@@ -257,5 +257,6 @@ fn images_have_contrast_and_no_clipping() {
             );
         }
         assert!(f.left_depth.valid_count() > f.left_depth.data.len() / 2);
+        assert!(f.left_depth.data.iter().all(|d| (0.0..=1000.0).contains(d)));
     }
 }

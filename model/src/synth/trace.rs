@@ -13,6 +13,10 @@ use super::trajectory::Road;
 /// at the lowest sun is long).
 const SHADOW_REACH: f64 = 80.0;
 
+/// How far the ground reaches, metres: beyond it a ray sees sky, so depth stays bounded
+/// (the band it removes is far thinner than a pixel at the horizon).
+const GROUND_EXTENT: f64 = 1000.0;
+
 /// A surface point a ray found.
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
@@ -87,7 +91,10 @@ impl<'a> World<'a> {
     ) -> Option<Surface> {
         debug_assert!(order.origin == ray.origin);
         let dir_len = ray.dir.length();
-        let mut best_t = ground_hit(ray).map_or(t_max, |t| t.min(t_max));
+        let ground_limit = t_max.min(GROUND_EXTENT / dir_len);
+        let mut best_t = ground_hit(ray)
+            .filter(|&t| t < ground_limit)
+            .map_or(t_max, |t| t);
         let mut best = None;
         for &(near, i) in &order.near {
             if near > best_t * dir_len {

@@ -9,10 +9,6 @@ use super::scene::Object;
 use super::shading::{material_albedo, Palette, SurfaceClass};
 use super::trajectory::Road;
 
-/// How far a shadow ray looks for an occluder, metres (taller than any building's shadow
-/// at the lowest sun is long).
-const SHADOW_REACH: f64 = 80.0;
-
 /// How far the ground reaches, metres: beyond it a ray sees sky, so depth stays bounded
 /// (the band it removes is far thinner than a pixel at the horizon).
 const GROUND_EXTENT: f64 = 1000.0;
@@ -40,6 +36,12 @@ pub struct World<'a> {
     arc: f64,
     anchor: DVec3,
     tangent: DVec2,
+    /// Objects sorted by `along` of their bounding-sphere centre (for shadow-ray culling).
+    by_along: Vec<(f64, u32)>,
+    /// Largest bounding radius.
+    max_radius: f64,
+    /// Highest point of any object.
+    top: f64,
 }
 
 /// Objects ordered by the distance from one ray origin to their bounding spheres.
@@ -57,14 +59,36 @@ impl<'a> World<'a> {
         arc: f64,
         anchor: DVec3,
     ) -> Self {
+        let tangent = road.tangent(arc);
+        let along = |p: DVec3| (p - anchor).truncate().dot(tangent);
+        let mut by_along: Vec<(f64, u32)> = objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (along(o.centre), i as u32))
+            .collect();
+        by_along.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let max_radius = objects.iter().map(|o| o.radius).fold(0.0, f64::max);
+        let top = objects
+            .iter()
+            .map(|o| o.centre.z + o.radius)
+            .fold(0.0, f64::max);
         Self {
             road,
             palette,
             objects,
             arc,
             anchor,
-            tangent: road.tangent(arc),
+            tangent,
+            by_along,
+            max_radius,
+            top,
         }
+    }
+
+    /// Distance of a point's ground projection along the road tangent at the anchor: never
+    /// more than the distance between two points, so intervals of it cull objects exactly.
+    fn along(&self, p: DVec3) -> f64 {
+        (p - self.anchor).truncate().dot(self.tangent)
     }
 
     /// Objects sorted for rays leaving `origin` (ties broken by index: deterministic).
@@ -147,20 +171,32 @@ impl<'a> World<'a> {
         })
     }
 
-    /// Whether the sun is hidden from `point` (with outward `normal`) by an object.
+    /// Whether the sun is hidden from `point` (with outward `normal`) by an object. Only
+    /// objects whose `along` interval meets the shadow ray's (up to where it rises above
+    /// every object) are tested.
     fn shadowed(&self, point: DVec3, normal: DVec3) -> bool {
         let sun = self.palette.sun_dir;
-        if normal.dot(sun) <= 0.0 {
+        if normal.dot(sun) <= 0.0 || point.z >= self.top {
             return false;
         }
         let ray = Ray {
             origin: point + normal * 1e-4,
             dir: sun,
         };
-        self.objects.iter().any(|o| {
-            may_hit_sphere(&ray, o.centre, o.radius, SHADOW_REACH)
-                && o.shape.intersect(&ray, SHADOW_REACH).is_some()
-        })
+        let reach = (self.top - point.z) / sun.z;
+        let start = self.along(ray.origin);
+        let end = start + reach * sun.truncate().dot(self.tangent);
+        let lo = start.min(end) - self.max_radius;
+        let hi = start.max(end) + self.max_radius;
+        let first = self.by_along.partition_point(|&(a, _)| a < lo);
+        self.by_along[first..]
+            .iter()
+            .take_while(|&&(a, _)| a <= hi)
+            .any(|&(_, i)| {
+                let o = &self.objects[i as usize];
+                may_hit_sphere(&ray, o.centre, o.radius, reach)
+                    && o.shape.intersect(&ray, reach).is_some()
+            })
     }
 
     /// Colour seen along a ray: the shaded surface (with sun shadows and haze) or the sky.

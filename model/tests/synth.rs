@@ -5,7 +5,7 @@ use glam::DVec3;
 use model::frame::RgbImage;
 use model::synth::{
     camera_ray, default_cam_to_velo, kitti360_rig, SurfaceClass, SynthConfig, SynthSequence,
-    CAMERA_HEIGHT,
+    CAMERA_HEIGHT, KERB_HEIGHT,
 };
 
 fn sequence(seed: u64, frames: u32, width: u32, height: u32) -> SynthSequence {
@@ -259,4 +259,38 @@ fn images_have_contrast_and_no_clipping() {
         assert!(f.left_depth.valid_count() > f.left_depth.data.len() / 2);
         assert!(f.left_depth.data.iter().all(|d| (0.0..=1000.0).contains(d)));
     }
+}
+
+#[test]
+fn ground_classes_lie_on_their_planes() {
+    let (w, h) = (272, 72);
+    let seq = sequence(6, 20, w, h);
+    let k = seq.rig().intrinsics;
+    let i = 10;
+    let (frame, classes, pose) = (seq.frame(i), seq.left_classes(i), seq.pose(i));
+    let (mut road, mut raised) = (0, 0);
+    for v in 0..h {
+        for u in 0..w {
+            let idx = (v * w + u) as usize;
+            let d = frame.left_depth.data[idx] as f64;
+            let ray = camera_ray(&pose, &k, u as f64, v as f64);
+            let z = ray.origin.z + ray.dir.z * d;
+            match classes[idx] {
+                SurfaceClass::Road | SurfaceClass::Marking => {
+                    assert!(z.abs() < 1e-3, "road at z {z}");
+                    road += 1;
+                }
+                SurfaceClass::Sidewalk | SurfaceClass::Verge => {
+                    assert!((z - KERB_HEIGHT).abs() < 1e-3, "sidewalk at z {z}");
+                    raised += 1;
+                }
+                SurfaceClass::Sky => assert_eq!(d, 0.0),
+                _ => assert!(d > 0.0),
+            }
+        }
+    }
+    assert!(
+        road > 1000 && raised > 100,
+        "{road} road, {raised} sidewalk pixels"
+    );
 }

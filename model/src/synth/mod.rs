@@ -28,6 +28,7 @@ pub use config::{
 };
 pub use lidar::{BOTTOM_ELEVATION, RINGS, TOP_ELEVATION};
 pub use shading::SurfaceClass;
+pub use trace::KERB_HEIGHT;
 pub use trajectory::{CAMERA_HEIGHT, FRAME_DT};
 
 use crate::frame::{DepthMap, Side, StereoFrame, StereoRig};

@@ -4,14 +4,26 @@
 
 use glam::{DVec2, DVec3};
 
-use super::primitives::{ground_hit, may_hit_sphere, Ray, Shape};
+use super::primitives::{may_hit_sphere, plane_hit, Ray, Shape};
 use super::scene::Object;
-use super::shading::{material_albedo, Palette, SurfaceClass};
+use super::shading::{material_albedo, Palette, SurfaceClass, KERB, ROAD_HALF};
 use super::trajectory::Road;
 
 /// How far the ground reaches, metres: beyond it a ray sees sky, so depth stays bounded
 /// (the band it removes is far thinner than a pixel at the horizon).
 const GROUND_EXTENT: f64 = 1000.0;
+
+/// Height of the kerb: sidewalks and verges lie this much above the road, metres.
+pub const KERB_HEIGHT: f64 = 0.12;
+
+/// Where a ray meets the ground (road, kerb face or raised sidewalk level).
+#[derive(Clone, Copy, Debug)]
+struct GroundHit {
+    t: f64,
+    normal: DVec3,
+    /// Road coordinates (arc length, lateral) of the hit.
+    road: (f64, f64),
+}
 
 /// A surface point a ray found.
 #[derive(Clone, Copy, Debug)]
@@ -116,9 +128,8 @@ impl<'a> World<'a> {
         debug_assert!(order.origin == ray.origin);
         let dir_len = ray.dir.length();
         let ground_limit = t_max.min(GROUND_EXTENT / dir_len);
-        let mut best_t = ground_hit(ray)
-            .filter(|&t| t < ground_limit)
-            .map_or(t_max, |t| t);
+        let ground = self.ground(ray).filter(|g| g.t < ground_limit);
+        let mut best_t = ground.map_or(t_max, |g| g.t);
         let mut best = None;
         for &(near, i) in &order.near {
             if near > best_t * dir_len {
@@ -153,21 +164,65 @@ impl<'a> World<'a> {
                 class,
             });
         }
-        if best_t >= t_max {
-            return None;
-        }
-        let point = ray.at(best_t);
-        let cosine = (-unit.z).max(0.15);
+        let ground = ground?;
+        let point = ray.at(ground.t);
+        let cosine = ground.normal.dot(unit).abs().max(0.15);
         let w = dist * pixel_angle / cosine;
-        let guess = self.arc + (point - self.anchor).truncate().dot(self.tangent);
-        let (s, lateral) = self.road.project(point.truncate(), guess);
+        let (s, lateral) = ground.road;
         let (albedo, class) = self.palette.ground(s, lateral, w, point.truncate());
         Some(Surface {
-            t: best_t,
+            t: ground.t,
             point,
-            normal: DVec3::Z,
+            normal: ground.normal,
             albedo,
             class,
+        })
+    }
+
+    /// Road coordinates of a ground point.
+    fn road_coords(&self, p: DVec3) -> (f64, f64) {
+        self.road.project(p.truncate(), self.arc + self.along(p))
+    }
+
+    /// The ground a ray meets first: the raised level (|lateral| >= ROAD_HALF) at kerb
+    /// height, else the road at z = 0, else the kerb's vertical face between them (found by
+    /// bisection on the lateral offset, which the ray crosses once between the two planes).
+    fn ground(&self, ray: &Ray) -> Option<GroundHit> {
+        let upper = plane_hit(ray, KERB_HEIGHT)?;
+        let up = self.road_coords(ray.at(upper));
+        if up.1.abs() >= ROAD_HALF {
+            return Some(GroundHit {
+                t: upper,
+                normal: DVec3::Z,
+                road: up,
+            });
+        }
+        let lower = plane_hit(ray, 0.0)?;
+        let low = self.road_coords(ray.at(lower));
+        if low.1.abs() < ROAD_HALF {
+            return Some(GroundHit {
+                t: lower,
+                normal: DVec3::Z,
+                road: low,
+            });
+        }
+        let side = low.1.signum();
+        let (mut a, mut b) = (upper, lower);
+        for _ in 0..40 {
+            let mid = 0.5 * (a + b);
+            if self.road_coords(ray.at(mid)).1.abs() < ROAD_HALF {
+                a = mid;
+            } else {
+                b = mid;
+            }
+        }
+        let (s, _) = self.road_coords(ray.at(b));
+        let tangent = self.road.tangent(s);
+        let towards_road = DVec2::new(tangent.y, -tangent.x) * side;
+        Some(GroundHit {
+            t: b,
+            normal: towards_road.extend(0.0),
+            road: (s, side * (ROAD_HALF + 0.5 * KERB)),
         })
     }
 

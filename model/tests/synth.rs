@@ -5,7 +5,7 @@ use glam::DVec3;
 use model::frame::RgbImage;
 use model::synth::{
     camera_ray, default_cam_to_velo, kitti360_rig, SurfaceClass, SynthConfig, SynthSequence,
-    CAMERA_HEIGHT,
+    CAMERA_HEIGHT, KERB_HEIGHT,
 };
 
 fn sequence(seed: u64, frames: u32, width: u32, height: u32) -> SynthSequence {
@@ -45,6 +45,15 @@ fn same_seed_same_bits_other_seed_differs() {
     let flat = |p: &[[f32; 4]]| p.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(flat(&a.lidar), flat(&b.lidar));
     assert_eq!(a.frame.left_to_world, b.frame.left_to_world);
+
+    // Independent of how rayon schedules rows: one worker thread gives the same bits.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let single = pool.install(|| sequence(7, 5, 136, 36).frame(4));
+    assert_eq!(bits(&a.frame.left.data), bits(&single.frame.left.data));
+    assert_eq!(flat(&a.lidar), flat(&single.lidar));
 
     let c = sequence(8, 5, 136, 36).frame(4);
     assert_ne!(a.frame.left.data, c.frame.left.data);
@@ -257,5 +266,40 @@ fn images_have_contrast_and_no_clipping() {
             );
         }
         assert!(f.left_depth.valid_count() > f.left_depth.data.len() / 2);
+        assert!(f.left_depth.data.iter().all(|d| (0.0..=1000.0).contains(d)));
     }
+}
+
+#[test]
+fn ground_classes_lie_on_their_planes() {
+    let (w, h) = (272, 72);
+    let seq = sequence(6, 20, w, h);
+    let k = seq.rig().intrinsics;
+    let i = 10;
+    let (frame, classes, pose) = (seq.frame(i), seq.left_classes(i), seq.pose(i));
+    let (mut road, mut raised) = (0, 0);
+    for v in 0..h {
+        for u in 0..w {
+            let idx = (v * w + u) as usize;
+            let d = frame.left_depth.data[idx] as f64;
+            let ray = camera_ray(&pose, &k, u as f64, v as f64);
+            let z = ray.origin.z + ray.dir.z * d;
+            match classes[idx] {
+                SurfaceClass::Road | SurfaceClass::Marking => {
+                    assert!(z.abs() < 1e-3, "road at z {z}");
+                    road += 1;
+                }
+                SurfaceClass::Sidewalk | SurfaceClass::Verge => {
+                    assert!((z - KERB_HEIGHT).abs() < 1e-3, "sidewalk at z {z}");
+                    raised += 1;
+                }
+                SurfaceClass::Sky => assert_eq!(d, 0.0),
+                _ => assert!(d > 0.0),
+            }
+        }
+    }
+    assert!(
+        road > 1000 && raised > 100,
+        "{road} road, {raised} sidewalk pixels"
+    );
 }

@@ -35,7 +35,7 @@ pub fn render_image(
     let weight = 1.0 / (ss * ss) as f64;
     image
         .data
-        .par_chunks_mut(3 * k.width as usize)
+        .par_chunks_mut(3 * k.width.max(1) as usize)
         .enumerate()
         .for_each(|(y, row)| {
             for (x, px) in row.chunks_exact_mut(3).enumerate() {

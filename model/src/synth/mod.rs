@@ -27,7 +27,9 @@ pub use config::{
     default_cam_to_velo, kitti360_rig, SynthConfig, KITTI360_BASELINE, KITTI360_INTRINSICS,
 };
 pub use lidar::{BOTTOM_ELEVATION, RINGS, TOP_ELEVATION};
+pub use primitives::Ray;
 pub use shading::SurfaceClass;
+pub use trace::KERB_HEIGHT;
 pub use trajectory::{CAMERA_HEIGHT, FRAME_DT};
 
 use crate::frame::{DepthMap, Side, StereoFrame, StereoRig};

@@ -210,10 +210,10 @@ fn ellipsoid_hit(ray: &Ray, centre: DVec3, radii: DVec3, t_max: f64) -> Option<S
     })
 }
 
-/// The ground plane z = 0 seen from above: the hit parameter, if the ray goes down.
-pub fn ground_hit(ray: &Ray) -> Option<f64> {
-    if ray.dir.z < 0.0 && ray.origin.z > 0.0 {
-        Some(-ray.origin.z / ray.dir.z)
+/// The horizontal plane at `height` seen from above: the hit parameter, if the ray goes down.
+pub fn plane_hit(ray: &Ray, height: f64) -> Option<f64> {
+    if ray.dir.z < 0.0 && ray.origin.z > height {
+        Some((height - ray.origin.z) / ray.dir.z)
     } else {
         None
     }

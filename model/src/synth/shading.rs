@@ -236,8 +236,9 @@ impl Palette {
     }
 }
 
-/// Albedo and class of a material at shape-local point `local` with local normal direction
-/// `local_normal_z_up` (true on top faces), footprint `w` metres.
+/// Albedo and class of a material at shape-local point `local`, with `horizontal_u` the
+/// texture coordinate running around the shape, `top` set on upward faces, for a filter
+/// footprint `w` metres.
 pub fn material_albedo(
     material: &Material,
     local: DVec3,
@@ -269,7 +270,9 @@ pub fn material_albedo(
             SurfaceClass::Trunk,
         ),
         Material::Canopy(tint) => {
-            let leaves = fbm(11, local.x + local.z, local.y - local.z, 0.8, 4, w);
+            // Two projections of 2D noise, so no direction is left without variation.
+            let leaves = fbm(11, local.x, local.z, 0.7, 4, w)
+                + fbm(12, local.y, local.z + local.x, 0.7, 4, w);
             (tint * (1.0 + 1.2 * leaves), SurfaceClass::Canopy)
         }
     }

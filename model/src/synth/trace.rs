@@ -4,14 +4,26 @@
 
 use glam::{DVec2, DVec3};
 
-use super::primitives::{ground_hit, may_hit_sphere, Ray, Shape};
+use super::primitives::{may_hit_sphere, plane_hit, Ray, Shape};
 use super::scene::Object;
-use super::shading::{material_albedo, Palette, SurfaceClass};
+use super::shading::{material_albedo, Palette, SurfaceClass, KERB, ROAD_HALF};
 use super::trajectory::Road;
 
-/// How far a shadow ray looks for an occluder, metres (taller than any building's shadow
-/// at the lowest sun is long).
-const SHADOW_REACH: f64 = 80.0;
+/// How far the ground reaches, metres: beyond it a ray sees sky, so depth stays bounded
+/// (the band it removes is far thinner than a pixel at the horizon).
+const GROUND_EXTENT: f64 = 1000.0;
+
+/// Height of the kerb: sidewalks and verges lie this much above the road, metres.
+pub const KERB_HEIGHT: f64 = 0.12;
+
+/// Where a ray meets the ground (road, kerb face or raised sidewalk level).
+#[derive(Clone, Copy, Debug)]
+struct GroundHit {
+    t: f64,
+    normal: DVec3,
+    /// Road coordinates (arc length, lateral) of the hit.
+    road: (f64, f64),
+}
 
 /// A surface point a ray found.
 #[derive(Clone, Copy, Debug)]
@@ -36,6 +48,12 @@ pub struct World<'a> {
     arc: f64,
     anchor: DVec3,
     tangent: DVec2,
+    /// Objects sorted by `along` of their bounding-sphere centre (for shadow-ray culling).
+    by_along: Vec<(f64, u32)>,
+    /// Largest bounding radius.
+    max_radius: f64,
+    /// Highest point of any object.
+    top: f64,
 }
 
 /// Objects ordered by the distance from one ray origin to their bounding spheres.
@@ -53,14 +71,36 @@ impl<'a> World<'a> {
         arc: f64,
         anchor: DVec3,
     ) -> Self {
+        let tangent = road.tangent(arc);
+        let along = |p: DVec3| (p - anchor).truncate().dot(tangent);
+        let mut by_along: Vec<(f64, u32)> = objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (along(o.centre), i as u32))
+            .collect();
+        by_along.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let max_radius = objects.iter().map(|o| o.radius).fold(0.0, f64::max);
+        let top = objects
+            .iter()
+            .map(|o| o.centre.z + o.radius)
+            .fold(0.0, f64::max);
         Self {
             road,
             palette,
             objects,
             arc,
             anchor,
-            tangent: road.tangent(arc),
+            tangent,
+            by_along,
+            max_radius,
+            top,
         }
+    }
+
+    /// Distance of a point's ground projection along the road tangent at the anchor: never
+    /// more than the distance between two points, so intervals of it cull objects exactly.
+    fn along(&self, p: DVec3) -> f64 {
+        (p - self.anchor).truncate().dot(self.tangent)
     }
 
     /// Objects sorted for rays leaving `origin` (ties broken by index: deterministic).
@@ -87,7 +127,9 @@ impl<'a> World<'a> {
     ) -> Option<Surface> {
         debug_assert!(order.origin == ray.origin);
         let dir_len = ray.dir.length();
-        let mut best_t = ground_hit(ray).map_or(t_max, |t| t.min(t_max));
+        let ground_limit = t_max.min(GROUND_EXTENT / dir_len);
+        let ground = self.ground(ray).filter(|g| g.t < ground_limit);
+        let mut best_t = ground.map_or(t_max, |g| g.t);
         let mut best = None;
         for &(near, i) in &order.near {
             if near > best_t * dir_len {
@@ -122,38 +164,94 @@ impl<'a> World<'a> {
                 class,
             });
         }
-        if best_t >= t_max {
-            return None;
-        }
-        let point = ray.at(best_t);
-        let cosine = (-unit.z).max(0.15);
+        let ground = ground?;
+        let point = ray.at(ground.t);
+        let cosine = ground.normal.dot(unit).abs().max(0.15);
         let w = dist * pixel_angle / cosine;
-        let guess = self.arc + (point - self.anchor).truncate().dot(self.tangent);
-        let (s, lateral) = self.road.project(point.truncate(), guess);
+        let (s, lateral) = ground.road;
         let (albedo, class) = self.palette.ground(s, lateral, w, point.truncate());
         Some(Surface {
-            t: best_t,
+            t: ground.t,
             point,
-            normal: DVec3::Z,
+            normal: ground.normal,
             albedo,
             class,
         })
     }
 
-    /// Whether the sun is hidden from `point` (with outward `normal`) by an object.
+    /// Road coordinates of a ground point.
+    fn road_coords(&self, p: DVec3) -> (f64, f64) {
+        self.road.project(p.truncate(), self.arc + self.along(p))
+    }
+
+    /// The ground a ray meets first: the raised level (|lateral| >= ROAD_HALF) at kerb
+    /// height, else the road at z = 0, else the kerb's vertical face between them (found by
+    /// bisection on the lateral offset, which the ray crosses once between the two planes).
+    fn ground(&self, ray: &Ray) -> Option<GroundHit> {
+        let upper = plane_hit(ray, KERB_HEIGHT)?;
+        let up = self.road_coords(ray.at(upper));
+        if up.1.abs() >= ROAD_HALF {
+            return Some(GroundHit {
+                t: upper,
+                normal: DVec3::Z,
+                road: up,
+            });
+        }
+        let lower = plane_hit(ray, 0.0)?;
+        let low = self.road_coords(ray.at(lower));
+        if low.1.abs() < ROAD_HALF {
+            return Some(GroundHit {
+                t: lower,
+                normal: DVec3::Z,
+                road: low,
+            });
+        }
+        let side = low.1.signum();
+        let (mut a, mut b) = (upper, lower);
+        for _ in 0..40 {
+            let mid = 0.5 * (a + b);
+            if self.road_coords(ray.at(mid)).1.abs() < ROAD_HALF {
+                a = mid;
+            } else {
+                b = mid;
+            }
+        }
+        let (s, _) = self.road_coords(ray.at(b));
+        let tangent = self.road.tangent(s);
+        let towards_road = DVec2::new(tangent.y, -tangent.x) * side;
+        Some(GroundHit {
+            t: b,
+            normal: towards_road.extend(0.0),
+            road: (s, side * (ROAD_HALF + 0.5 * KERB)),
+        })
+    }
+
+    /// Whether the sun is hidden from `point` (with outward `normal`) by an object. Only
+    /// objects whose `along` interval meets the shadow ray's (up to where it rises above
+    /// every object) are tested.
     fn shadowed(&self, point: DVec3, normal: DVec3) -> bool {
         let sun = self.palette.sun_dir;
-        if normal.dot(sun) <= 0.0 {
+        if normal.dot(sun) <= 0.0 || point.z >= self.top {
             return false;
         }
         let ray = Ray {
             origin: point + normal * 1e-4,
             dir: sun,
         };
-        self.objects.iter().any(|o| {
-            may_hit_sphere(&ray, o.centre, o.radius, SHADOW_REACH)
-                && o.shape.intersect(&ray, SHADOW_REACH).is_some()
-        })
+        let reach = (self.top - point.z) / sun.z;
+        let start = self.along(ray.origin);
+        let end = start + reach * sun.truncate().dot(self.tangent);
+        let lo = start.min(end) - self.max_radius;
+        let hi = start.max(end) + self.max_radius;
+        let first = self.by_along.partition_point(|&(a, _)| a < lo);
+        self.by_along[first..]
+            .iter()
+            .take_while(|&&(a, _)| a <= hi)
+            .any(|&(_, i)| {
+                let o = &self.objects[i as usize];
+                may_hit_sphere(&ray, o.centre, o.radius, reach)
+                    && o.shape.intersect(&ray, reach).is_some()
+            })
     }
 
     /// Colour seen along a ray: the shaded surface (with sun shadows and haze) or the sky.

@@ -3,9 +3,9 @@
 
 use glam::DVec3;
 use model::frame::RgbImage;
+use model::kitti360::Calibration;
 use model::synth::{
-    camera_ray, default_cam_to_velo, kitti360_rig, SurfaceClass, SynthConfig, SynthSequence,
-    CAMERA_HEIGHT, KERB_HEIGHT,
+    camera_ray, SurfaceClass, SynthConfig, SynthSequence, CAMERA_HEIGHT, KERB_HEIGHT,
 };
 
 fn sequence(seed: u64, frames: u32, width: u32, height: u32) -> SynthSequence {
@@ -16,7 +16,8 @@ fn sequence(seed: u64, frames: u32, width: u32, height: u32) -> SynthSequence {
         height,
         ..SynthConfig::default()
     };
-    SynthSequence::new(config, kitti360_rig(width, height), default_cam_to_velo())
+    let calibration = Calibration::synthetic(width, height);
+    SynthSequence::new(config, calibration.rig().unwrap(), calibration.cam_to_velo)
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -123,7 +124,7 @@ fn lidar_points_agree_with_camera_depth() {
     let (w, h) = (272, 72);
     let seq = sequence(4, 20, w, h);
     let k = seq.rig().intrinsics;
-    let velo_to_cam = default_cam_to_velo().inverse();
+    let velo_to_cam = Calibration::synthetic(w, h).cam_to_velo.inverse();
     let f = seq.frame(12);
     let pose = seq.pose(12);
     assert!(f.lidar.len() > 30_000, "{} points", f.lidar.len());

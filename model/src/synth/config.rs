@@ -1,9 +1,5 @@
-//! Settings of a synthetic sequence and a KITTI-360-like rig to render it with.
-
-use glam::{DAffine3, DMat3, DVec3};
-use renderer::Intrinsics;
-
-use crate::frame::StereoRig;
+//! Settings of a synthetic sequence. The rig and LiDAR mounting come from
+//! [`crate::kitti360::Calibration::synthetic`], KITTI-360's own calibration scaled.
 
 /// What to generate. Everything else (layout, palette, sun, trajectory) follows from `seed`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,38 +33,4 @@ impl Default for SynthConfig {
             lidar_max_range: 120.0,
         }
     }
-}
-
-/// KITTI-360's rectified perspective camera (`P_rect_00`) at its native 1408 x 376.
-// The digits are written as the calibration file publishes them; f32 keeps what it can.
-#[allow(clippy::excessive_precision)]
-pub const KITTI360_INTRINSICS: Intrinsics = Intrinsics {
-    fx: 552.554261,
-    fy: 552.554261,
-    cx: 682.049453,
-    cy: 238.769549,
-    width: 1408,
-    height: 376,
-};
-
-/// KITTI-360's stereo baseline in metres.
-pub const KITTI360_BASELINE: f64 = 0.5942;
-
-/// A KITTI-360-like rectified rig scaled to `width` x `height`, for sequences made before a
-/// calibration file is at hand.
-pub fn kitti360_rig(width: u32, height: u32) -> StereoRig {
-    StereoRig {
-        intrinsics: KITTI360_INTRINSICS.scaled(width, height),
-        baseline: KITTI360_BASELINE,
-    }
-}
-
-/// A plausible camera-to-velodyne transform: velodyne 0.8 m above and 0.3 m behind the left
-/// camera, axes x forward, y left, z up (camera: x right, y down, z forward).
-pub fn default_cam_to_velo() -> DAffine3 {
-    // Columns: images of the camera axes in velodyne coordinates.
-    let rot = DMat3::from_cols(-DVec3::Y, -DVec3::Z, DVec3::X);
-    // Camera origin in velodyne coordinates.
-    let cam_in_velo = DVec3::new(0.3, 0.0, -0.8);
-    DAffine3::from_mat3_translation(rot, cam_in_velo)
 }

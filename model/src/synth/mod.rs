@@ -23,9 +23,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 pub use camera_render::camera_ray;
-pub use config::{
-    default_cam_to_velo, kitti360_rig, SynthConfig, KITTI360_BASELINE, KITTI360_INTRINSICS,
-};
+pub use config::SynthConfig;
 pub use lidar::{BOTTOM_ELEVATION, RINGS, TOP_ELEVATION};
 pub use primitives::Ray;
 pub use shading::SurfaceClass;

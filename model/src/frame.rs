@@ -130,3 +130,39 @@ pub struct StereoFrame {
     /// Left camera to world.
     pub left_to_world: DAffine3,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DMat3, Vec3};
+
+    #[test]
+    fn local_cameras_are_exact_far_from_the_world_origin() {
+        let rig = StereoRig {
+            intrinsics: Intrinsics::from_hfov(64, 32, 90.0),
+            baseline: 0.6,
+        };
+        // Camera looking along world +x, 100 km out; the next frame 1.25 m further on.
+        let rotation = DMat3::from_cols(-DVec3::Y, -DVec3::Z, DVec3::X);
+        let far = DVec3::new(1.0e5, -2.0e5, 35.0);
+        let origin = DAffine3::from_mat3_translation(rotation, far);
+        let next = DAffine3::from_mat3_translation(rotation, far + DVec3::X * 1.25);
+        let left = rig.local_camera(origin, next, Side::Left);
+        let right = rig.local_camera(origin, next, Side::Right);
+        assert!(
+            (left.position - Vec3::new(0.0, 0.0, 1.25))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        assert!(
+            (right.position - Vec3::new(0.6, 0.0, 1.25))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        assert!((left.rotation.to_cols_array().iter())
+            .zip(glam::Mat3::IDENTITY.to_cols_array())
+            .all(|(a, b)| (a - b).abs() < 1e-6));
+    }
+}

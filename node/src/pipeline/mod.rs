@@ -1,0 +1,6 @@
+//! The node's processing stages that need no transport: pairing left, right and pose by
+//! timestamp ([`sync`]) and cutting the synchronised stream into bins ([`binner`]). The zenoh
+//! side feeds them and the worker consumes what they emit.
+
+pub mod binner;
+pub mod sync;

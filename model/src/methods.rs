@@ -13,7 +13,7 @@ pub const NAMES: &[&str] = &["sgm"];
 pub struct UnknownMethod(pub String);
 
 /// The reconstructor called `name`, with its default settings.
-pub fn by_name(name: &str) -> Result<Box<dyn Reconstructor>, UnknownMethod> {
+pub fn by_name(name: &str) -> Result<Box<dyn Reconstructor + Send>, UnknownMethod> {
     match name {
         "sgm" => Ok(Box::new(SgmReconstructor::new(SgmConfig::default()))),
         other => Err(UnknownMethod(other.to_string())),

@@ -4,3 +4,4 @@
 
 pub mod binner;
 pub mod sync;
+pub mod worker;

@@ -1,0 +1,201 @@
+//! The worker thread: it owns the reconstructor, takes one bin's first stereo pair at a time
+//! from a bounded queue and hands back the bin's Gaussian map with its timings. The async side
+//! never blocks on it: when the queue is full the oldest waiting bin is dropped and counted
+//! (keep newest), because a map of the road just driven is worth more than a late one. A panic
+//! inside the reconstructor is caught, reported on that bin, and the worker goes on.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+use crossbeam_channel::{Receiver, Sender, TrySendError};
+use glam::DAffine3;
+use model::frame::{Side, StereoFrame, StereoRig};
+use model::reconstruct::{Reconstructor, StereoView};
+use renderer::GaussianSet;
+
+/// Wall-clock time in nanoseconds since the Unix epoch: the clock of every latency stamp, so
+/// stamps from different processes compare.
+pub fn now_ns() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as i64)
+}
+
+/// Latency stamps of one bin (ns, [`now_ns`]'s clock; 0 = not reached).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stamps {
+    /// The bin's first frame's last part arrived (the frame was complete).
+    pub arrival_ns: i64,
+    /// The binner opened the bin (the frame entered the worker queue).
+    pub opened_ns: i64,
+    /// The reconstructor started.
+    pub model_start_ns: i64,
+    /// The reconstructor returned.
+    pub model_end_ns: i64,
+    /// Renders of the bin (if any) were done.
+    pub render_end_ns: i64,
+    /// The map was published.
+    pub publish_ns: i64,
+}
+
+/// One bin for the worker: its first stereo frame and the rig.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// The bin.
+    pub bin_id: u64,
+    /// The bin's first frame; its left camera is the bin frame.
+    pub frame: StereoFrame,
+    /// The rig the frame was taken with.
+    pub rig: StereoRig,
+    /// Stamps so far.
+    pub stamps: Stamps,
+}
+
+/// What the worker made of a job.
+#[derive(Debug)]
+pub struct Output {
+    /// The bin.
+    pub bin_id: u64,
+    /// Bin frame to world (the first left camera's pose), f64.
+    pub bin_to_world: DAffine3,
+    /// The bin's map in the bin frame, or why there is none.
+    pub result: Result<GaussianSet, String>,
+    /// Stamps up to the model's end.
+    pub stamps: Stamps,
+    /// Jobs still waiting when this one finished.
+    pub queue_depth: usize,
+}
+
+/// Whether [`Worker::submit`] had to drop a waiting bin.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Submitted {
+    /// Queued behind what was waiting.
+    Queued,
+    /// The queue was full: the oldest waiting bin was dropped to make room.
+    DroppedOldest,
+}
+
+/// The worker thread and its queue.
+pub struct Worker {
+    tx: Option<Sender<Job>>,
+    steal: Receiver<Job>,
+    drops: Arc<AtomicU64>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Worker {
+    /// Starts the worker with `reconstructor`, a queue of `capacity` bins, and `on_output`
+    /// called on the worker thread for every finished bin.
+    pub fn spawn(
+        mut reconstructor: Box<dyn Reconstructor + Send>,
+        capacity: usize,
+        mut on_output: impl FnMut(Output) + Send + 'static,
+    ) -> Self {
+        let (tx, rx) = crossbeam_channel::bounded::<Job>(capacity.max(1));
+        let steal = rx.clone();
+        let thread = std::thread::Builder::new()
+            .name("stereosplat-worker".into())
+            .spawn(move || {
+                for job in rx.iter() {
+                    let output = run_job(reconstructor.as_mut(), job, rx.len());
+                    on_output(output);
+                }
+            })
+            .expect("spawning the worker thread");
+        Self {
+            tx: Some(tx),
+            steal,
+            drops: Arc::new(AtomicU64::new(0)),
+            thread: Some(thread),
+        }
+    }
+
+    /// Queues `job` without blocking; on a full queue the oldest waiting job is dropped.
+    pub fn submit(&self, mut job: Job) -> Submitted {
+        let tx = self.tx.as_ref().expect("worker running until shutdown");
+        let mut dropped = false;
+        loop {
+            match tx.try_send(job) {
+                Ok(()) => break,
+                Err(TrySendError::Full(back)) => {
+                    job = back;
+                    if self.steal.try_recv().is_ok() {
+                        self.drops.fetch_add(1, Ordering::Relaxed);
+                        dropped = true;
+                    }
+                }
+                Err(TrySendError::Disconnected(_)) => {
+                    // The worker thread is gone (it only exits on shutdown): count the loss.
+                    self.drops.fetch_add(1, Ordering::Relaxed);
+                    return Submitted::DroppedOldest;
+                }
+            }
+        }
+        if dropped {
+            Submitted::DroppedOldest
+        } else {
+            Submitted::Queued
+        }
+    }
+
+    /// Bins dropped so far because the worker fell behind.
+    pub fn drops(&self) -> u64 {
+        self.drops.load(Ordering::Relaxed)
+    }
+
+    /// Bins waiting in the queue.
+    pub fn queue_depth(&self) -> usize {
+        self.steal.len()
+    }
+
+    /// Finishes the queued bins, then stops the thread.
+    pub fn shutdown(mut self) {
+        self.tx.take();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.tx.take();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn run_job(reconstructor: &mut dyn Reconstructor, job: Job, queue_depth: usize) -> Output {
+    let mut stamps = job.stamps;
+    let origin = job.frame.left_to_world;
+    let view = StereoView {
+        left: &job.frame.left,
+        right: &job.frame.right,
+        left_camera: job.rig.local_camera(origin, origin, Side::Left),
+        right_camera: job.rig.local_camera(origin, origin, Side::Right),
+    };
+    stamps.model_start_ns = now_ns();
+    let result = match catch_unwind(AssertUnwindSafe(|| reconstructor.reconstruct(&[view]))) {
+        Ok(Ok(set)) => Ok(set),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(panic) => Err(format!(
+            "reconstructor panicked: {}",
+            panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("(no message)")
+        )),
+    };
+    stamps.model_end_ns = now_ns();
+    Output {
+        bin_id: job.bin_id,
+        bin_to_world: origin,
+        result,
+        stamps,
+        queue_depth,
+    }
+}

@@ -1,0 +1,130 @@
+//! The worker thread with the real SGM reconstructor on generated frames: bins come back in
+//! order with maps in the bin frame, a burst beyond the queue drops the oldest waiting bins
+//! (counted) without blocking the caller, and a reconstructor panic is reported on its bin
+//! while the worker goes on.
+
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use model::kitti360::Calibration;
+use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
+use model::synth::{SynthConfig, SynthSequence};
+use node::pipeline::worker::{now_ns, Job, Output, Stamps, Submitted, Worker};
+use renderer::GaussianSet;
+
+fn jobs(n: usize) -> Vec<Job> {
+    let calibration = Calibration::synthetic(136, 40);
+    let rig = calibration.rig().unwrap();
+    let config = SynthConfig {
+        frames: n as u32,
+        width: 136,
+        height: 40,
+        ..SynthConfig::default()
+    };
+    let seq = SynthSequence::new(config, rig, calibration.cam_to_velo);
+    (0..n)
+        .map(|i| Job {
+            bin_id: i as u64,
+            frame: seq.frame(i).frame,
+            rig,
+            stamps: Stamps {
+                arrival_ns: now_ns(),
+                ..Stamps::default()
+            },
+        })
+        .collect()
+}
+
+fn collect(rx: &mpsc::Receiver<Output>, n: usize) -> Vec<Output> {
+    (0..n)
+        .map(|_| rx.recv_timeout(Duration::from_secs(60)).expect("an output"))
+        .collect()
+}
+
+#[test]
+fn bins_come_back_in_order_with_maps_and_stamps() {
+    let (tx, rx) = mpsc::channel();
+    let worker = Worker::spawn(model::methods::by_name("sgm").unwrap(), 4, move |o| {
+        tx.send(o).unwrap()
+    });
+    let input = jobs(3);
+    for job in input.clone() {
+        assert_eq!(worker.submit(job), Submitted::Queued);
+    }
+    let out = collect(&rx, 3);
+    for (o, job) in out.iter().zip(&input) {
+        assert_eq!(o.bin_id, job.bin_id);
+        assert_eq!(o.bin_to_world, job.frame.left_to_world);
+        let set = o.result.as_ref().unwrap();
+        assert!(set.len() > 1000, "{} Gaussians", set.len());
+        // Bin frame = first left camera: the map lies in front of it.
+        let mean_z: f32 = set.means.iter().map(|m| m.z).sum::<f32>() / set.len() as f32;
+        assert!(mean_z > 2.0, "{mean_z}");
+        let s = o.stamps;
+        assert!(s.arrival_ns <= s.model_start_ns && s.model_start_ns <= s.model_end_ns);
+    }
+    assert_eq!(worker.drops(), 0);
+    worker.shutdown();
+}
+
+#[test]
+fn a_burst_drops_the_oldest_waiting_bins_without_blocking() {
+    let (tx, rx) = mpsc::channel();
+    let worker = Worker::spawn(model::methods::by_name("sgm").unwrap(), 2, move |o| {
+        tx.send(o).unwrap()
+    });
+    let input = jobs(2);
+    let start = Instant::now();
+    let mut dropped = 0;
+    for k in 0..20u64 {
+        let mut job = input[(k % 2) as usize].clone();
+        job.bin_id = k;
+        dropped += (worker.submit(job) == Submitted::DroppedOldest) as u64;
+    }
+    // Twenty submissions of a job that takes milliseconds each return at once.
+    assert!(start.elapsed() < Duration::from_secs(5));
+    assert!(dropped > 0);
+    assert_eq!(worker.drops(), dropped);
+    worker.shutdown();
+    let out: Vec<Output> = rx.try_iter().collect();
+    assert_eq!(out.len() as u64 + dropped, 20, "every bin is either done or counted");
+    // Keep newest: the last bin submitted is always among those done.
+    assert_eq!(out.last().unwrap().bin_id, 19);
+    assert!(out.windows(2).all(|w| w[0].bin_id < w[1].bin_id));
+}
+
+/// A test double: SGM cannot be made to panic, and the recovery path needs a panic.
+struct PanicsOnSecond {
+    calls: usize,
+}
+
+impl Reconstructor for PanicsOnSecond {
+    fn name(&self) -> &str {
+        "panics-on-second"
+    }
+
+    fn reconstruct(&mut self, _: &[StereoView<'_>]) -> Result<GaussianSet, ReconstructError> {
+        self.calls += 1;
+        if self.calls == 2 {
+            panic!("planted failure");
+        }
+        Ok(GaussianSet::default())
+    }
+}
+
+#[test]
+fn a_panic_is_reported_on_its_bin_and_the_worker_goes_on() {
+    let (tx, rx) = mpsc::channel();
+    let worker = Worker::spawn(Box::new(PanicsOnSecond { calls: 0 }), 4, move |o| {
+        tx.send(o).unwrap()
+    });
+    for job in jobs(3) {
+        worker.submit(job);
+    }
+    let out = collect(&rx, 3);
+    assert!(out[0].result.is_ok());
+    let err = out[1].result.as_ref().unwrap_err();
+    assert!(err.contains("planted failure"), "{err}");
+    assert!(out[2].result.is_ok());
+    worker.shutdown();
+}

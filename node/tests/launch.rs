@@ -487,3 +487,61 @@ fn eval_synthetic_runs_at_a_tiny_size() {
         "eval wrote nothing"
     );
 }
+
+#[test]
+fn an_optional_failure_lets_the_rest_finish_but_fails_the_launch() {
+    let dir = scratch("optional");
+    let file = write(
+        &dir,
+        "optional.toml",
+        r#"
+[[process]]
+name = "flaky"
+program = "sh"
+args = ["-c", "exit 4"]
+required = false
+
+[[process]]
+name = "worker"
+program = "sh"
+args = ["-c", "sleep 0.3; echo done"]
+oneshot = true
+"#,
+    );
+    let (code, stdout, stderr) = launch(&[file.to_str().unwrap()]);
+    assert!(stdout.lines().any(|l| l == "[worker] done"), "{stdout}");
+    assert_eq!(code, 4, "{stderr}");
+    assert!(
+        stderr.contains("launch: process `flaky` failed: exit status: 4"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_required_process_ending_well_ends_the_launch_well() {
+    let dir = scratch("required_end");
+    let file = write(
+        &dir,
+        "end.toml",
+        r#"
+[[process]]
+name = "server"
+program = "sh"
+args = ["-c", "echo up; exec sleep 30"]
+
+[[process]]
+name = "replay"
+program = "sh"
+args = ["-c", "echo played"]
+after = [{ process = "server", line = "up" }]
+"#,
+    );
+    let (code, stdout, stderr) = launch(&[file.to_str().unwrap()]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("[replay] played"), "{stdout}");
+    assert!(
+        stderr.contains("required process replay ended, stopping the others"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("server exited: signal: 15"), "{stderr}");
+}

@@ -4,6 +4,11 @@
 //! group (a `sh -c` script and what it started), and a Ctrl-C in the terminal reaches only the
 //! launcher, which then stops the children in an orderly way. Elsewhere the launcher still
 //! starts processes and forwards their output, but cannot catch Ctrl-C or stop children.
+//!
+//! Limits: a child counts as running until it has exited and its output pipes closed, so a
+//! grandchild still writing to them is stopped with the group; one that left the group, or
+//! outlived its parent with its output sent elsewhere, is not tracked. A launcher killed
+//! with SIGKILL cannot stop anything.
 
 use std::io;
 use std::thread::JoinHandle;

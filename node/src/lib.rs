@@ -6,5 +6,6 @@
 //! <- `node`).
 
 pub mod cli;
+pub mod launch;
 pub mod pipeline;
 pub mod transport;

@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use node::cli::{bench, eval, render, synth};
+use node::cli::{bench, eval, launch, render, synth};
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
 #[derive(Parser)]
@@ -23,6 +23,8 @@ enum Command {
     SynthHeldout(synth::HeldoutArgs),
     /// The paper's evaluation protocol on a data root: table, JSON, pictures.
     Eval(eval::EvalArgs),
+    /// Start a graph of processes from a launch file; stop them together.
+    Launch(launch::LaunchArgs),
     /// Benchmarks that print JSON on stdout.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -40,6 +42,7 @@ fn main() -> Result<()> {
         Command::Synth(args) => synth::run(&args),
         Command::SynthHeldout(args) => synth::run_heldout(&args),
         Command::Eval(args) => eval::run(&args),
+        Command::Launch(args) => launch::run(&args),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod eval;
+pub mod launch;
 pub mod progress;
 pub mod render;
 pub mod scene_source;

@@ -61,8 +61,11 @@ mod tests {
 
     #[test]
     fn cells_floor_towards_negative_infinity() {
-        assert_eq!(cell_of(DVec3::new(0.19, -0.01, 0.2), 0.2), (0, -1, 1));
-        assert_eq!(cell_centre((0, -1, 1), 0.2), DVec3::new(0.1, -0.1, 0.3));
+        assert_eq!(cell_of(DVec3::new(0.24, -0.01, 0.25), 0.25), (0, -1, 1));
+        assert_eq!(
+            cell_centre((0, -1, 1), 0.25),
+            DVec3::new(0.125, -0.125, 0.375)
+        );
     }
 
     #[test]

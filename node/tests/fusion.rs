@@ -168,8 +168,9 @@ fn positions_far_from_the_origin_stay_exact() {
     assert!(set.rotations[0].dot(inc.added[0].1.rotation).abs() > 1.0 - 1e-6);
 }
 
-/// A random bin: ~8 m along x per bin with a random yaw, Gaussians in a box ahead, some
-/// below the opacity floor, some with NaN fields, every 17th bin empty.
+/// A random bin: origin 4 m further along x than the last (so consecutive bins overlap
+/// by half), a random yaw, Gaussians in an 8 x 2 x 10 m box around the origin, some below
+/// the opacity floor, some with NaN fields, every 17th bin empty.
 fn random_bin(rng: &mut ChaCha8Rng, k: u64) -> (GaussianSet, DAffine3) {
     let yaw = rng.random_range(-0.3..0.3);
     let pose = DAffine3::from_rotation_translation(
@@ -185,7 +186,7 @@ fn random_bin(rng: &mut ChaCha8Rng, k: u64) -> (GaussianSet, DAffine3) {
     for _ in 0..n {
         let mut g = gauss(
             [
-                rng.random_range(-2.0..2.0),
+                rng.random_range(-4.0..4.0),
                 rng.random_range(-1.0..1.0),
                 rng.random_range(0.0..10.0),
             ],

@@ -166,6 +166,13 @@ fn positions_far_from_the_origin_stay_exact() {
         assert!((m.as_dvec3() - (*e - t)).abs().max_element() < 1e-6, "{m}");
     }
     assert!(set.rotations[0].dot(inc.added[0].1.rotation).abs() > 1.0 - 1e-6);
+    // The exported set goes through the renderer's PLY unchanged.
+    let mut ply = Vec::new();
+    renderer::ply::write_ply(&set, &mut ply).unwrap();
+    assert_eq!(
+        renderer::ply::read_ply(ply.as_slice()).unwrap().means,
+        set.means
+    );
 }
 
 /// A random bin: origin 4 m further along x than the last (so consecutive bins overlap

@@ -6,6 +6,7 @@
 //! <- `node`).
 
 pub mod cli;
+pub mod fusion;
 pub mod launch;
 pub mod pipeline;
 pub mod transport;

@@ -1,0 +1,391 @@
+//! The fused global Gaussian map: bin maps (f32, bin-local) in, one world map (f64
+//! positions) out, published as increments plus snapshots.
+//!
+//! Fusion rule (per cell). World space is hashed into cubes of `cell_size` metres. A new
+//! bin's valid Gaussians are grouped by cell. For each cell they touch:
+//! - an empty cell takes all of them;
+//! - an occupied cell is taken over when the bin's highest confidence in that cell is
+//!   strictly higher than the cell's current highest confidence: every Gaussian already in
+//!   the cell is removed and the bin's Gaussians of that cell are added;
+//! - otherwise (equal or lower) the bin's Gaussians of that cell are dropped.
+//!
+//! So every cell holds the Gaussians of exactly one bin. Gaussians with a NaN or infinite
+//! field, or with an opacity below `opacity_floor`, are skipped before the rule (and
+//! counted). Budget: after a bin is fused, while the map holds more than `max_gaussians`,
+//! whole cells are evicted, farthest (cell centre) from the latest bin's origin first, ties
+//! by cell key. Ids are u64, assigned in increasing order in the bin's input order, never
+//! reused.
+
+mod cells;
+mod export;
+mod increments;
+mod snapshot;
+
+use std::collections::{BTreeMap, HashMap};
+
+use glam::{DAffine3, DMat3, DQuat, DVec3, Quat, Vec3};
+use renderer::gaussians::LengthMismatch;
+use renderer::GaussianSet;
+
+pub use cells::{cell_centre, cell_of, CellKey};
+pub use export::{bev_image, local_set, save_bev_png, BevView, ExportError};
+pub use increments::{Increment, InsertStats, MapReplica, ReplicaError, Snapshot};
+pub use snapshot::StoreError;
+
+use cells::{eviction_order, Cell};
+
+/// A Gaussian's id in the global map: unique for the map's life, never reused, so
+/// subscribers can key their copies on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct GaussianId(pub u64);
+
+/// One Gaussian in the world frame. The centre is f64 so the map stays exact (far below a
+/// millimetre) kilometres from the world origin; the rest keeps the renderer's f32.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldGaussian {
+    /// Centre, world frame, metres.
+    pub position: DVec3,
+    /// Natural log of the standard deviations along the rotated axes (rigid transforms keep
+    /// them).
+    pub log_scale: Vec3,
+    /// Orientation in the world frame (unit; the bin's rotation composed with the pose's).
+    pub rotation: Quat,
+    /// Opacity in [0, 1].
+    pub opacity: f32,
+    /// Linear RGB colour.
+    pub color: Vec3,
+    /// The producer's confidence, [0, 1]; the fusion rule compares it.
+    pub confidence: f32,
+    /// The bin this Gaussian came from.
+    pub bin_id: u64,
+}
+
+/// The map's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FusionConfig {
+    /// Edge of a hash cell, metres: the scale at which overlapping bins compete.
+    pub cell_size: f64,
+    /// Gaussians with a lower opacity are not taken in.
+    pub opacity_floor: f32,
+    /// The most Gaussians the map holds (memory budget); see the module doc for eviction.
+    pub max_gaussians: usize,
+}
+
+impl Default for FusionConfig {
+    /// 0.2 m cells, opacity floor 0.01, two million Gaussians.
+    fn default() -> Self {
+        Self {
+            cell_size: 0.2,
+            opacity_floor: 0.01,
+            max_gaussians: 2_000_000,
+        }
+    }
+}
+
+impl FusionConfig {
+    /// Errors naming the first setting out of range.
+    pub fn validate(&self) -> Result<(), FusionError> {
+        let what = if !(self.cell_size.is_finite() && self.cell_size > 0.0) {
+            "cell_size must be finite and positive"
+        } else if !(0.0..=1.0).contains(&self.opacity_floor) {
+            "opacity_floor must be in [0, 1]"
+        } else {
+            return Ok(());
+        };
+        Err(FusionError::InvalidConfig { what })
+    }
+}
+
+/// Input the map refuses (the map is unchanged).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum FusionError {
+    /// A setting is out of range.
+    #[error("invalid fusion config: {what}")]
+    InvalidConfig {
+        /// What is wrong.
+        what: &'static str,
+    },
+    /// A bin pose is not a finite rigid transform.
+    #[error("bin {bin_id}: pose {reason}")]
+    BadPose {
+        /// The bin.
+        bin_id: u64,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// A bin's Gaussian set has arrays of different lengths.
+    #[error("bin {bin_id}: {source}")]
+    BadSet {
+        /// The bin.
+        bin_id: u64,
+        /// Which array differs.
+        source: LengthMismatch,
+    },
+}
+
+/// Why `pose` is not a finite rigid transform (rotation orthonormal to 1e-6, determinant +1),
+/// or `None` when it is one.
+pub fn pose_problem(pose: &DAffine3) -> Option<&'static str> {
+    let m = pose.matrix3;
+    if !(m.is_finite() && pose.translation.is_finite()) {
+        return Some("has a NaN or infinite entry");
+    }
+    let err = m.transpose() * m - DMat3::IDENTITY;
+    let off = [err.x_axis, err.y_axis, err.z_axis]
+        .iter()
+        .map(|c| c.abs().max_element())
+        .fold(0.0, f64::max);
+    if off > 1e-6 || m.determinant() < 0.0 {
+        return Some("is not a rotation plus translation");
+    }
+    None
+}
+
+/// The fused world map: Gaussians by id plus the cell hash that the fusion rule and the
+/// budget act on.
+#[derive(Clone, Debug)]
+pub struct GlobalMap {
+    config: FusionConfig,
+    gaussians: BTreeMap<GaussianId, WorldGaussian>,
+    cells: HashMap<CellKey, Cell>,
+    next_id: u64,
+    last_bin_id: Option<u64>,
+    latest_origin: Option<DVec3>,
+}
+
+impl GlobalMap {
+    /// An empty map; errors when a setting is out of range.
+    pub fn new(config: FusionConfig) -> Result<Self, FusionError> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            gaussians: BTreeMap::new(),
+            cells: HashMap::new(),
+            next_id: 0,
+            last_bin_id: None,
+            latest_origin: None,
+        })
+    }
+
+    /// The map's settings.
+    pub fn config(&self) -> &FusionConfig {
+        &self.config
+    }
+
+    /// Number of Gaussians in the map.
+    pub fn len(&self) -> usize {
+        self.gaussians.len()
+    }
+
+    /// True when the map holds no Gaussian.
+    pub fn is_empty(&self) -> bool {
+        self.gaussians.is_empty()
+    }
+
+    /// Number of occupied cells.
+    pub fn cell_count(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// The last bin inserted, `None` before the first.
+    pub fn last_bin_id(&self) -> Option<u64> {
+        self.last_bin_id
+    }
+
+    /// The world position of the latest non-empty bin's origin (the eviction anchor).
+    pub fn latest_origin(&self) -> Option<DVec3> {
+        self.latest_origin
+    }
+
+    /// The Gaussian with id `id`, if the map holds it.
+    pub fn get(&self, id: GaussianId) -> Option<&WorldGaussian> {
+        self.gaussians.get(&id)
+    }
+
+    /// The Gaussians in id order.
+    pub fn gaussians(&self) -> impl Iterator<Item = (GaussianId, &WorldGaussian)> {
+        self.gaussians.iter().map(|(&id, g)| (id, g))
+    }
+
+    /// Everything in the map, sorted by id: what a late subscriber starts from.
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot::of(&self.gaussians, self.last_bin_id)
+    }
+
+    /// Fuses one bin map (`set` in the bin's frame, `bin_to_world` its pose) into the map by
+    /// the rule in the module doc and returns what changed. A bad pose or a set with
+    /// mismatched arrays is an error and changes nothing; bad Gaussians are skipped and
+    /// counted; an empty bin changes nothing but the last bin id.
+    pub fn insert_bin(
+        &mut self,
+        bin_id: u64,
+        set: &GaussianSet,
+        bin_to_world: DAffine3,
+    ) -> Result<Increment, FusionError> {
+        if let Some(reason) = pose_problem(&bin_to_world) {
+            return Err(FusionError::BadPose { bin_id, reason });
+        }
+        set.check_lengths()
+            .map_err(|source| FusionError::BadSet { bin_id, source })?;
+        self.last_bin_id = Some(bin_id);
+        let mut stats = InsertStats {
+            input: set.len(),
+            ..InsertStats::default()
+        };
+        if set.is_empty() {
+            return Ok(Increment {
+                bin_id,
+                stats,
+                ..Increment::default()
+            });
+        }
+        self.latest_origin = Some(bin_to_world.translation);
+
+        let candidates = self.to_world(bin_id, set, bin_to_world, &mut stats);
+        let mut bin_max: HashMap<CellKey, f32> = HashMap::new();
+        for (key, g) in &candidates {
+            let m = bin_max.entry(*key).or_insert(g.confidence);
+            *m = m.max(g.confidence);
+        }
+        let mut removed = Vec::new();
+        for (key, new_max) in &bin_max {
+            if let Some(cell) = self.cells.get(key) {
+                if *new_max > cell.max_confidence {
+                    stats.replaced += cell.ids.len();
+                    removed.extend(self.remove_cell(*key));
+                }
+            }
+        }
+        let first_new = self.next_id;
+        let mut added = Vec::new();
+        let mut taken: HashMap<CellKey, bool> = HashMap::new();
+        for (key, g) in candidates {
+            let accept = *taken
+                .entry(key)
+                .or_insert_with(|| !self.cells.contains_key(&key));
+            if !accept {
+                stats.dropped_lower_confidence += 1;
+                continue;
+            }
+            let id = GaussianId(self.next_id);
+            self.next_id += 1;
+            self.cells.entry(key).or_default().push(id, g.confidence);
+            self.gaussians.insert(id, g);
+            added.push(id);
+        }
+
+        let evicted = self.enforce_budget();
+        stats.evicted = evicted.len();
+        // Ids at or above `first_new` are this bin's: evicted ones were never published.
+        removed.extend(evicted.into_iter().filter(|id| id.0 < first_new));
+        removed.sort_unstable();
+        let added = added
+            .into_iter()
+            .filter_map(|id| self.gaussians.get(&id).map(|g| (id, *g)))
+            .collect();
+        Ok(Increment {
+            bin_id,
+            added,
+            removed,
+            stats,
+        })
+    }
+
+    /// The bin's valid Gaussians in world coordinates with their cells, in input order.
+    fn to_world(
+        &self,
+        bin_id: u64,
+        set: &GaussianSet,
+        pose: DAffine3,
+        stats: &mut InsertStats,
+    ) -> Vec<(CellKey, WorldGaussian)> {
+        let pose_rotation = DQuat::from_mat3(&pose.matrix3);
+        let mut out = Vec::with_capacity(set.len());
+        for i in 0..set.len() {
+            let l = set.get(i);
+            let finite = l.mean.is_finite()
+                && l.log_scale.is_finite()
+                && l.rotation.is_finite()
+                && l.opacity.is_finite()
+                && l.color.is_finite()
+                && l.confidence.is_finite();
+            if !finite {
+                stats.skipped_invalid += 1;
+                continue;
+            }
+            if l.opacity < self.config.opacity_floor {
+                stats.pruned_opacity += 1;
+                continue;
+            }
+            let local_rotation = l.rotation.as_dquat();
+            let local_rotation = if local_rotation.length_squared() > 0.0 {
+                local_rotation.normalize()
+            } else {
+                DQuat::IDENTITY
+            };
+            let position = pose.transform_point3(l.mean.as_dvec3());
+            let g = WorldGaussian {
+                position,
+                log_scale: l.log_scale,
+                rotation: (pose_rotation * local_rotation).normalize().as_quat(),
+                opacity: l.opacity,
+                color: l.color,
+                confidence: l.confidence,
+                bin_id,
+            };
+            out.push((cell_of(position, self.config.cell_size), g));
+        }
+        out
+    }
+
+    /// Removes a whole cell and its Gaussians; returns their ids.
+    fn remove_cell(&mut self, key: CellKey) -> Vec<GaussianId> {
+        let ids = self.cells.remove(&key).map(|c| c.ids).unwrap_or_default();
+        for id in &ids {
+            self.gaussians.remove(id);
+        }
+        ids
+    }
+
+    /// Evicts whole cells, farthest from the latest origin first, until the map is within
+    /// budget; returns the evicted ids.
+    fn enforce_budget(&mut self) -> Vec<GaussianId> {
+        if self.gaussians.len() <= self.config.max_gaussians {
+            return Vec::new();
+        }
+        let anchor = self.latest_origin.unwrap_or(DVec3::ZERO);
+        let order = eviction_order(self.cells.keys().copied(), anchor, self.config.cell_size);
+        let mut evicted = Vec::new();
+        for key in order {
+            if self.gaussians.len() <= self.config.max_gaussians {
+                break;
+            }
+            evicted.extend(self.remove_cell(key));
+        }
+        evicted
+    }
+
+    /// Rebuilds a map from stored parts (the cells follow from the positions); used by
+    /// restore after the parts were checked.
+    fn from_parts(
+        config: FusionConfig,
+        gaussians: BTreeMap<GaussianId, WorldGaussian>,
+        next_id: u64,
+        last_bin_id: Option<u64>,
+        latest_origin: Option<DVec3>,
+    ) -> Self {
+        let mut cells: HashMap<CellKey, Cell> = HashMap::new();
+        for (&id, g) in &gaussians {
+            let key = cell_of(g.position, config.cell_size);
+            cells.entry(key).or_default().push(id, g.confidence);
+        }
+        Self {
+            config,
+            gaussians,
+            cells,
+            next_id,
+            last_bin_id,
+            latest_origin,
+        }
+    }
+}

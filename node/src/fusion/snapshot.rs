@@ -1,0 +1,320 @@
+//! Saving the global map to a file and restoring it, so a restarted node continues with
+//! the same Gaussians and ids it had published.
+//!
+//! Format (all little endian): magic `SSGMAP\0\n`, version u32 (1), cell size f64, opacity
+//! floor f32, budget u64, next id u64, last bin flag u8 + id u64, latest origin flag u8 +
+//! 3 x f64, count u64, then per Gaussian: id u64, bin id u64, position 3 x f64, log scale
+//! 3 x f32, rotation 4 x f32 (x, y, z, w), opacity f32, colour 3 x f32, confidence f32;
+//! last an FNV-1a 64 checksum (u64) of every byte before it. Files are written to a
+//! sibling temporary file and renamed, so a crash leaves the old file whole.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::{DVec3, Quat, Vec3};
+
+use super::{FusionConfig, GaussianId, GlobalMap, WorldGaussian};
+
+const MAGIC: &[u8; 8] = b"SSGMAP\0\n";
+const VERSION: u32 = 1;
+/// Bytes per stored Gaussian.
+const RECORD_BYTES: usize = 88;
+
+/// Why a map could not be saved or restored. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    /// Reading or writing failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The system error.
+        source: std::io::Error,
+    },
+    /// The file does not start with the map magic.
+    #[error("{path}: not a StereoSplat global map file (bad magic)")]
+    BadMagic {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The file's format version is not one this build reads.
+    #[error("{path}: unsupported global map version {version} (this build reads {VERSION})")]
+    UnsupportedVersion {
+        /// The file.
+        path: PathBuf,
+        /// The version found.
+        version: u32,
+    },
+    /// The file ends early.
+    #[error("{path}: truncated at byte {offset} (needs {needed} more bytes)")]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// Where the missing data starts.
+        offset: usize,
+        /// How many bytes were wanted there.
+        needed: usize,
+    },
+    /// The checksum does not match the contents.
+    #[error("{path}: checksum mismatch (file corrupt)")]
+    Checksum {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A field holds a value the map cannot hold.
+    #[error("{path}: byte {offset}: {what}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// Where the record or field starts.
+        offset: usize,
+        /// What is wrong.
+        what: &'static str,
+    },
+}
+
+/// FNV-1a, 64 bit: a checksum that catches flipped and truncated bytes.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+impl GlobalMap {
+    /// The map in the file format described in the module doc.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut b = Vec::with_capacity(96 + self.len() * RECORD_BYTES);
+        b.extend_from_slice(MAGIC);
+        b.extend_from_slice(&VERSION.to_le_bytes());
+        b.extend_from_slice(&self.config.cell_size.to_le_bytes());
+        b.extend_from_slice(&self.config.opacity_floor.to_le_bytes());
+        b.extend_from_slice(&(self.config.max_gaussians as u64).to_le_bytes());
+        b.extend_from_slice(&self.next_id.to_le_bytes());
+        b.push(u8::from(self.last_bin_id.is_some()));
+        b.extend_from_slice(&self.last_bin_id.unwrap_or(0).to_le_bytes());
+        b.push(u8::from(self.latest_origin.is_some()));
+        put_f64s(
+            &mut b,
+            &self.latest_origin.unwrap_or(DVec3::ZERO).to_array(),
+        );
+        b.extend_from_slice(&(self.len() as u64).to_le_bytes());
+        for (id, g) in self.gaussians() {
+            b.extend_from_slice(&id.0.to_le_bytes());
+            b.extend_from_slice(&g.bin_id.to_le_bytes());
+            put_f64s(&mut b, &g.position.to_array());
+            put_f32s(&mut b, &g.log_scale.to_array());
+            put_f32s(&mut b, &g.rotation.to_array());
+            put_f32s(&mut b, &[g.opacity]);
+            put_f32s(&mut b, &g.color.to_array());
+            put_f32s(&mut b, &[g.confidence]);
+        }
+        let sum = fnv1a(&b);
+        b.extend_from_slice(&sum.to_le_bytes());
+        b
+    }
+
+    /// Writes the map to `path` (through a temporary sibling file and a rename).
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), StoreError> {
+        let path = path.as_ref();
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".tmp");
+        let tmp = PathBuf::from(tmp);
+        let io = |source| StoreError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        std::fs::write(&tmp, self.to_bytes()).map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)
+    }
+
+    /// Reads a map written by [`GlobalMap::save`].
+    pub fn load(path: impl AsRef<Path>) -> Result<GlobalMap, StoreError> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|source| StoreError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// Parses the file format; `path` only names the source in errors.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<GlobalMap, StoreError> {
+        let mut r = Reader {
+            bytes,
+            pos: 0,
+            path,
+        };
+        if r.take(MAGIC.len())? != MAGIC {
+            return Err(StoreError::BadMagic {
+                path: path.to_path_buf(),
+            });
+        }
+        let version = r.u32()?;
+        if version != VERSION {
+            return Err(StoreError::UnsupportedVersion {
+                path: path.to_path_buf(),
+                version,
+            });
+        }
+        if bytes.len() < r.pos + 8 {
+            return Err(r.truncated(8));
+        }
+        let (body, sum) = bytes.split_at(bytes.len() - 8);
+        if fnv1a(body) != u64::from_le_bytes(sum.try_into().unwrap_or_default()) {
+            return Err(StoreError::Checksum {
+                path: path.to_path_buf(),
+            });
+        }
+        r.bytes = body;
+        let at = r.pos;
+        let config = FusionConfig {
+            cell_size: r.f64()?,
+            opacity_floor: r.f32()?,
+            max_gaussians: usize::try_from(r.u64()?).unwrap_or(usize::MAX),
+        };
+        config
+            .validate()
+            .map_err(|_| r.invalid(at, "settings out of range"))?;
+        let next_id = r.u64()?;
+        let last_bin_id = r.flagged(|r| r.u64())?;
+        let latest_origin = r.flagged(|r| r.f64s::<3>().map(DVec3::from_array))?;
+        if latest_origin.is_some_and(|o| !o.is_finite()) {
+            return Err(r.invalid(r.pos - 24, "latest origin is not finite"));
+        }
+        let count = r.u64()?;
+        let left = (r.bytes.len() - r.pos) as u64;
+        if count.checked_mul(RECORD_BYTES as u64) != Some(left) {
+            return Err(r.invalid(r.pos - 8, "count does not match the file length"));
+        }
+        let mut gaussians = BTreeMap::new();
+        let mut previous: Option<u64> = None;
+        for _ in 0..count {
+            let at = r.pos;
+            let id = r.u64()?;
+            let g = WorldGaussian {
+                bin_id: r.u64()?,
+                position: DVec3::from_array(r.f64s()?),
+                log_scale: Vec3::from_array(r.f32s()?),
+                rotation: Quat::from_array(r.f32s()?),
+                opacity: r.f32()?,
+                color: Vec3::from_array(r.f32s()?),
+                confidence: r.f32()?,
+            };
+            if previous.is_some_and(|p| id <= p) || id >= next_id {
+                return Err(r.invalid(at, "ids not increasing or not below the next id"));
+            }
+            let finite = g.position.is_finite()
+                && g.log_scale.is_finite()
+                && g.rotation.is_finite()
+                && g.opacity.is_finite()
+                && g.color.is_finite()
+                && g.confidence.is_finite();
+            if !finite {
+                return Err(r.invalid(at, "Gaussian with a NaN or infinite field"));
+            }
+            previous = Some(id);
+            gaussians.insert(GaussianId(id), g);
+        }
+        Ok(GlobalMap::from_parts(
+            config,
+            gaussians,
+            next_id,
+            last_bin_id,
+            latest_origin,
+        ))
+    }
+}
+
+fn put_f64s(b: &mut Vec<u8>, v: &[f64]) {
+    v.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
+}
+
+fn put_f32s(b: &mut Vec<u8>, v: &[f32]) {
+    v.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
+}
+
+/// A cursor over the file's bytes that turns running out into [`StoreError::Truncated`].
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    path: &'a Path,
+}
+
+impl<'a> Reader<'a> {
+    fn truncated(&self, needed: usize) -> StoreError {
+        StoreError::Truncated {
+            path: self.path.to_path_buf(),
+            offset: self.pos,
+            needed,
+        }
+    }
+
+    fn invalid(&self, offset: usize, what: &'static str) -> StoreError {
+        StoreError::Invalid {
+            path: self.path.to_path_buf(),
+            offset,
+            what,
+        }
+    }
+
+    fn take(&mut self, n: usize) -> Result<&'a [u8], StoreError> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len());
+        let end = end.ok_or_else(|| self.truncated(n))?;
+        let s = &self.bytes[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], StoreError> {
+        let mut a = [0u8; N];
+        a.copy_from_slice(self.take(N)?);
+        Ok(a)
+    }
+
+    fn u32(&mut self) -> Result<u32, StoreError> {
+        self.array().map(u32::from_le_bytes)
+    }
+
+    fn u64(&mut self) -> Result<u64, StoreError> {
+        self.array().map(u64::from_le_bytes)
+    }
+
+    fn f32(&mut self) -> Result<f32, StoreError> {
+        self.array().map(f32::from_le_bytes)
+    }
+
+    fn f64(&mut self) -> Result<f64, StoreError> {
+        self.array().map(f64::from_le_bytes)
+    }
+
+    fn f32s<const N: usize>(&mut self) -> Result<[f32; N], StoreError> {
+        let mut a = [0.0; N];
+        for x in &mut a {
+            *x = self.f32()?;
+        }
+        Ok(a)
+    }
+
+    fn f64s<const N: usize>(&mut self) -> Result<[f64; N], StoreError> {
+        let mut a = [0.0; N];
+        for x in &mut a {
+            *x = self.f64()?;
+        }
+        Ok(a)
+    }
+
+    /// A flag byte (0 or 1) then a value that is always present; `None` when the flag is 0.
+    fn flagged<T>(
+        &mut self,
+        read: impl FnOnce(&mut Self) -> Result<T, StoreError>,
+    ) -> Result<Option<T>, StoreError> {
+        let at = self.pos;
+        let flag = self.array::<1>()?[0];
+        let value = read(self)?;
+        match flag {
+            0 => Ok(None),
+            1 => Ok(Some(value)),
+            _ => Err(self.invalid(at, "flag byte is neither 0 nor 1")),
+        }
+    }
+}

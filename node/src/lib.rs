@@ -5,3 +5,4 @@
 //! It sits at the top of the dependency chain (`renderer` <- `model` <- `node`).
 
 pub mod cli;
+pub mod msg;

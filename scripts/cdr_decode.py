@@ -18,7 +18,6 @@ with numpy using the message's own PointField layout. Types come from rosbags' R
 store. Install with `pip install -r scripts/requirements.txt`.
 """
 
-import dataclasses
 import json
 import sys
 
@@ -37,14 +36,16 @@ ARRAY_DTYPES = {
 }
 
 
-def to_json(value):
-    """A decoded rosbags message (dataclass tree) as plain JSON values."""
+def to_json(store, value):
+    """A decoded rosbags message (dataclass tree) as plain JSON values, message fields only
+    (rosbags' classes also carry the constants and `__msgtype__`)."""
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, (list, tuple)):
-        return [to_json(v) for v in value]
-    if dataclasses.is_dataclass(value):
-        return {f.name: to_json(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return [to_json(store, v) for v in value]
+    if hasattr(value, '__msgtype__'):
+        _, fields = store.fielddefs[value.__msgtype__]
+        return {name: to_json(store, getattr(value, name)) for name, _ in fields}
     return value
 
 
@@ -98,7 +99,7 @@ def main():
     reply = {'decoded': [], 'encoded': [], 'hashes': {}}
     for item in request.get('decode', []):
         msg = store.deserialize_cdr(bytes.fromhex(item['hex']), item['type'])
-        out = to_json(msg)
+        out = to_json(store, msg)
         if item['type'] == 'sensor_msgs/msg/PointCloud2':
             out['points'] = cloud_points(msg)
         reply['decoded'].append(out)

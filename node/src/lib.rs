@@ -8,5 +8,6 @@
 pub mod cli;
 pub mod fusion;
 pub mod launch;
+pub mod msg;
 pub mod pipeline;
 pub mod transport;

@@ -1,0 +1,145 @@
+//! The node's own messages, package `stereosplat_msgs`: per-bin latency
+//! ([`BinLatency`]) and counters ([`Diagnostics`] of [`Counter`]s).
+//!
+//! Their definitions are the `.msg` texts [`BIN_LATENCY_MSG`], [`COUNTER_MSG`] and
+//! [`DIAGNOSTICS_MSG`] (files beside this one): the type hashes are computed from them and
+//! the interop test registers the same texts with an independent CDR reader, so the wire
+//! layout has one definition.
+//!
+//! `stereosplat_msgs/msg/BinLatency`, in wire order:
+//! `uint64 bin_id`, `int64 first_frame_arrival_ns`, `int64 bin_close_ns`,
+//! `int64 model_start_ns`, `int64 model_end_ns`, `int64 render_end_ns`, `int64 publish_ns`,
+//! `uint32 queue_depth`, `uint64 drops`, `uint64 bad_messages`.
+//!
+//! `stereosplat_msgs/msg/Diagnostics`: `int64 stamp_ns`, `Counter[] counters`, where
+//! `stereosplat_msgs/msg/Counter` is `string kind`, `uint64 count`.
+
+use super::cdr::{CdrReader, CdrWriter, DecodeError};
+use super::{Message, MessageKind};
+
+/// The definition of `stereosplat_msgs/msg/BinLatency`.
+pub const BIN_LATENCY_MSG: &str = include_str!("BinLatency.msg");
+/// The definition of `stereosplat_msgs/msg/Counter`.
+pub const COUNTER_MSG: &str = include_str!("Counter.msg");
+/// The definition of `stereosplat_msgs/msg/Diagnostics`.
+pub const DIAGNOSTICS_MSG: &str = include_str!("Diagnostics.msg");
+
+/// How long one bin took through the node. Stamps are nanoseconds since the Unix epoch on
+/// the node's clock, 0 where the bin never reached the stage; differences give the stage
+/// latencies.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BinLatency {
+    /// The bin's number, counted from 0 since the node started.
+    pub bin_id: u64,
+    /// When the bin's first stereo frame arrived.
+    pub first_frame_arrival_ns: i64,
+    /// When the bin closed (its last frame arrived).
+    pub bin_close_ns: i64,
+    /// When the worker started the model on it.
+    pub model_start_ns: i64,
+    /// When the model finished.
+    pub model_end_ns: i64,
+    /// When the renders of the bin's map finished.
+    pub render_end_ns: i64,
+    /// When the bin's map was published.
+    pub publish_ns: i64,
+    /// Bins waiting in the worker queue when this one was taken.
+    pub queue_depth: u32,
+    /// Bins dropped by the queue's policy since the node started.
+    pub drops: u64,
+    /// Malformed input messages counted since the node started.
+    pub bad_messages: u64,
+}
+
+impl Message for BinLatency {
+    const KIND: MessageKind = MessageKind::BinLatency;
+
+    fn write(&self, w: &mut CdrWriter) {
+        w.u64(self.bin_id);
+        for t in [
+            self.first_frame_arrival_ns,
+            self.bin_close_ns,
+            self.model_start_ns,
+            self.model_end_ns,
+            self.render_end_ns,
+            self.publish_ns,
+        ] {
+            w.i64(t);
+        }
+        w.u32(self.queue_depth);
+        w.u64(self.drops);
+        w.u64(self.bad_messages);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            bin_id: r.u64("bin_id")?,
+            first_frame_arrival_ns: r.i64("first_frame_arrival_ns")?,
+            bin_close_ns: r.i64("bin_close_ns")?,
+            model_start_ns: r.i64("model_start_ns")?,
+            model_end_ns: r.i64("model_end_ns")?,
+            render_end_ns: r.i64("render_end_ns")?,
+            publish_ns: r.i64("publish_ns")?,
+            queue_depth: r.u32("queue_depth")?,
+            drops: r.u64("drops")?,
+            bad_messages: r.u64("bad_messages")?,
+        })
+    }
+}
+
+/// One named counter.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Counter {
+    /// What is counted (e.g. `bad_message/left_image`, `drop/worker_queue`).
+    pub kind: String,
+    /// How many since the node started.
+    pub count: u64,
+}
+
+/// Fewest bytes one `Counter` takes on the wire: an empty string (length and NUL) and the
+/// count.
+const COUNTER_MIN_BYTES: usize = 4 + 1 + 8;
+
+impl Message for Counter {
+    const KIND: MessageKind = MessageKind::Counter;
+
+    fn write(&self, w: &mut CdrWriter) {
+        w.string(&self.kind);
+        w.u64(self.count);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            kind: r.string("counters.kind")?,
+            count: r.u64("counters.count")?,
+        })
+    }
+}
+
+/// The node's counters at one moment.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Diagnostics {
+    /// When the counters were read, nanoseconds since the Unix epoch.
+    pub stamp_ns: i64,
+    /// The counters, in the node's order.
+    pub counters: Vec<Counter>,
+}
+
+impl Message for Diagnostics {
+    const KIND: MessageKind = MessageKind::Diagnostics;
+
+    fn write(&self, w: &mut CdrWriter) {
+        w.i64(self.stamp_ns);
+        w.seq_len(self.counters.len());
+        for c in &self.counters {
+            c.write(w);
+        }
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        let stamp_ns = r.i64("stamp_ns")?;
+        let n = r.seq_len("counters", COUNTER_MIN_BYTES)?;
+        let counters = (0..n).map(|_| Counter::read(r)).collect::<Result<_, _>>()?;
+        Ok(Self { stamp_ns, counters })
+    }
+}

@@ -1,0 +1,127 @@
+//! ROS 2 wire messages in CDR, so a ROS 2 stack on rmw_zenoh, or any CDR reader, consumes
+//! what the node publishes and the node reads what ROS 2 tools publish.
+//!
+//! * [`cdr`]: the plain-CDR (XCDR1) reader and writer and [`DecodeError`];
+//! * the messages, field for field as ROS 2 Jazzy defines them: [`std_msgs`] (Time, Header),
+//!   [`sensor_msgs`] (Image, CameraInfo, PointCloud2), [`geometry_msgs`] (PoseStamped), and the
+//!   node's own [`latency`] messages (BinLatency, Diagnostics);
+//! * conversions to and from the project's types: [`image`] (RgbImage, Intrinsics),
+//!   [`pose`] (DAffine3), [`gaussians`] (GaussianSet as a PointCloud2 in the 3DGS PLY
+//!   convention), failing with [`ConvertError`];
+//! * names and REP 2011 type hashes for rmw_zenoh: [`MessageKind`], [`type_hash`].
+//!
+//! Decoders never panic and never allocate much more than their input: every malformed
+//! payload is a [`DecodeError`] naming the field and byte offset.
+
+pub mod cdr;
+pub mod gaussians;
+pub mod geometry_msgs;
+pub mod image;
+pub mod kind;
+pub mod latency;
+pub mod pose;
+pub mod sensor_msgs;
+pub mod std_msgs;
+pub mod type_hash;
+
+pub use cdr::{CdrReader, CdrWriter, DecodeError};
+pub use kind::{type_hash, MessageKind};
+
+/// A message with a CDR wire form. `write`/`read` handle the fields (and nest inside other
+/// messages); `encode`/`decode` add and check the encapsulation header of a whole payload.
+pub trait Message: Sized {
+    /// Which type this is (names and type hash).
+    const KIND: MessageKind;
+
+    /// Appends the fields.
+    fn write(&self, w: &mut CdrWriter);
+
+    /// Reads the fields.
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError>;
+
+    /// The whole payload, encapsulation header first.
+    fn encode(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        self.write(&mut w);
+        w.into_bytes()
+    }
+
+    /// Decodes a whole payload (trailing bytes after the last field are ignored).
+    fn decode(bytes: &[u8]) -> Result<Self, DecodeError> {
+        Self::read(&mut CdrReader::new(bytes)?)
+    }
+}
+
+/// Why a decoded message could not become one of the project's types (or the reverse).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ConvertError {
+    /// An image encoding other than `rgb8`, `bgr8` or `mono8`.
+    #[error("unsupported image encoding `{0}` (rgb8, bgr8 and mono8 are read)")]
+    UnsupportedEncoding(String),
+    /// The image's step or data length disagree with its size.
+    #[error("image {width}x{height} {encoding}: step {step} and {len} data bytes (need step >= {min_step} and data = step * height)")]
+    ImageSize {
+        /// Columns.
+        width: u32,
+        /// Rows.
+        height: u32,
+        /// The encoding.
+        encoding: String,
+        /// Bytes per row declared.
+        step: u32,
+        /// Smallest valid step.
+        min_step: u64,
+        /// Data bytes present.
+        len: usize,
+    },
+    /// A value that must be finite is not (names the value).
+    #[error("`{0}` is not finite")]
+    NonFinite(&'static str),
+    /// A camera's focal length is zero or negative.
+    #[error("camera info has focal lengths fx = {fx}, fy = {fy}")]
+    BadFocal {
+        /// P\[0\].
+        fx: f64,
+        /// P\[5\].
+        fy: f64,
+    },
+    /// A quaternion too far from unit length to be a rotation.
+    #[error("quaternion norm {norm} is not 1 (tolerance {tolerance})")]
+    NonUnitQuaternion {
+        /// Its norm.
+        norm: f64,
+        /// The accepted deviation from 1.
+        tolerance: f64,
+    },
+    /// A point cloud lacks a field the Gaussians need.
+    #[error("point cloud has no `{0}` field")]
+    MissingField(&'static str),
+    /// A point cloud field that cannot be read as a float scalar inside the record.
+    #[error("point cloud field `{name}`: {reason}")]
+    BadField {
+        /// The field.
+        name: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The cloud's sizes disagree with each other or with its data.
+    #[error("point cloud {width}x{height}: point_step {point_step}, row_step {row_step}, {len} data bytes (need row_step >= width * point_step and data = row_step * height)")]
+    CloudSize {
+        /// Points per row.
+        width: u32,
+        /// Rows.
+        height: u32,
+        /// Bytes per point.
+        point_step: u32,
+        /// Bytes per row.
+        row_step: u32,
+        /// Data bytes present.
+        len: usize,
+    },
+    /// A Gaussian set whose arrays differ in length.
+    #[error(transparent)]
+    LengthMismatch(#[from] renderer::gaussians::LengthMismatch),
+    /// More points or bytes than one CDR message can hold (4 GiB).
+    #[error("{0} does not fit a CDR message")]
+    TooLarge(&'static str),
+}

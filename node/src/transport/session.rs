@@ -57,7 +57,6 @@ impl TransportConfig {
                 .map_err(|e| TransportError::Config(format!("{}: {e}", path.display())))?,
             None => Config::default(),
         };
-        let json = |v: &impl serde::Serialize| serde_json::to_string(v).expect("plain values");
         config
             .insert_json5("mode", &json(&self.mode))
             .map_err(cfg_err)?;
@@ -89,4 +88,9 @@ pub async fn open(config: &TransportConfig) -> Result<Session, TransportError> {
     zenoh::open(config.zenoh_config()?)
         .await
         .map_err(|e| TransportError::Open(e.to_string()))
+}
+
+/// A plain value as JSON5 text for `insert_json5`.
+fn json(v: &impl serde::Serialize) -> String {
+    serde_json::to_string(v).expect("strings, bools and string lists always serialise")
 }

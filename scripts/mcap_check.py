@@ -13,7 +13,6 @@ Prints one JSON object on stdout:
   messages read;
 * `messages`: every message in log-time order: `topic`, `log_time`, `publish_time`,
   `sequence` and the `sha256` of its payload;
-* `chunks`: the chunk indexes' `start` byte and `length` in bytes, in file order;
 * `statistics_message_count`: the count in the statistics record (null without one).
 
 Chunk CRCs are validated while reading. Needs `pip install -r scripts/requirements.txt`.
@@ -76,19 +75,12 @@ def describe(stream):
             }
         )
     described.sort(key=lambda c: c["topic"])
-
-    chunk_indexes = sorted(
-        summary.chunk_indexes if summary else [], key=lambda c: c.chunk_start_offset
-    )
     statistics = summary.statistics if summary else None
     return {
         "profile": header.profile,
         "library": header.library,
         "channels": described,
         "messages": messages,
-        "chunks": [
-            {"start": c.chunk_start_offset, "length": c.chunk_length} for c in chunk_indexes
-        ],
         "statistics_message_count": statistics.message_count if statistics else None,
     }
 

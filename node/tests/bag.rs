@@ -118,6 +118,15 @@ fn round_trip_is_bit_exact_in_log_time_order() {
     let expected = in_log_time_order(&written);
     assert_ne!(expected, written, "the drive must have out-of-order writes");
     assert_eq!(read.len(), 300);
+    let chunks = chunk_indexes(&std::fs::read(&path).unwrap());
+    let overlapping = chunks
+        .windows(2)
+        .filter(|w| w[1].message_start_time <= w[0].message_end_time)
+        .count();
+    assert!(
+        overlapping > 0,
+        "some chunks must overlap in time to test the merge"
+    );
     for (i, (r, e)) in read.iter().zip(&expected).enumerate() {
         assert_eq!(r, e, "message {i} differs");
     }
@@ -184,6 +193,7 @@ fn python_mcap_reads_the_same_channels_counts_and_payloads() {
     let report = python_check(&path);
 
     assert_eq!(report["profile"], "ros2");
+    assert_eq!(report["statistics_message_count"], 200);
     let mut seen_channels = 0;
     for c in report["channels"].as_array().unwrap() {
         let topic = c["topic"].as_str().unwrap();
@@ -291,38 +301,34 @@ fn truncated_files_give_errors() {
     std::fs::remove_file(&cut_path).unwrap();
 }
 
-/// Byte ranges `[start, end)` of the chunk records and of the summary through the end.
-fn checked_ranges(path: &Path, len: usize) -> Vec<(usize, usize)> {
-    let summary_start = {
-        let bytes = std::fs::read(path).unwrap();
-        let footer = &bytes[len - 37..];
-        u64::from_le_bytes(footer[9..17].try_into().unwrap()) as usize
-    };
-    let chunks = chunk_ranges(path);
-    assert!(chunks.len() >= 3, "the small bag must have several chunks");
-    let mut ranges = chunks;
-    ranges.push((0, 8));
-    ranges.push((summary_start, len));
-    ranges
+/// The chunk indexes of the MCAP file `bytes`, as the `mcap` crate reads them.
+fn chunk_indexes(bytes: &[u8]) -> Vec<mcap::records::ChunkIndex> {
+    mcap::Summary::read(bytes).unwrap().unwrap().chunk_indexes
 }
 
-/// Where the chunk records lie, from the Python reader's view of the chunk indexes.
-fn chunk_ranges(path: &Path) -> Vec<(usize, usize)> {
-    python_check(path)["chunks"]
-        .as_array()
-        .unwrap()
+/// Byte ranges `[start, end)` that CRCs or checks cover: the start magic, the chunk records
+/// and everything from the summary to the end.
+fn checked_ranges(bytes: &[u8]) -> Vec<(usize, usize)> {
+    let footer = &bytes[bytes.len() - 37..];
+    let summary_start = u64::from_le_bytes(footer[9..17].try_into().unwrap()) as usize;
+    let chunks = chunk_indexes(bytes);
+    assert!(chunks.len() >= 3, "the small bag must have several chunks");
+    let mut ranges: Vec<(usize, usize)> = chunks
         .iter()
         .map(|c| {
-            let start = c["start"].as_u64().unwrap() as usize;
-            (start, start + c["length"].as_u64().unwrap() as usize)
+            let start = c.chunk_start_offset as usize;
+            (start, start + c.chunk_length as usize)
         })
-        .collect()
+        .collect();
+    ranges.push((0, 8));
+    ranges.push((summary_start, bytes.len()));
+    ranges
 }
 
 #[test]
 fn byte_flips_give_errors_where_checked_and_never_panic() {
     let (path, bytes, expected) = small_bag("flip-source");
-    let checked = checked_ranges(&path, bytes.len());
+    let checked = checked_ranges(&bytes);
     let flip_path = scratch("flipped");
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     let (mut errors, mut same, mut different) = (0, 0, 0);

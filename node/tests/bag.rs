@@ -361,6 +361,32 @@ fn byte_flips_give_errors_where_checked_and_never_panic() {
 }
 
 #[test]
+fn huge_lengths_and_junk_give_errors_not_aborts() {
+    let (path, bytes, _) = small_bag("junk-source");
+    let junk_path = scratch("junk");
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    // Eight 0xff bytes, read as a length field, ask for 2^64 - 1 bytes: never allocated.
+    let checked = checked_ranges(&bytes);
+    for _ in 0..150 {
+        let (start, end) = checked[rng.random_range(0..checked.len())];
+        let at = rng.random_range(start..=end - 8);
+        let mut damaged = bytes.clone();
+        damaged[at..at + 8].fill(0xff);
+        std::fs::write(&junk_path, &damaged).unwrap();
+        assert!(read_all(&junk_path).is_err(), "0xff x 8 at byte {at}");
+    }
+    // Random bytes, bare or between a real start and a real end of an MCAP file.
+    let junk: Vec<u8> = (0..20_000).map(|_| rng.random()).collect();
+    let framed = [&bytes[..200], &junk[..], &bytes[bytes.len() - 37..]].concat();
+    for file in [junk, framed] {
+        std::fs::write(&junk_path, &file).unwrap();
+        assert!(read_all(&junk_path).is_err());
+    }
+    std::fs::remove_file(&path).unwrap();
+    std::fs::remove_file(&junk_path).unwrap();
+}
+
+#[test]
 fn pacing_keeps_scales_or_drops_recorded_gaps() {
     let start = Instant::now();
     let first = 5_000_000_000;

@@ -6,8 +6,8 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use mcap::read::ChunkReader;
-use mcap::records::{op, ChunkIndex, Record};
+use mcap::records::{op, ChunkIndex, MessageHeader, Record};
+use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
 use super::summary::{le_u64, read_at, read_index, Index};
 use super::{BagError, ChannelInfo, Message};
@@ -121,7 +121,7 @@ impl BagReader {
             place: format!("chunk at byte {at}"),
             source,
         };
-        let Record::Chunk { header, data } =
+        let Record::Chunk { header, .. } =
             mcap::parse_record(op::CHUNK, &record[9..]).map_err(format_error)?
         else {
             return Err(self.corrupt(at, "chunk record did not parse as a chunk".into()));
@@ -134,27 +134,67 @@ impl BagReader {
         if !agrees {
             return Err(self.corrupt(at, "chunk header disagrees with its index".into()));
         }
-        // The chunk reader checks the CRC of the decompressed records.
-        for record in ChunkReader::new(header, &data).map_err(format_error)? {
-            if let Record::Message { header, data } = record.map_err(format_error)? {
-                let channel = self.index.by_id.get(&header.channel_id).ok_or_else(|| {
-                    let id = header.channel_id;
-                    self.corrupt(at, format!("message on unknown channel id {id}"))
-                })?;
-                if !(chunk.message_start_time..=chunk.message_end_time).contains(&header.log_time) {
-                    return Err(self.corrupt(at, "message log time outside its chunk".into()));
+        let limit = chunk.chunk_length.max(chunk.uncompressed_size) as usize;
+        let times = chunk.message_start_time..=chunk.message_end_time;
+        let mut problem = None;
+        for_each_message(&record, limit, |header, payload| {
+            let channel = self.index.by_id.get(&header.channel_id);
+            match channel {
+                _ if problem.is_some() => {}
+                None => problem = Some(format!("message on unknown channel {}", header.channel_id)),
+                Some(_) if !times.contains(&header.log_time) => {
+                    problem = Some("message log time outside its chunk's range".into())
                 }
-                push(Message {
+                Some(channel) => push(Message {
                     channel: Arc::clone(channel),
                     log_time_ns: header.log_time,
                     publish_time_ns: header.publish_time,
                     sequence: header.sequence,
-                    payload: data.into_owned(),
-                });
+                    payload,
+                }),
             }
+        })
+        .map_err(format_error)?;
+        match problem {
+            Some(reason) => Err(self.corrupt(at, reason)),
+            None => Ok(()),
         }
-        Ok(())
     }
+}
+
+/// Decodes the chunk record `record` (opcode and length included) and calls `on_message` with
+/// each message in it, in file order. The chunk's CRC is checked before any record inside is
+/// parsed, and no record may claim more than `limit` bytes, so damaged data can neither reach
+/// `on_message` nor make the decoder allocate absurd amounts.
+fn for_each_message(
+    record: &[u8],
+    limit: usize,
+    mut on_message: impl FnMut(MessageHeader, Vec<u8>),
+) -> mcap::McapResult<()> {
+    let options = LinearReaderOptions::default()
+        .with_skip_start_magic(true)
+        .with_skip_end_magic(true)
+        .with_prevalidate_chunk_crcs(true)
+        .with_record_length_limit(limit);
+    let mut reader = LinearReader::new_with_options(options);
+    let mut input = record;
+    while let Some(event) = reader.next_event() {
+        match event? {
+            LinearReadEvent::ReadRequest(need) => {
+                let n = need.min(input.len());
+                reader.insert(n).copy_from_slice(&input[..n]);
+                reader.notify_read(n);
+                input = &input[n..];
+            }
+            LinearReadEvent::Record { opcode, data } if opcode == op::MESSAGE => {
+                if let Record::Message { header, data } = mcap::parse_record(opcode, data)? {
+                    on_message(header, data.into_owned());
+                }
+            }
+            LinearReadEvent::Record { .. } => {}
+        }
+    }
+    Ok(())
 }
 
 /// Iterator over a bag's messages in log-time order; see [`BagReader::messages`].

@@ -8,9 +8,9 @@ Prints one JSON object on stdout:
 
 * `profile`, `library`: from the header record;
 * `channels`: one entry per channel in the summary, sorted by topic: `topic`,
-  `message_encoding`, `schema_name`, `schema_encoding`, `schema_text`, `message_count` and
-  `first_log_time` / `last_log_time` (nanoseconds, null without messages), counted from the
-  messages read;
+  `message_encoding`, `metadata`, `schema_name`, `schema_encoding`, `schema_text`, and
+  `message_count`, `first_log_time` / `last_log_time` (nanoseconds, null without messages)
+  counted from the messages read;
 * `messages`: every message in log-time order: `topic`, `log_time`, `publish_time`,
   `sequence` and the `sha256` of its payload;
 * `statistics_message_count`: the count in the statistics record (null without one).
@@ -66,6 +66,7 @@ def describe(stream):
             {
                 "topic": channel.topic,
                 "message_encoding": channel.message_encoding,
+                "metadata": channel.metadata,
                 "schema_name": schema.name if schema else None,
                 "schema_encoding": schema.encoding if schema else None,
                 "schema_text": schema.data.decode("utf-8", "replace") if schema else None,

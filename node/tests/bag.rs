@@ -200,6 +200,10 @@ fn python_mcap_reads_the_same_channels_counts_and_payloads() {
         let info = channels().into_iter().find(|i| i.topic == topic).unwrap();
         let mine: Vec<&Message> = written.iter().filter(|m| m.channel == info).collect();
         assert_eq!(c["message_encoding"], "cdr");
+        assert_eq!(
+            c["metadata"],
+            serde_json::json!({"offered_qos_profiles": ""})
+        );
         assert_eq!(c["schema_name"], info.schema_name.as_str());
         assert_eq!(c["schema_encoding"], "ros2msg");
         assert_eq!(c["schema_text"], info.schema_text.as_str());

@@ -7,6 +7,10 @@
 //! reads it back in log-time order, bit for bit, checking the chunk and summary CRCs so that a
 //! damaged file gives a [`BagError`] instead of wrong data. [`Pacer`] turns recorded log times
 //! into sleeps so a replay keeps the recorded timing, a multiple of it, or none.
+//!
+//! Chunks are compressed with zstd only: the `mcap` crate's lz4 feature would add a C build of
+//! liblz4 for a compression that ROS 2 tools rarely write; an lz4 bag gives a
+//! [`BagError::Format`] naming the unsupported compression.
 
 mod error;
 mod pacing;

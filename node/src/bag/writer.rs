@@ -10,6 +10,9 @@ use mcap::{Compression, WriteOptions, Writer};
 
 use super::{BagError, ChannelInfo, PROFILE, SCHEMA_ENCODING};
 
+/// The channel metadata key under which the ros2 profile stores the publishers' QoS.
+const QOS_KEY: &str = "offered_qos_profiles";
+
 /// Writes messages to an MCAP file: zstd-compressed chunks of about 1 MiB, chunk and summary
 /// CRCs, message and chunk indexes and statistics (what `ros2 bag`, Foxglove and
 /// [`super::BagReader`] expect). Schemas and channels are registered on first use.
@@ -97,13 +100,16 @@ impl BagWriter {
                 channel.schema_text.as_bytes(),
             )
             .map_err(|source| format_error(&self.path, source))?;
+        // The ros2 profile requires this key; empty means "publisher's QoS unknown", and
+        // rosbag2 then replays with its default QoS.
+        let metadata = BTreeMap::from([(QOS_KEY.to_string(), String::new())]);
         let id = self
             .mcap
             .add_channel(
                 schema_id,
                 &channel.topic,
                 &channel.message_encoding,
-                &BTreeMap::new(),
+                &metadata,
             )
             .map_err(|source| format_error(&self.path, source))?;
         self.channel_ids.insert(channel.clone(), id);

@@ -57,20 +57,23 @@ pub(super) fn read_index(path: &Path, file: &File, file_len: u64) -> Result<Inde
     }
     let footer_at = file_len - FOOTER_AND_MAGIC;
     let tail = read_at(path, file, footer_at, FOOTER_AND_MAGIC as usize)?;
-    if &tail[29..] != MAGIC {
+    // Footer: opcode (1), record length (8), summary start (8), summary offset start (8),
+    // summary CRC (4).
+    let (footer, end_magic) = tail.split_at(tail.len() - MAGIC.len());
+    if end_magic != MAGIC {
         return Err(corrupt(
             file_len - magic_len,
             "no MCAP magic at the end (truncated, or the recording was not finished)".into(),
         ));
     }
-    if tail[0] != op::FOOTER || le_u64(&tail[1..9]) != 20 {
+    if footer[0] != op::FOOTER || le_u64(&footer[1..9]) != 20 {
         return Err(corrupt(
             footer_at,
             "no footer record before the end magic".into(),
         ));
     }
-    let summary_start = le_u64(&tail[9..17]);
-    let summary_crc = u32::from_le_bytes([tail[25], tail[26], tail[27], tail[28]]);
+    let summary_start = le_u64(&footer[9..17]);
+    let summary_crc = u32::from_le_bytes([footer[25], footer[26], footer[27], footer[28]]);
     if summary_start == 0 {
         return Err(unindexed("no summary section"));
     }

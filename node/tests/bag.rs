@@ -158,6 +158,36 @@ fn round_trip_is_bit_exact_in_log_time_order() {
     std::fs::remove_file(&path).unwrap();
 }
 
+#[test]
+fn equal_log_times_keep_write_order_across_chunks() {
+    // Forty 100 kB messages at one log time fill several chunks; the last chunk also holds
+    // earlier messages, so it starts earliest and is read first.
+    let path = scratch("ties");
+    let channel = Arc::clone(&channels()[0]);
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let written: Vec<Message> = (0..44u32)
+        .map(|i| Message {
+            channel: Arc::clone(&channel),
+            log_time_ns: if i < 40 { 1_000 } else { 500 },
+            publish_time_ns: 0,
+            sequence: i,
+            payload: (0..100_000).map(|_| rng.random()).collect(),
+        })
+        .collect();
+    write_bag(&path, &written);
+    let chunks = chunk_indexes(&std::fs::read(&path).unwrap());
+    assert!(chunks.len() >= 3);
+    assert_eq!(chunks.last().unwrap().message_start_time, 500);
+    let order: Vec<u32> = read_all(&path)
+        .unwrap()
+        .iter()
+        .map(|m| m.sequence)
+        .collect();
+    let expected: Vec<u32> = (40..44).chain(0..40).collect();
+    assert_eq!(order, expected);
+    std::fs::remove_file(&path).unwrap();
+}
+
 /// One message as the Python check reports it: topic, times, sequence, payload SHA-256.
 type Row = (String, u64, u64, u32, String);
 

@@ -80,7 +80,6 @@ impl BagReader {
             bag: self,
             next_chunk: 0,
             pending: BinaryHeap::new(),
-            loaded: 0,
             yielded: 0,
             failed: false,
         }
@@ -204,8 +203,6 @@ pub struct Messages<'a> {
     next_chunk: usize,
     /// Loaded messages not yet yielded, earliest first.
     pending: BinaryHeap<Reverse<Pending>>,
-    /// Messages loaded so far; their load order breaks log-time ties.
-    loaded: u64,
     /// Messages yielded so far.
     yielded: u64,
     /// Set after an error: the iterator is over.
@@ -229,13 +226,14 @@ impl Messages<'_> {
         while self.must_load() {
             let chunk = &self.bag.index.chunks[self.next_chunk];
             self.next_chunk += 1;
-            let (pending, loaded) = (&mut self.pending, &mut self.loaded);
+            let pending = &mut self.pending;
+            let mut in_chunk = 0;
             self.bag.load_chunk(chunk, |message| {
                 pending.push(Reverse(Pending {
-                    order: *loaded,
+                    place: (chunk.chunk_start_offset, in_chunk),
                     message,
                 }));
-                *loaded += 1;
+                in_chunk += 1;
             })?;
         }
         match self.pending.pop() {
@@ -268,15 +266,16 @@ impl Iterator for Messages<'_> {
     }
 }
 
-/// A loaded message, ordered by log time and then by load order.
+/// A loaded message, ordered by log time and then by its place in the file.
 struct Pending {
-    order: u64,
+    /// Byte offset of its chunk and its index in the chunk.
+    place: (u64, u64),
     message: Message,
 }
 
 impl Pending {
-    fn key(&self) -> (u64, u64) {
-        (self.message.log_time_ns, self.order)
+    fn key(&self) -> (u64, (u64, u64)) {
+        (self.message.log_time_ns, self.place)
     }
 }
 

@@ -5,6 +5,7 @@
 //! streaming node's issue. It sits at the top of the dependency chain (`renderer` <- `model`
 //! <- `node`).
 
+pub mod bag;
 pub mod cli;
 pub mod fusion;
 pub mod launch;

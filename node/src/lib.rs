@@ -1,9 +1,12 @@
-//! The StereoSplat node: transport, pipeline and the `stereosplat` command line.
+//! The StereoSplat node: transport, pipeline and the `stereosplat` command line. It sits at
+//! the top of the dependency chain (`renderer` <- `model` <- `node`).
 //!
-//! [`cli`] holds the subcommands; [`pipeline`] the transport-free stages of the streaming
-//! node (time sync, binning). Zenoh in and out, the worker and the global map arrive with the
-//! streaming node's issue. It sits at the top of the dependency chain (`renderer` <- `model`
-//! <- `node`).
+//! - [`cli`]: the subcommands.
+//! - [`transport`]: zenoh sessions (loopback peers by default); [`msg`]: the ROS 2 CDR wire
+//!   messages and their rmw_zenoh type hashes.
+//! - [`pipeline`]: time sync, binning and the worker thread that owns the reconstructor.
+//! - [`fusion`]: the fused global map in the f64 world frame.
+//! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
 
 pub mod bag;
 pub mod cli;

@@ -61,6 +61,9 @@ fn a_bad_config_file_is_a_typed_error() {
     }
     .zenoh_config()
     .unwrap_err();
-    assert!(err.to_string().contains(&path.display().to_string()), "{err}");
+    assert!(
+        err.to_string().contains(&path.display().to_string()),
+        "{err}"
+    );
     let _ = std::fs::remove_file(path);
 }

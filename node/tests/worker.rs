@@ -87,7 +87,11 @@ fn a_burst_drops_the_oldest_waiting_bins_without_blocking() {
     assert_eq!(worker.drops(), dropped);
     worker.shutdown();
     let out: Vec<Output> = rx.try_iter().collect();
-    assert_eq!(out.len() as u64 + dropped, 20, "every bin is either done or counted");
+    assert_eq!(
+        out.len() as u64 + dropped,
+        20,
+        "every bin is either done or counted"
+    );
     // Keep newest: the last bin submitted is always among those done.
     assert_eq!(out.last().unwrap().bin_id, 19);
     assert!(out.windows(2).all(|w| w[0].bin_id < w[1].bin_id));

@@ -45,6 +45,19 @@ pub const SH_C0: f64 = 0.282_094_791_773_878_14;
 /// `1e-6` and `1 - 1e-6`.
 pub const OPACITY_EPS: f64 = 1e-6;
 
+/// The stored form of an opacity: its logit, the opacity first clamped to
+/// `[OPACITY_EPS, 1 - OPACITY_EPS]` so 0 and 1 stay finite. Shared by every format that
+/// follows the 3DGS convention (PLY, the node's PointCloud2).
+pub fn opacity_logit(opacity: f32) -> f64 {
+    let p = (opacity as f64).clamp(OPACITY_EPS, 1.0 - OPACITY_EPS);
+    (p / (1.0 - p)).ln()
+}
+
+/// The opacity a stored logit stands for (the inverse of [`opacity_logit`]).
+pub fn opacity_from_logit(logit: f64) -> f32 {
+    (1.0 / (1.0 + (-logit).exp())) as f32
+}
+
 /// The header may be at most this long; a stream without `end_header` is refused here rather
 /// than read to its end.
 const MAX_HEADER_BYTES: u64 = 64 * 1024;
@@ -151,7 +164,6 @@ pub fn write_ply(set: &GaussianSet, mut w: impl Write) -> Result<(), PlyError> {
     let mut buf = Vec::with_capacity(CHUNK_BYTES + STRIDE);
     for i in 0..set.len() {
         let g = set.get(i);
-        let p = (g.opacity as f64).clamp(OPACITY_EPS, 1.0 - OPACITY_EPS);
         let dc = (g.color.as_dvec3() - 0.5) / SH_C0;
         let q = g.rotation;
         let record = [
@@ -164,7 +176,7 @@ pub fn write_ply(set: &GaussianSet, mut w: impl Write) -> Result<(), PlyError> {
             dc.x as f32,
             dc.y as f32,
             dc.z as f32,
-            (p / (1.0 - p)).ln() as f32,
+            opacity_logit(g.opacity) as f32,
             g.log_scale.x,
             g.log_scale.y,
             g.log_scale.z,

@@ -19,7 +19,7 @@
 //! Rotations are read as stored, not normalised, as the PLY reader does.
 
 use glam::{DVec3, Quat, Vec3};
-use renderer::ply::{OPACITY_EPS, SH_C0};
+use renderer::ply::{opacity_from_logit, opacity_logit, SH_C0};
 use renderer::GaussianSet;
 
 use super::sensor_msgs::{datatype, PointCloud2, PointField};
@@ -50,7 +50,6 @@ fn stored(set: &GaussianSet, i: usize, origin: DVec3) -> [f64; 15] {
     let g = set.get(i);
     let p = origin + g.mean.as_dvec3();
     let dc = (g.color.as_dvec3() - 0.5) / SH_C0;
-    let a = (g.opacity as f64).clamp(OPACITY_EPS, 1.0 - OPACITY_EPS);
     let s = g.log_scale.as_dvec3();
     let q = g.rotation.as_dquat();
     let c = g.confidence as f64;
@@ -61,7 +60,7 @@ fn stored(set: &GaussianSet, i: usize, origin: DVec3) -> [f64; 15] {
         dc.x,
         dc.y,
         dc.z,
-        (a / (1.0 - a)).ln(),
+        opacity_logit(g.opacity),
         s.x,
         s.y,
         s.z,
@@ -234,7 +233,7 @@ pub fn gaussians_from_cloud(
             set.push(renderer::Gaussian {
                 mean: (DVec3::new(v[0], v[1], v[2]) - origin).as_vec3(),
                 color: (0.5 + SH_C0 * dc).as_vec3(),
-                opacity: (1.0 / (1.0 + (-v[6]).exp())) as f32,
+                opacity: opacity_from_logit(v[6]),
                 log_scale: Vec3::new(v[7] as f32, v[8] as f32, v[9] as f32),
                 rotation: Quat::from_xyzw(v[11] as f32, v[12] as f32, v[13] as f32, v[10] as f32),
                 confidence: v[14] as f32,

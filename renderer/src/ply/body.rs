@@ -68,7 +68,7 @@ impl VertexLayout {
                 (0.5 + SH_C0 * v[4]) as f32,
                 (0.5 + SH_C0 * v[5]) as f32,
             ),
-            opacity: (1.0 / (1.0 + (-opacity_logit).exp())) as f32,
+            opacity: super::opacity_from_logit(opacity_logit),
             log_scale: Vec3::new(v[7] as f32, v[8] as f32, v[9] as f32),
             rotation: Quat::from_xyzw(v[11] as f32, v[12] as f32, v[13] as f32, v[10] as f32),
             confidence: self.confidence.map_or(1.0, get) as f32,

@@ -14,4 +14,5 @@ pub mod fusion;
 pub mod launch;
 pub mod msg;
 pub mod pipeline;
+pub mod service;
 pub mod transport;

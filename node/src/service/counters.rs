@@ -1,0 +1,50 @@
+//! The node's counters (bad input, drops), published as Diagnostics.
+
+use std::collections::BTreeMap;
+
+use crate::msg::latency::{Counter, Diagnostics};
+
+/// Named counters, kept in name order so every Diagnostics message lists them the same way.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Counters(BTreeMap<String, u64>);
+
+impl Counters {
+    /// Adds `n` to counter `kind`.
+    pub fn add(&mut self, kind: &str, n: u64) {
+        *self.0.entry(kind.to_string()).or_default() += n;
+    }
+
+    /// Sets counter `kind` (for counters kept elsewhere, such as the synchroniser's).
+    pub fn set(&mut self, kind: &str, n: u64) {
+        self.0.insert(kind.to_string(), n);
+    }
+
+    /// The value of `kind` (0 if never counted).
+    pub fn get(&self, kind: &str) -> u64 {
+        self.0.get(kind).copied().unwrap_or(0)
+    }
+
+    /// Every counter whose name starts with `prefix`, summed.
+    pub fn sum(&self, prefix: &str) -> u64 {
+        self.0
+            .iter()
+            .filter(|(k, _)| k.starts_with(prefix))
+            .map(|(_, v)| v)
+            .sum()
+    }
+
+    /// As a Diagnostics message stamped `stamp_ns`.
+    pub fn diagnostics(&self, stamp_ns: i64) -> Diagnostics {
+        Diagnostics {
+            stamp_ns,
+            counters: self
+                .0
+                .iter()
+                .map(|(kind, &count)| Counter {
+                    kind: kind.clone(),
+                    count,
+                })
+                .collect(),
+        }
+    }
+}

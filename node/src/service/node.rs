@@ -1,0 +1,322 @@
+//! The node's event loop.
+
+use std::collections::BTreeMap;
+use std::future::Future;
+use std::path::PathBuf;
+
+use glam::DVec2;
+use model::frame::{RgbImage, StereoFrame, StereoRig};
+use tokio::sync::mpsc;
+use zenoh::Session;
+
+use super::counters::Counters;
+use super::keys::Keys;
+use crate::fusion::{bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap};
+use crate::msg::gaussians::cloud_from_gaussians;
+use crate::msg::geometry_msgs::PoseStamped;
+use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
+use crate::msg::latency::BinLatency;
+use crate::msg::pose::{affine_from_pose, pose_from_affine};
+use crate::msg::sensor_msgs::{CameraInfo, Image};
+use crate::msg::std_msgs::Header;
+use crate::msg::Message;
+use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
+use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
+use crate::pipeline::worker::{now_ns, Job, Output, Stamps, Worker};
+use crate::transport::{open, TransportConfig, TransportError};
+
+/// Everything the node is configured by.
+#[derive(Clone, Debug)]
+pub struct NodeConfig {
+    /// How to reach the other processes.
+    pub transport: TransportConfig,
+    /// Topic keys.
+    pub keys: Keys,
+    /// Pairing of left, right and pose.
+    pub sync: SyncConfig,
+    /// Bin length.
+    pub binner: BinnerConfig,
+    /// Bins waiting for the worker at most (then the oldest waiting is dropped).
+    pub queue_capacity: usize,
+    /// The reconstructor (see `model::methods`).
+    pub method: String,
+    /// The global map's settings.
+    pub fusion: FusionConfig,
+    /// Where the fused map (PLY, bird's-eye PNG, saved map) goes when the node stops.
+    pub out_dir: Option<PathBuf>,
+}
+
+/// What a run of the node did.
+#[derive(Clone, Debug, Default)]
+pub struct NodeSummary {
+    /// Bins whose maps were published.
+    pub bins_published: u64,
+    /// Gaussians in the global map at the end.
+    pub global_gaussians: usize,
+    /// The counters at the end.
+    pub counters: Counters,
+}
+
+/// Why the node stopped with an error (bad input never stops it).
+#[derive(Debug, thiserror::Error)]
+pub enum ServiceError {
+    /// The zenoh session.
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+    /// The method name.
+    #[error(transparent)]
+    Method(#[from] model::methods::UnknownMethod),
+    /// The fusion settings.
+    #[error(transparent)]
+    Fusion(#[from] crate::fusion::FusionError),
+    /// Writing the exports.
+    #[error("exporting the global map: {0}")]
+    Export(String),
+}
+
+fn zenoh_err(e: zenoh::Error) -> TransportError {
+    TransportError::Zenoh(e.to_string())
+}
+
+/// The bins in flight: stamps collected on the async side until the bin closed and its map
+/// was published, then the latency message goes out.
+#[derive(Default)]
+struct Pending {
+    closed_ns: BTreeMap<u64, i64>,
+    published: BTreeMap<u64, Stamps>,
+}
+
+/// Runs the node until `stop` completes; then finishes the queued bins, exports the global
+/// map and returns what happened.
+pub async fn run(
+    config: NodeConfig,
+    stop: impl Future<Output = ()>,
+) -> Result<NodeSummary, ServiceError> {
+    let session = open(&config.transport).await?;
+    let keys = &config.keys;
+    let sub = |key: String| {
+        let s = &session;
+        async move { s.declare_subscriber(key).await.map_err(zenoh_err) }
+    };
+    let left = sub(keys.left_image()).await?;
+    let right = sub(keys.right_image()).await?;
+    let left_info = sub(keys.left_info()).await?;
+    let right_info = sub(keys.right_info()).await?;
+    let pose = sub(keys.pose()).await?;
+
+    let (out_tx, mut out_rx) = mpsc::unbounded_channel::<Output>();
+    let worker = Worker::spawn(
+        model::methods::by_name(&config.method)?,
+        config.queue_capacity,
+        move |o| {
+            let _ = out_tx.send(o);
+        },
+    );
+    let mut sync: Synchronizer<(RgbImage, i64), RgbImage, glam::DAffine3> =
+        Synchronizer::new(config.sync);
+    let mut binner: Binner<(StereoFrame, Stamps)> = Binner::new(config.binner);
+    let mut map = GlobalMap::new(config.fusion)?;
+    let mut counters = Counters::default();
+    let mut pending = Pending::default();
+    let mut summary = NodeSummary::default();
+    let (mut left_k, mut right_k): (Option<CameraInfo>, Option<CameraInfo>) = (None, None);
+    let mut frame_index = 0u32;
+    tokio::pin!(stop);
+
+    loop {
+        let mut frames = Vec::new();
+        tokio::select! {
+            _ = &mut stop => break,
+            Ok(s) = left.recv_async() => {
+                match Image::decode(&s.payload().to_bytes()).map_err(|e| e.to_string())
+                    .and_then(|m| rgb_from_image(&m).map(|i| (m.header.stamp.to_nanos(), i)).map_err(|e| e.to_string())) {
+                    Ok((t, img)) => frames = sync.push_left(t, (img, now_ns())),
+                    Err(_) => counters.add("bad_message/left_image", 1),
+                }
+            }
+            Ok(s) = right.recv_async() => {
+                match Image::decode(&s.payload().to_bytes()).map_err(|e| e.to_string())
+                    .and_then(|m| rgb_from_image(&m).map(|i| (m.header.stamp.to_nanos(), i)).map_err(|e| e.to_string())) {
+                    Ok((t, img)) => frames = sync.push_right(t, img),
+                    Err(_) => counters.add("bad_message/right_image", 1),
+                }
+            }
+            Ok(s) = pose.recv_async() => {
+                match PoseStamped::decode(&s.payload().to_bytes()).map_err(|e| e.to_string())
+                    .and_then(|m| affine_from_pose(&m).map(|p| (m.header.stamp.to_nanos(), p)).map_err(|e| e.to_string())) {
+                    Ok((t, p)) => frames = sync.push_pose(t, p),
+                    Err(_) => counters.add("bad_message/pose", 1),
+                }
+            }
+            Ok(s) = left_info.recv_async() => match CameraInfo::decode(&s.payload().to_bytes()) {
+                Ok(m) => left_k = Some(m),
+                Err(_) => counters.add("bad_message/left_camera_info", 1),
+            },
+            Ok(s) = right_info.recv_async() => match CameraInfo::decode(&s.payload().to_bytes()) {
+                Ok(m) => right_k = Some(m),
+                Err(_) => counters.add("bad_message/right_camera_info", 1),
+            },
+            Some(out) = out_rx.recv() => {
+                publish_output(&session, keys, out, &mut map, &mut pending, &mut counters, &mut summary, worker.drops()).await?;
+            }
+        }
+        let rig = rig_of(left_k.as_ref(), right_k.as_ref());
+        for f in frames {
+            let Some(rig) = rig else {
+                counters.add("dropped/no_camera_info", 1);
+                continue;
+            };
+            let job = frame_job(f, &mut frame_index);
+            match binner.push(job.clone(), job.0.left_to_world) {
+                BinEvent::Opened { bin_id, first } => submit(&worker, bin_id, first, rig),
+                BinEvent::Closed { bin_id, next_first, .. } => {
+                    pending.closed_ns.insert(bin_id, now_ns());
+                    submit(&worker, bin_id + 1, next_first, rig);
+                    flush_latency(&session, keys, &mut pending, &counters, worker.drops()).await?;
+                }
+                BinEvent::Inside => {}
+                BinEvent::Rejected => counters.add("dropped/non_finite_pose", 1),
+            }
+        }
+        let c = sync.counters();
+        counters.set("sync/late", c.late);
+        counters.set("sync/unmatched", c.unmatched);
+    }
+
+    // Finish what is queued, then publish it.
+    let drops = worker.drops();
+    worker.shutdown();
+    while let Ok(out) = out_rx.try_recv() {
+        publish_output(&session, keys, out, &mut map, &mut pending, &mut counters, &mut summary, drops).await?;
+    }
+    counters.set("dropped/worker_queue", drops);
+    summary.global_gaussians = map.len();
+    if let Some(dir) = &config.out_dir {
+        export(&map, dir)?;
+    }
+    summary.counters = counters;
+    Ok(summary)
+}
+
+fn rig_of(left: Option<&CameraInfo>, right: Option<&CameraInfo>) -> Option<StereoRig> {
+    let (k, _) = intrinsics_from_camera_info(left?).ok()?;
+    let (_, baseline) = intrinsics_from_camera_info(right?).ok()?;
+    (baseline > 0.0).then_some(StereoRig { intrinsics: k, baseline })
+}
+
+type FrameJob = (StereoFrame, Stamps);
+
+fn frame_job(f: Synced<(RgbImage, i64), RgbImage, glam::DAffine3>, index: &mut u32) -> FrameJob {
+    let ((left, arrival_ns), right, left_to_world) = (f.left, f.right, f.pose);
+    *index += 1;
+    let frame = StereoFrame { index: *index - 1, left, right, left_to_world };
+    let stamps = Stamps { arrival_ns, opened_ns: now_ns(), ..Stamps::default() };
+    (frame, stamps)
+}
+
+fn submit(worker: &Worker, bin_id: u64, (frame, stamps): FrameJob, rig: StereoRig) {
+    worker.submit(Job { bin_id, frame, rig, stamps });
+}
+
+#[allow(clippy::too_many_arguments)]
+async fn publish_output(
+    session: &Session,
+    keys: &Keys,
+    out: Output,
+    map: &mut GlobalMap,
+    pending: &mut Pending,
+    counters: &mut Counters,
+    summary: &mut NodeSummary,
+    drops: u64,
+) -> Result<(), ServiceError> {
+    let mut stamps = out.stamps;
+    stamps.render_end_ns = stamps.model_end_ns;
+    match out.result {
+        Ok(set) => {
+            let header = Header::new(stamps.arrival_ns, format!("bin_{}", out.bin_id));
+            match cloud_from_gaussians(&set, header, None) {
+                Ok(cloud) => put(session, keys.bin_map(), cloud.encode()).await?,
+                Err(_) => counters.add("error/encode_map", 1),
+            }
+            let pose = pose_from_affine(&out.bin_to_world, Header::new(stamps.arrival_ns, "world"));
+            put(session, keys.bin_pose(), pose.encode()).await?;
+            stamps.publish_ns = now_ns();
+            summary.bins_published += 1;
+            if map.insert_bin(out.bin_id, &set, out.bin_to_world).is_err() {
+                counters.add("error/fusion", 1);
+            }
+        }
+        Err(_) => counters.add("error/reconstruct", 1),
+    }
+    pending.published.insert(out.bin_id, stamps);
+    counters.set("queue/depth", out.queue_depth as u64);
+    flush_latency(session, keys, pending, counters, drops).await
+}
+
+/// Publishes the latency of every bin that is both closed and published, and the counters.
+async fn flush_latency(
+    session: &Session,
+    keys: &Keys,
+    pending: &mut Pending,
+    counters: &Counters,
+    drops: u64,
+) -> Result<(), ServiceError> {
+    let ready: Vec<u64> = pending
+        .published
+        .keys()
+        .filter(|id| pending.closed_ns.contains_key(id))
+        .copied()
+        .collect();
+    for id in ready {
+        let s = pending.published.remove(&id).unwrap_or_default();
+        let closed = pending.closed_ns.remove(&id).unwrap_or_default();
+        let msg = BinLatency {
+            bin_id: id,
+            first_frame_arrival_ns: s.arrival_ns,
+            bin_close_ns: closed,
+            model_start_ns: s.model_start_ns,
+            model_end_ns: s.model_end_ns,
+            render_end_ns: s.render_end_ns,
+            publish_ns: s.publish_ns,
+            queue_depth: counters.get("queue/depth") as u32,
+            drops,
+            bad_messages: counters.sum("bad_message/"),
+        };
+        put(session, keys.latency(), msg.encode()).await?;
+        put(session, keys.diagnostics(), counters.diagnostics(now_ns()).encode()).await?;
+    }
+    Ok(())
+}
+
+async fn put(session: &Session, key: String, payload: Vec<u8>) -> Result<(), ServiceError> {
+    session.put(key, payload).await.map_err(zenoh_err)?;
+    Ok(())
+}
+
+/// Writes the global map as 3DGS PLY (positions relative to the latest bin's origin, which is
+/// recorded in the file name's sidecar), a bird's-eye PNG and the restorable map file.
+fn export(map: &GlobalMap, dir: &std::path::Path) -> Result<(), ServiceError> {
+    let err = |e: &dyn std::fmt::Display| ServiceError::Export(e.to_string());
+    std::fs::create_dir_all(dir).map_err(|e| err(&e))?;
+    map.save(dir.join("global_map.ssgmap")).map_err(|e| err(&e))?;
+    let Some(origin) = map.latest_origin() else {
+        return Ok(());
+    };
+    let frame = glam::DAffine3::from_translation(origin);
+    let set = local_set(map.gaussians().map(|(_, g)| g), frame).map_err(|e| err(&e))?;
+    renderer::ply::save_ply(&set, dir.join("global_map.ply")).map_err(|e| err(&e))?;
+    std::fs::write(
+        dir.join("global_map_origin.json"),
+        format!("{{\"x\": {}, \"y\": {}, \"z\": {}}}\n", origin.x, origin.y, origin.z),
+    )
+    .map_err(|e| err(&e))?;
+    let view = BevView {
+        centre: DVec2::new(origin.x, origin.y),
+        width: 512,
+        height: 512,
+        metres_per_pixel: 0.25,
+        background: [0, 0, 0],
+    };
+    let image = bev_image(map.gaussians().map(|(_, g)| g), &view).map_err(|e| err(&e))?;
+    save_bev_png(&image, dir.join("global_map_bev.png")).map_err(|e| err(&e))
+}

@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use node::cli::{bench, eval, launch, render, synth};
+use node::cli::{bench, eval, launch, render, stream, synth};
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
 #[derive(Parser)]
@@ -25,6 +25,10 @@ enum Command {
     Eval(eval::EvalArgs),
     /// Start a graph of processes from a launch file; stop them together.
     Launch(launch::LaunchArgs),
+    /// The streaming node: stereo frames and poses in over zenoh, Gaussian maps out.
+    Run(stream::RunArgs),
+    /// Replay a KITTI-360-layout sequence onto the node's input topics.
+    Replay(stream::ReplayArgs),
     /// Benchmarks that print JSON on stdout.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -43,6 +47,8 @@ fn main() -> Result<()> {
         Command::SynthHeldout(args) => synth::run_heldout(&args),
         Command::Eval(args) => eval::run(&args),
         Command::Launch(args) => launch::run(&args),
+        Command::Run(args) => stream::run(&args),
+        Command::Replay(args) => stream::replay(&args),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
     }
 }

@@ -6,4 +6,5 @@ pub mod launch;
 pub mod progress;
 pub mod render;
 pub mod scene_source;
+pub mod stream;
 pub mod synth;

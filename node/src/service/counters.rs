@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use crate::msg::latency::{Counter, Diagnostics};
 
 /// Named counters, kept in name order so every Diagnostics message lists them the same way.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Counters(BTreeMap<String, u64>);
 
 impl Counters {

@@ -169,7 +169,9 @@ pub async fn run(
             let job = frame_job(f, &mut frame_index);
             match binner.push(job.clone(), job.0.left_to_world) {
                 BinEvent::Opened { bin_id, first } => submit(&worker, bin_id, first, rig),
-                BinEvent::Closed { bin_id, next_first, .. } => {
+                BinEvent::Closed {
+                    bin_id, next_first, ..
+                } => {
                     pending.closed_ns.insert(bin_id, now_ns());
                     submit(&worker, bin_id + 1, next_first, rig);
                     flush_latency(&session, keys, &mut pending, &counters, worker.drops()).await?;
@@ -187,7 +189,17 @@ pub async fn run(
     let drops = worker.drops();
     worker.shutdown();
     while let Ok(out) = out_rx.try_recv() {
-        publish_output(&session, keys, out, &mut map, &mut pending, &mut counters, &mut summary, drops).await?;
+        publish_output(
+            &session,
+            keys,
+            out,
+            &mut map,
+            &mut pending,
+            &mut counters,
+            &mut summary,
+            drops,
+        )
+        .await?;
     }
     counters.set("dropped/worker_queue", drops);
     summary.global_gaussians = map.len();
@@ -201,7 +213,10 @@ pub async fn run(
 fn rig_of(left: Option<&CameraInfo>, right: Option<&CameraInfo>) -> Option<StereoRig> {
     let (k, _) = intrinsics_from_camera_info(left?).ok()?;
     let (_, baseline) = intrinsics_from_camera_info(right?).ok()?;
-    (baseline > 0.0).then_some(StereoRig { intrinsics: k, baseline })
+    (baseline > 0.0).then_some(StereoRig {
+        intrinsics: k,
+        baseline,
+    })
 }
 
 type FrameJob = (StereoFrame, Stamps);
@@ -209,13 +224,27 @@ type FrameJob = (StereoFrame, Stamps);
 fn frame_job(f: Synced<(RgbImage, i64), RgbImage, glam::DAffine3>, index: &mut u32) -> FrameJob {
     let ((left, arrival_ns), right, left_to_world) = (f.left, f.right, f.pose);
     *index += 1;
-    let frame = StereoFrame { index: *index - 1, left, right, left_to_world };
-    let stamps = Stamps { arrival_ns, opened_ns: now_ns(), ..Stamps::default() };
+    let frame = StereoFrame {
+        index: *index - 1,
+        left,
+        right,
+        left_to_world,
+    };
+    let stamps = Stamps {
+        arrival_ns,
+        opened_ns: now_ns(),
+        ..Stamps::default()
+    };
     (frame, stamps)
 }
 
 fn submit(worker: &Worker, bin_id: u64, (frame, stamps): FrameJob, rig: StereoRig) {
-    worker.submit(Job { bin_id, frame, rig, stamps });
+    worker.submit(Job {
+        bin_id,
+        frame,
+        rig,
+        stamps,
+    });
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -283,7 +312,12 @@ async fn flush_latency(
             bad_messages: counters.sum("bad_message/"),
         };
         put(session, keys.latency(), msg.encode()).await?;
-        put(session, keys.diagnostics(), counters.diagnostics(now_ns()).encode()).await?;
+        put(
+            session,
+            keys.diagnostics(),
+            counters.diagnostics(now_ns()).encode(),
+        )
+        .await?;
     }
     Ok(())
 }
@@ -298,7 +332,8 @@ async fn put(session: &Session, key: String, payload: Vec<u8>) -> Result<(), Ser
 fn export(map: &GlobalMap, dir: &std::path::Path) -> Result<(), ServiceError> {
     let err = |e: &dyn std::fmt::Display| ServiceError::Export(e.to_string());
     std::fs::create_dir_all(dir).map_err(|e| err(&e))?;
-    map.save(dir.join("global_map.ssgmap")).map_err(|e| err(&e))?;
+    map.save(dir.join("global_map.ssgmap"))
+        .map_err(|e| err(&e))?;
     let Some(origin) = map.latest_origin() else {
         return Ok(());
     };
@@ -307,7 +342,10 @@ fn export(map: &GlobalMap, dir: &std::path::Path) -> Result<(), ServiceError> {
     renderer::ply::save_ply(&set, dir.join("global_map.ply")).map_err(|e| err(&e))?;
     std::fs::write(
         dir.join("global_map_origin.json"),
-        format!("{{\"x\": {}, \"y\": {}, \"z\": {}}}\n", origin.x, origin.y, origin.z),
+        format!(
+            "{{\"x\": {}, \"y\": {}, \"z\": {}}}\n",
+            origin.x, origin.y, origin.z
+        ),
     )
     .map_err(|e| err(&e))?;
     let view = BevView {

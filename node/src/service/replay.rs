@@ -52,16 +52,33 @@ pub async fn replay(
             tokio::time::sleep(wait).await;
         }
         let header = |frame_id: &str| Header::new(t, frame_id);
-        put(keys.left_info(), camera_info(&rig.intrinsics, 0.0, header("left")).encode()).await?;
-        put(keys.right_info(), camera_info(&rig.intrinsics, rig.baseline, header("right")).encode())
-            .await?;
+        put(
+            keys.left_info(),
+            camera_info(&rig.intrinsics, 0.0, header("left")).encode(),
+        )
+        .await?;
+        put(
+            keys.right_info(),
+            camera_info(&rig.intrinsics, rig.baseline, header("right")).encode(),
+        )
+        .await?;
         match sequence.load_frame(f.index) {
             Ok(frame) => {
-                put(keys.left_image(), image_from_rgb(&frame.left, header("left")).encode()).await?;
-                put(keys.right_image(), image_from_rgb(&frame.right, header("right")).encode())
-                    .await?;
-                put(keys.pose(), pose_from_affine(&frame.left_to_world, header("world")).encode())
-                    .await?;
+                put(
+                    keys.left_image(),
+                    image_from_rgb(&frame.left, header("left")).encode(),
+                )
+                .await?;
+                put(
+                    keys.right_image(),
+                    image_from_rgb(&frame.right, header("right")).encode(),
+                )
+                .await?;
+                put(
+                    keys.pose(),
+                    pose_from_affine(&frame.left_to_world, header("world")).encode(),
+                )
+                .await?;
                 summary.frames += 1;
             }
             Err(_) => summary.skipped += 1,

@@ -1,0 +1,160 @@
+//! `stereosplat run` (the streaming node) and `stereosplat replay` (a KITTI-360-layout
+//! sequence onto the node's input topics), sharing the zenoh flags.
+
+use std::path::PathBuf;
+
+use crate::bag::Rate;
+use crate::fusion::FusionConfig;
+use crate::pipeline::binner::BinnerConfig;
+use crate::pipeline::sync::SyncConfig;
+use crate::service::{self, Keys, NodeConfig};
+use crate::transport::{open, TransportConfig};
+use anyhow::{Context, Result};
+use clap::Args;
+use model::kitti360::Sequence;
+
+use super::progress;
+
+/// zenoh flags shared by the node's commands. Default: peer mode, loopback only.
+#[derive(Args, Clone, Debug)]
+pub struct ZenohArgs {
+    /// A zenoh JSON5 config file to start from (the flags below override it).
+    #[arg(long, env = "STEREOSPLAT_ZENOH_CONFIG")]
+    zenoh_config: Option<PathBuf>,
+    /// Endpoints to listen on (repeatable), e.g. tcp/127.0.0.1:7447.
+    #[arg(long)]
+    listen: Vec<String>,
+    /// Endpoints to connect to (repeatable).
+    #[arg(long)]
+    connect: Vec<String>,
+    /// `peer` or `client` (through a zenoh router).
+    #[arg(long, default_value = "peer")]
+    mode: String,
+    /// Namespace of every key.
+    #[arg(long, default_value = "stereosplat")]
+    namespace: String,
+}
+
+impl ZenohArgs {
+    fn transport(&self) -> TransportConfig {
+        TransportConfig {
+            config_file: self.zenoh_config.clone(),
+            mode: self.mode.clone(),
+            listen: self.listen.clone(),
+            connect: self.connect.clone(),
+            multicast_scouting: false,
+        }
+    }
+}
+
+/// Flags of `run`.
+#[derive(Args, Clone, Debug)]
+pub struct RunArgs {
+    #[command(flatten)]
+    zenoh: ZenohArgs,
+    /// The reconstructor.
+    #[arg(long, default_value = "sgm")]
+    method: String,
+    /// Bin length in metres.
+    #[arg(long, default_value_t = 8.0)]
+    bin_length: f64,
+    /// Bins waiting for the worker at most (the oldest waiting is dropped beyond it).
+    #[arg(long, default_value_t = 2)]
+    queue: usize,
+    /// Where the fused global map is written when the node stops.
+    #[arg(long, default_value = "out/node")]
+    out: PathBuf,
+}
+
+/// Runs the node until Ctrl-C or SIGTERM.
+pub fn run(args: &RunArgs) -> Result<()> {
+    let config = NodeConfig {
+        transport: args.zenoh.transport(),
+        keys: Keys::new(&args.zenoh.namespace),
+        sync: SyncConfig::default(),
+        binner: BinnerConfig {
+            length_m: args.bin_length,
+            ..BinnerConfig::default()
+        },
+        queue_capacity: args.queue,
+        method: args.method.clone(),
+        fusion: FusionConfig::default(),
+        out_dir: Some(args.out.clone()),
+    };
+    let runtime = tokio::runtime::Runtime::new()?;
+    let summary = runtime.block_on(async {
+        eprintln!("node ready: {}", config.keys.namespace);
+        service::run(config, async {
+            let mut term =
+                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+                    .expect("installing a SIGTERM handler");
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => {}
+            }
+        })
+        .await
+    })?;
+    println!(
+        "{}",
+        serde_json::json!({
+            "bins_published": summary.bins_published,
+            "global_gaussians": summary.global_gaussians,
+            "counters": summary.counters,
+            "out": args.out,
+        })
+    );
+    Ok(())
+}
+
+/// Flags of `replay`.
+#[derive(Args, Clone, Debug)]
+pub struct ReplayArgs {
+    #[command(flatten)]
+    zenoh: ZenohArgs,
+    /// Data root in the KITTI-360 layout.
+    #[arg(long)]
+    data: PathBuf,
+    /// Sequence (default: the first under data_2d_raw).
+    #[arg(long)]
+    seq: Option<String>,
+    /// Speed: 1 = the recorded rate, 2 = twice as fast, 0 = as fast as possible.
+    #[arg(long, default_value_t = 1.0)]
+    rate: f64,
+    /// Seconds to wait after connecting, so subscribers are in place before the first frame.
+    #[arg(long, default_value_t = 1.0)]
+    warmup: f64,
+}
+
+/// Replays a sequence onto the node's input topics.
+pub fn replay(args: &ReplayArgs) -> Result<()> {
+    let name = match &args.seq {
+        Some(s) => s.clone(),
+        None => Sequence::list(&args.data)?
+            .into_iter()
+            .next()
+            .with_context(|| format!("no sequence under {}", args.data.display()))?,
+    };
+    let sequence = Sequence::open(&args.data, &name)?;
+    let rate = match args.rate {
+        0.0 => Rate::AsFastAsPossible,
+        1.0 => Rate::Recorded,
+        r if r.is_finite() && r > 0.0 => Rate::Factor(r),
+        r => anyhow::bail!("--rate must be 0 (as fast as possible) or positive, not {r}"),
+    };
+    let runtime = tokio::runtime::Runtime::new()?;
+    let summary = runtime.block_on(async {
+        let session = open(&args.zenoh.transport()).await?;
+        tokio::time::sleep(std::time::Duration::from_secs_f64(args.warmup.max(0.0))).await;
+        let bar = progress::bar(sequence.frames().len(), "replay");
+        let keys = Keys::new(&args.zenoh.namespace);
+        let s = service::replay(&session, &keys, &sequence, rate, &mut progress::hook(&bar)).await;
+        bar.finish_and_clear();
+        anyhow::Ok(s?)
+    })?;
+    println!(
+        "replayed {} frames of {name} ({} skipped)",
+        summary.frames, summary.skipped
+    );
+    Ok(())
+}

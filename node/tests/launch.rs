@@ -444,17 +444,43 @@ fn example_files_check() {
     }
     let plan = Plan::load(&root.join("launch/node_demo.toml"), &[], Path::new(EXE)).unwrap();
     let names: Vec<&str> = plan.processes.iter().map(|p| p.name.as_str()).collect();
-    assert_eq!(names, ["data", "node", "record", "monitor", "replay"]);
+    assert_eq!(names, ["data", "node", "replay"]);
     let node = &plan.processes[1];
-    assert_eq!(node.args[0], "run");
-    let zenoh = &node.env[0];
-    assert_eq!(zenoh.0, "STEREOSPLAT_ZENOH_CONFIG");
-    assert!(
-        zenoh.1.ends_with("launch/zenoh_loopback.json5"),
-        "{}",
-        zenoh.1
-    );
-    assert_eq!(node.args[2], zenoh.1);
+    assert_eq!(node.args[..3], ["run", "--listen", "tcp/127.0.0.1:7447"]);
+}
+
+#[test]
+fn the_node_demo_replays_a_drive_into_the_node_and_exports_the_map() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let tmp = std::env::temp_dir().join(format!("stereosplat-demo-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let set = |k: &str, v: String| ["--set".to_string(), format!("{k}={v}")];
+    let mut args = vec![root.join("launch/node_demo.toml").display().to_string()];
+    for (k, v) in [
+        ("data", tmp.join("data").display().to_string()),
+        ("out", tmp.join("out").display().to_string()),
+        ("endpoint", format!("tcp/127.0.0.1:{port}")),
+        ("frames", "40".into()),
+        ("width", "136".into()),
+        ("height", "40".into()),
+        ("rate", "4".into()),
+    ] {
+        args.extend(set(k, v));
+    }
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (code, stdout, stderr) = launch(&refs);
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    assert!(stdout.contains("[replay] replayed 40 frames"), "{stdout}");
+    assert!(stdout.contains("\"bins_published\":"), "{stdout}");
+    for f in ["global_map.ply", "global_map_bev.png", "global_map.ssgmap"] {
+        assert!(tmp.join("out").join(f).exists(), "{f}");
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
 }
 
 #[test]

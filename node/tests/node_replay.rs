@@ -3,6 +3,8 @@
 //! outputs. Every bin's map arrives and decodes, latency arrives for every closed bin, a
 //! malformed message is counted without stopping the node, and the global map is exported.
 
+mod net_support;
+
 use std::time::Duration;
 
 use model::bins::{make_bins, BinConfig, BinLayout};
@@ -19,14 +21,6 @@ use node::pipeline::binner::BinnerConfig;
 use node::pipeline::sync::SyncConfig;
 use node::service::{replay, run, Keys, NodeConfig};
 use node::transport::{open, TransportConfig};
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
@@ -52,7 +46,7 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
     .len();
     assert!(closed >= 3, "{closed} bins");
 
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
     let keys = Keys::new("test_ns");
     let node_config = NodeConfig {
         transport: TransportConfig {

@@ -1,22 +1,15 @@
 //! Real zenoh sessions on loopback: the node's default configuration (peer mode, scouting
 //! off, explicit endpoints) connects two sessions and carries samples in order.
 
+mod net_support;
+
 use std::time::Duration;
 
 use node::transport::{open, TransportConfig};
 
-/// A port nothing listens on right now.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_loopback_peers_exchange_samples_in_order() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
     let a = open(&TransportConfig {
         listen: vec![endpoint.clone()],
         ..TransportConfig::default()

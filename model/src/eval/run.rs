@@ -95,9 +95,20 @@ pub fn evaluate(
     let mut skipped = Vec::new();
     for (k, bin) in bins.iter().enumerate() {
         let first = sequence.frames()[bin.first].index;
-        match evaluate_bin(sequence, reconstructor, raster, config, bin) {
+        let picture_dir = config
+            .picture_dir
+            .as_ref()
+            .filter(|_| with_pictures.contains(bin));
+        match evaluate_bin(
+            sequence,
+            reconstructor,
+            raster,
+            config,
+            bin,
+            picture_dir.is_some(),
+        ) {
             Ok((report, renders)) => {
-                if let (Some(dir), true) = (&config.picture_dir, with_pictures.contains(bin)) {
+                if let Some(dir) = picture_dir {
                     pictures::write_bin(dir, sequence.name(), &report, &renders)
                         .map_err(|e| EvalError::Picture(e.to_string()))?;
                 }
@@ -131,6 +142,7 @@ fn evaluate_bin(
     raster: &mut Raster,
     config: &EvalConfig,
     bin: &Bin,
+    keep_renders: bool,
 ) -> Result<(BinReport, Vec<ScoredRender>), EvalError> {
     let rig = sequence.rig();
     let poses = sequence.frames();
@@ -150,6 +162,7 @@ fn evaluate_bin(
     let set = reconstructor.reconstruct(&[input])?;
     let reconstruct_ms = start.elapsed().as_secs_f64() * 1e3;
 
+    let mut scores = Vec::new();
     let mut renders = Vec::new();
     for (i, frame) in bin.frames().zip(&frames) {
         for side in [Side::Left, Side::Right] {
@@ -168,11 +181,15 @@ fn evaluate_bin(
                 lidar,
                 config,
             )?;
-            renders.push(ScoredRender {
-                score,
-                truth: truth.clone(),
-                render,
-            });
+            // Only the bins that get pictures keep their renders.
+            if keep_renders {
+                renders.push(ScoredRender {
+                    score: score.clone(),
+                    truth: truth.clone(),
+                    render,
+                });
+            }
+            scores.push(score);
         }
     }
     let report = BinReport {
@@ -182,7 +199,7 @@ fn evaluate_bin(
         last: poses[bin.last].index,
         gaussians: set.len(),
         reconstruct_ms,
-        frames: renders.iter().map(|r| r.score.clone()).collect(),
+        frames: scores,
     };
     Ok((report, renders))
 }

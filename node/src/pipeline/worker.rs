@@ -145,11 +145,6 @@ impl Worker {
         self.drops.load(Ordering::Relaxed)
     }
 
-    /// Bins waiting in the queue.
-    pub fn queue_depth(&self) -> usize {
-        self.steal.len()
-    }
-
     /// Finishes the queued bins, then stops the thread.
     pub fn shutdown(mut self) {
         self.tx.take();

@@ -120,6 +120,7 @@ pub async fn run(
     let mut pending = Pending::default();
     let mut summary = NodeSummary::default();
     let (mut left_k, mut right_k): (Option<CameraInfo>, Option<CameraInfo>) = (None, None);
+    let mut rig: Option<StereoRig> = None;
     let mut frame_index = 0u32;
     tokio::pin!(stop);
 
@@ -127,40 +128,36 @@ pub async fn run(
         let mut frames = Vec::new();
         tokio::select! {
             _ = &mut stop => break,
-            Ok(s) = left.recv_async() => {
-                match Image::decode(&s.payload().to_bytes()).map_err(|e| e.to_string())
-                    .and_then(|m| rgb_from_image(&m).map(|i| (m.header.stamp.to_nanos(), i)).map_err(|e| e.to_string())) {
-                    Ok((t, img)) => frames = sync.push_left(t, (img, now_ns())),
-                    Err(_) => counters.add("bad_message/left_image", 1),
-                }
-            }
-            Ok(s) = right.recv_async() => {
-                match Image::decode(&s.payload().to_bytes()).map_err(|e| e.to_string())
-                    .and_then(|m| rgb_from_image(&m).map(|i| (m.header.stamp.to_nanos(), i)).map_err(|e| e.to_string())) {
-                    Ok((t, img)) => frames = sync.push_right(t, img),
-                    Err(_) => counters.add("bad_message/right_image", 1),
-                }
-            }
-            Ok(s) = pose.recv_async() => {
-                match PoseStamped::decode(&s.payload().to_bytes()).map_err(|e| e.to_string())
-                    .and_then(|m| affine_from_pose(&m).map(|p| (m.header.stamp.to_nanos(), p)).map_err(|e| e.to_string())) {
-                    Ok((t, p)) => frames = sync.push_pose(t, p),
-                    Err(_) => counters.add("bad_message/pose", 1),
-                }
-            }
+            Ok(s) = left.recv_async() => match decode_image(&s) {
+                Some((t, img)) => frames = sync.push_left(t, (img, now_ns())),
+                None => counters.add("bad_message/left_image", 1),
+            },
+            Ok(s) = right.recv_async() => match decode_image(&s) {
+                Some((t, img)) => frames = sync.push_right(t, img),
+                None => counters.add("bad_message/right_image", 1),
+            },
+            Ok(s) = pose.recv_async() => match decode_pose(&s) {
+                Some((t, p)) => frames = sync.push_pose(t, p),
+                None => counters.add("bad_message/pose", 1),
+            },
             Ok(s) = left_info.recv_async() => match CameraInfo::decode(&s.payload().to_bytes()) {
-                Ok(m) => left_k = Some(m),
+                Ok(m) => {
+                    left_k = Some(m);
+                    rig = rig_of(left_k.as_ref(), right_k.as_ref());
+                }
                 Err(_) => counters.add("bad_message/left_camera_info", 1),
             },
             Ok(s) = right_info.recv_async() => match CameraInfo::decode(&s.payload().to_bytes()) {
-                Ok(m) => right_k = Some(m),
+                Ok(m) => {
+                    right_k = Some(m);
+                    rig = rig_of(left_k.as_ref(), right_k.as_ref());
+                }
                 Err(_) => counters.add("bad_message/right_camera_info", 1),
             },
             Some(out) = out_rx.recv() => {
                 publish_output(&session, keys, out, &mut map, &mut pending, &mut counters, &mut summary, worker.drops()).await?;
             }
         }
-        let rig = rig_of(left_k.as_ref(), right_k.as_ref());
         for f in frames {
             let Some(rig) = rig else {
                 counters.add("dropped/no_camera_info", 1);
@@ -210,6 +207,19 @@ pub async fn run(
     Ok(summary)
 }
 
+/// A stamped image from a sample, `None` if it does not decode or convert.
+fn decode_image(sample: &zenoh::sample::Sample) -> Option<(i64, RgbImage)> {
+    let msg = Image::decode(&sample.payload().to_bytes()).ok()?;
+    Some((msg.header.stamp.to_nanos(), rgb_from_image(&msg).ok()?))
+}
+
+/// A stamped camera-to-world pose from a sample, `None` if it does not decode or is invalid.
+fn decode_pose(sample: &zenoh::sample::Sample) -> Option<(i64, glam::DAffine3)> {
+    let msg = PoseStamped::decode(&sample.payload().to_bytes()).ok()?;
+    Some((msg.header.stamp.to_nanos(), affine_from_pose(&msg).ok()?))
+}
+
+/// The rig once both camera infos are known and consistent.
 fn rig_of(left: Option<&CameraInfo>, right: Option<&CameraInfo>) -> Option<StereoRig> {
     let (k, _) = intrinsics_from_camera_info(left?).ok()?;
     let (_, baseline) = intrinsics_from_camera_info(right?).ok()?;

@@ -15,6 +15,7 @@ use std::process::{Command, Stdio};
 use msg_support::{gaussians, samples, Samples, FAR};
 use node::msg::geometry_msgs::PoseStamped;
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
+use node::msg::map_update::MapUpdate;
 use node::msg::sensor_msgs::{CameraInfo, Image, PointCloud2, PointField};
 use node::msg::std_msgs::Header;
 use node::msg::{type_hash, Message, MessageKind};
@@ -125,6 +126,12 @@ fn diagnostics(m: &Diagnostics) -> Value {
     json!({"stamp_ns": m.stamp_ns, "counters": counters})
 }
 
+fn map_update(m: &MapUpdate) -> Value {
+    json!({"header": header(&m.header), "sequence": m.sequence, "snapshot": m.snapshot,
+           "bin_id": m.bin_id, "ids": m.ids, "source_bins": m.source_bins,
+           "removed_ids": m.removed_ids, "gaussians": cloud(&m.gaussians)})
+}
+
 /// Every sample as (ROS type name, our payload, the field values we mean).
 fn cases(s: &Samples) -> Vec<(&'static str, Vec<u8>, Value)> {
     vec![
@@ -155,6 +162,11 @@ fn cases(s: &Samples) -> Vec<(&'static str, Vec<u8>, Value)> {
             s.diagnostics.encode(),
             diagnostics(&s.diagnostics),
         ),
+        (
+            MapUpdate::KIND.ros_name(),
+            s.map_update.encode(),
+            map_update(&s.map_update),
+        ),
     ]
 }
 
@@ -164,6 +176,7 @@ fn custom_msgs() -> Value {
         MessageKind::BinLatency,
         MessageKind::Counter,
         MessageKind::Diagnostics,
+        MessageKind::MapUpdate,
     ];
     Value::Object(
         kinds
@@ -277,7 +290,8 @@ fn rosbags_reads_what_we_write_and_we_read_what_it_writes() {
             3 => assert_eq!(PointCloud2::decode(&b).unwrap(), s.cloud, "{what}"),
             4 => assert_eq!(PointCloud2::decode(&b).unwrap(), s.world_cloud, "{what}"),
             5 => assert_eq!(BinLatency::decode(&b).unwrap(), s.latency, "{what}"),
-            _ => assert_eq!(Diagnostics::decode(&b).unwrap(), s.diagnostics, "{what}"),
+            6 => assert_eq!(Diagnostics::decode(&b).unwrap(), s.diagnostics, "{what}"),
+            _ => assert_eq!(MapUpdate::decode(&b).unwrap(), s.map_update, "{what}"),
         }
         // Little-endian payloads are byte for byte ours, up to rosbags' end padding.
         if i < cases.len() {

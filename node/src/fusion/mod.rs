@@ -20,6 +20,7 @@ mod cells;
 mod export;
 mod increments;
 mod snapshot;
+mod wire;
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -31,6 +32,7 @@ pub use cells::{cell_centre, cell_of, CellKey};
 pub use export::{bev_image, local_set, save_bev_png, BevView, ExportError};
 pub use increments::{Increment, InsertStats, MapReplica, ReplicaError, Snapshot};
 pub use snapshot::StoreError;
+pub use wire::{decode_update, increment_message, snapshot_message, Update, WireError};
 
 use cells::{eviction_order, Cell};
 

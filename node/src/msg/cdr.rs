@@ -184,6 +184,14 @@ impl CdrWriter {
         self.f64_array(v);
     }
 
+    /// A `uint64[]` sequence: count then values.
+    pub fn u64_seq(&mut self, v: &[u64]) {
+        self.seq_len(v.len());
+        for &x in v {
+            self.u64(x);
+        }
+    }
+
     /// A fixed `float64[N]` array: the values alone.
     pub fn f64_array(&mut self, v: &[f64]) {
         for &x in v {
@@ -341,6 +349,12 @@ impl<'a> CdrReader<'a> {
     pub fn f64_seq(&mut self, what: &'static str) -> Result<Vec<f64>, DecodeError> {
         let n = self.seq_len(what, 8)?;
         (0..n).map(|_| self.f64(what)).collect()
+    }
+
+    /// A `uint64[]` sequence.
+    pub fn u64_seq(&mut self, what: &'static str) -> Result<Vec<u64>, DecodeError> {
+        let n = self.seq_len(what, 8)?;
+        (0..n).map(|_| self.u64(what)).collect()
     }
 
     /// A fixed `float64[N]` array.

@@ -45,18 +45,19 @@ pub const FIELD_NAMES: [&str; 15] = [
     "confidence",
 ];
 
-/// The stored values of Gaussian `i`, in [`FIELD_NAMES`] order, positions offset by `origin`.
-fn stored(set: &GaussianSet, i: usize, origin: DVec3) -> [f64; 15] {
-    let g = set.get(i);
-    let p = origin + g.mean.as_dvec3();
+/// One Gaussian's stored values, in [`FIELD_NAMES`] order and the PLY conventions.
+pub type Record = [f64; 15];
+
+/// The record of `g` placed at `position` (its own `mean` is not used), so world-frame maps
+/// with f64 positions and bin maps share one layout.
+pub fn record(position: DVec3, g: &renderer::Gaussian) -> Record {
     let dc = (g.color.as_dvec3() - 0.5) / SH_C0;
     let s = g.log_scale.as_dvec3();
     let q = g.rotation.as_dquat();
-    let c = g.confidence as f64;
     [
-        p.x,
-        p.y,
-        p.z,
+        position.x,
+        position.y,
+        position.z,
         dc.x,
         dc.y,
         dc.z,
@@ -68,8 +69,22 @@ fn stored(set: &GaussianSet, i: usize, origin: DVec3) -> [f64; 15] {
         q.x,
         q.y,
         q.z,
-        c,
+        g.confidence as f64,
     ]
+}
+
+/// The Gaussian a record holds; its mean is the stored position minus `origin`, formed in
+/// f64 and then cast to f32.
+pub fn gaussian(r: &Record, origin: DVec3) -> renderer::Gaussian {
+    let dc = DVec3::new(r[3], r[4], r[5]);
+    renderer::Gaussian {
+        mean: (DVec3::new(r[0], r[1], r[2]) - origin).as_vec3(),
+        color: (0.5 + SH_C0 * dc).as_vec3(),
+        opacity: opacity_from_logit(r[6]),
+        log_scale: Vec3::new(r[7] as f32, r[8] as f32, r[9] as f32),
+        rotation: Quat::from_xyzw(r[11] as f32, r[12] as f32, r[13] as f32, r[10] as f32),
+        confidence: r[14] as f32,
+    }
 }
 
 /// The cloud of `set`. With `origin` `None` positions are the set's own, FLOAT32 (a bin map
@@ -81,9 +96,25 @@ pub fn cloud_from_gaussians(
     origin: Option<DVec3>,
 ) -> Result<PointCloud2, ConvertError> {
     set.check_lengths()?;
-    let (pos_type, pos_size) = match origin {
-        Some(_) => (datatype::FLOAT64, 8),
-        None => (datatype::FLOAT32, 4),
+    let o = origin.unwrap_or(DVec3::ZERO);
+    let records: Vec<Record> = (0..set.len())
+        .map(|i| {
+            let g = set.get(i);
+            record(o + g.mean.as_dvec3(), &g)
+        })
+        .collect();
+    cloud_from_records(&records, header, origin.is_some())
+}
+
+/// The cloud of `records`, positions FLOAT64 when `f64_positions`, else FLOAT32.
+pub fn cloud_from_records(
+    records: &[Record],
+    header: Header,
+    f64_positions: bool,
+) -> Result<PointCloud2, ConvertError> {
+    let (pos_type, pos_size) = match f64_positions {
+        true => (datatype::FLOAT64, 8),
+        false => (datatype::FLOAT32, 4),
     };
     let fields: Vec<PointField> = FIELD_NAMES
         .iter()
@@ -101,13 +132,12 @@ pub fn cloud_from_gaussians(
         .collect();
     let point_step = 3 * pos_size + 4 * 12;
     let too_large = || ConvertError::TooLarge("the Gaussian cloud");
-    let width = u32::try_from(set.len()).map_err(|_| too_large())?;
+    let width = u32::try_from(records.len()).map_err(|_| too_large())?;
     let row_step = width.checked_mul(point_step).ok_or_else(too_large)?;
     let mut data = Vec::with_capacity(row_step as usize);
-    for i in 0..set.len() {
-        let v = stored(set, i, origin.unwrap_or(DVec3::ZERO));
+    for v in records {
         for (j, x) in v.iter().enumerate() {
-            if j < 3 && origin.is_some() {
+            if j < 3 && f64_positions {
                 data.extend_from_slice(&x.to_le_bytes());
             } else {
                 data.extend_from_slice(&(*x as f32).to_le_bytes());
@@ -190,14 +220,24 @@ fn value(record: &[u8], c: Channel, big_endian: bool) -> f64 {
 }
 
 /// The Gaussians of a cloud, positions made relative to `origin` (in f64, then cast to f32):
-/// `DVec3::ZERO` for a bin-frame cloud, the map origin for a world-frame one. See the
-/// module documentation for the layouts read; a missing channel (other than `confidence`),
-/// a channel that is not one float inside the record, or sizes that disagree with the data
-/// are errors.
+/// `DVec3::ZERO` for a bin-frame cloud, the map origin for a world-frame one. See
+/// [`records_from_cloud`] for what is read.
 pub fn gaussians_from_cloud(
     cloud: &PointCloud2,
     origin: DVec3,
 ) -> Result<GaussianSet, ConvertError> {
+    let records = records_from_cloud(cloud)?;
+    let mut set = GaussianSet::with_capacity(records.len());
+    for r in &records {
+        set.push(gaussian(r, origin));
+    }
+    Ok(set)
+}
+
+/// The records of a cloud, in point order. See the module documentation for the layouts
+/// read; a missing channel (other than `confidence`, 1 when absent), a channel that is not
+/// one float inside the record, or sizes that disagree with the data are errors.
+pub fn records_from_cloud(cloud: &PointCloud2) -> Result<Vec<Record>, ConvertError> {
     let mut channels = [None; 15];
     for (slot, name) in channels.iter_mut().zip(FIELD_NAMES) {
         *slot = match channel(cloud, name)? {
@@ -219,26 +259,17 @@ pub fn gaussians_from_cloud(
     }
     // Each point holds at least one 4-byte channel inside the data checked above, so this
     // count is bounded by the message's length.
-    let mut set = GaussianSet::with_capacity((w * h) as usize);
+    let mut records = Vec::with_capacity((w * h) as usize);
     let rows = cloud.data.chunks_exact(cloud.row_step.max(1) as usize);
     for row in rows.take(cloud.height as usize) {
-        for record in row
+        for bytes in row
             .chunks_exact(point_step as usize)
             .take(cloud.width as usize)
         {
-            let v: [f64; 15] = std::array::from_fn(|i| {
-                channels[i].map_or(1.0, |c| value(record, c, cloud.is_bigendian))
-            });
-            let dc = DVec3::new(v[3], v[4], v[5]);
-            set.push(renderer::Gaussian {
-                mean: (DVec3::new(v[0], v[1], v[2]) - origin).as_vec3(),
-                color: (0.5 + SH_C0 * dc).as_vec3(),
-                opacity: opacity_from_logit(v[6]),
-                log_scale: Vec3::new(v[7] as f32, v[8] as f32, v[9] as f32),
-                rotation: Quat::from_xyzw(v[11] as f32, v[12] as f32, v[13] as f32, v[10] as f32),
-                confidence: v[14] as f32,
-            });
+            records.push(std::array::from_fn(|i| {
+                channels[i].map_or(1.0, |c| value(bytes, c, cloud.is_bigendian))
+            }));
         }
     }
-    Ok(set)
+    Ok(records)
 }

@@ -2,6 +2,7 @@
 //! of every type this module encodes.
 
 use super::latency::{BIN_LATENCY_MSG, COUNTER_MSG, DIAGNOSTICS_MSG};
+use super::map_update::MAP_UPDATE_MSG;
 use super::type_hash::rihs01;
 use std::sync::OnceLock;
 
@@ -36,11 +37,13 @@ pub enum MessageKind {
     Counter,
     /// `stereosplat_msgs/msg/Diagnostics`.
     Diagnostics,
+    /// `stereosplat_msgs/msg/MapUpdate`.
+    MapUpdate,
 }
 
 impl MessageKind {
     /// All kinds, in declaration order.
-    pub const ALL: [MessageKind; 14] = [
+    pub const ALL: [MessageKind; 15] = [
         Self::Time,
         Self::Header,
         Self::Image,
@@ -55,6 +58,7 @@ impl MessageKind {
         Self::BinLatency,
         Self::Counter,
         Self::Diagnostics,
+        Self::MapUpdate,
     ];
 
     /// The ROS 2 name, `package/msg/Type`.
@@ -74,6 +78,7 @@ impl MessageKind {
             Self::BinLatency => "stereosplat_msgs/msg/BinLatency",
             Self::Counter => "stereosplat_msgs/msg/Counter",
             Self::Diagnostics => "stereosplat_msgs/msg/Diagnostics",
+            Self::MapUpdate => "stereosplat_msgs/msg/MapUpdate",
         }
     }
 
@@ -121,6 +126,7 @@ impl MessageKind {
             Self::BinLatency => BIN_LATENCY_MSG,
             Self::Counter => COUNTER_MSG,
             Self::Diagnostics => DIAGNOSTICS_MSG,
+            Self::MapUpdate => MAP_UPDATE_MSG,
         }
     }
 

@@ -19,6 +19,7 @@ pub mod geometry_msgs;
 pub mod image;
 pub mod kind;
 pub mod latency;
+pub mod map_update;
 pub mod pose;
 pub mod sensor_msgs;
 pub mod std_msgs;

@@ -7,6 +7,7 @@ use node::msg::gaussians::cloud_from_gaussians;
 use node::msg::geometry_msgs::PoseStamped;
 use node::msg::image::camera_info;
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
+use node::msg::map_update::MapUpdate;
 use node::msg::pose::pose_from_affine;
 use node::msg::sensor_msgs::{CameraInfo, Image, PointCloud2};
 use node::msg::std_msgs::Header;
@@ -25,6 +26,7 @@ pub struct Samples {
     pub world_cloud: PointCloud2,
     pub latency: BinLatency,
     pub diagnostics: Diagnostics,
+    pub map_update: MapUpdate,
 }
 
 /// Three Gaussians with distinct values in every channel.
@@ -101,6 +103,17 @@ pub fn samples() -> Samples {
                 },
             ],
         },
+        map_update: MapUpdate {
+            header: Header::new(stamp, "world"),
+            sequence: 12,
+            snapshot: false,
+            bin_id: 7,
+            ids: vec![40, 41, 1 << 50],
+            source_bins: vec![7, 7, 6],
+            removed_ids: vec![3, u64::MAX],
+            gaussians: cloud_from_gaussians(&gaussians(), Header::new(stamp, "world"), Some(FAR))
+                .expect("lengths agree"),
+        },
     }
 }
 
@@ -145,6 +158,11 @@ pub fn encoded() -> Vec<(&'static str, Vec<u8>, Decoder)> {
             Diagnostics::KIND.ros_name(),
             s.diagnostics.encode(),
             decoder::<Diagnostics>(),
+        ),
+        (
+            MapUpdate::KIND.ros_name(),
+            s.map_update.encode(),
+            decoder::<MapUpdate>(),
         ),
     ]
 }

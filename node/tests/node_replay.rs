@@ -60,6 +60,7 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
         method: "sgm".into(),
         fusion: FusionConfig::default(),
         out_dir: Some(root.join("out")),
+        ..NodeConfig::default()
     };
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let node = tokio::spawn(run(node_config, async {

@@ -80,6 +80,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         method: args.method.clone(),
         fusion: FusionConfig::default(),
         out_dir: Some(args.out.clone()),
+        ..NodeConfig::default()
     };
     let runtime = tokio::runtime::Runtime::new()?;
     let summary = runtime.block_on(async {

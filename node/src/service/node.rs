@@ -44,6 +44,33 @@ pub struct NodeConfig {
     pub fusion: FusionConfig,
     /// Where the fused map (PLY, bird's-eye PNG, saved map) goes when the node stops.
     pub out_dir: Option<PathBuf>,
+    /// A global map snapshot is published after every this many bins (0: only on request).
+    pub snapshot_every: u64,
+    /// Publish per-bin renders: the bin map seen from its input view, and a bird's-eye view
+    /// of the global map.
+    pub renders: bool,
+    /// The node's name (ROS 2 liveliness tokens, logs).
+    pub name: String,
+}
+
+impl Default for NodeConfig {
+    /// Loopback peer, namespace `stereosplat`, the SGM baseline, a snapshot every 10 bins,
+    /// renders on, nothing exported.
+    fn default() -> Self {
+        Self {
+            transport: TransportConfig::default(),
+            keys: Keys::default(),
+            sync: SyncConfig::default(),
+            binner: BinnerConfig::default(),
+            queue_capacity: 4,
+            method: "sgm".into(),
+            fusion: FusionConfig::default(),
+            out_dir: None,
+            snapshot_every: 10,
+            renders: true,
+            name: "stereosplat_node".into(),
+        }
+    }
 }
 
 /// What a run of the node did.

@@ -1,6 +1,7 @@
 //! The streaming node end to end on real zenoh sessions over loopback: a generated drive is
 //! replayed into a running node (SGM reconstructor) while a third session listens to the
-//! outputs. Every bin's map arrives and decodes, latency arrives for every closed bin, a
+//! outputs. Every bin's map and renders arrive and decode, latency arrives for every closed
+//! bin, the global map's increments add up to its snapshots (periodic and requested), a
 //! malformed message is counted without stopping the node, and the global map is exported.
 
 mod net_support;
@@ -13,12 +14,15 @@ use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 use node::bag::Rate;
 use node::fusion::FusionConfig;
+use node::fusion::{decode_update, MapReplica, Snapshot, Update};
 use node::msg::gaussians::gaussians_from_cloud;
 use node::msg::latency::BinLatency;
-use node::msg::sensor_msgs::PointCloud2;
+use node::msg::map_update::MapUpdate;
+use node::msg::sensor_msgs::{Image, PointCloud2};
 use node::msg::Message;
 use node::pipeline::binner::BinnerConfig;
 use node::pipeline::sync::SyncConfig;
+use node::pipeline::worker::RenderWith;
 use node::service::{replay, run, Keys, NodeConfig};
 use node::transport::{open, TransportConfig};
 
@@ -60,6 +64,8 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
         method: "sgm".into(),
         fusion: FusionConfig::default(),
         out_dir: Some(root.join("out")),
+        snapshot_every: 2,
+        renders: RenderWith::Cpu,
         ..NodeConfig::default()
     };
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
@@ -75,6 +81,15 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
     let listener = open(&client).await.unwrap();
     let maps = listener.declare_subscriber(keys.bin_map()).await.unwrap();
     let latency = listener.declare_subscriber(keys.latency()).await.unwrap();
+    let updates = listener
+        .declare_subscriber(keys.map_update())
+        .await
+        .unwrap();
+    let renders = listener
+        .declare_subscriber(keys.bin_render())
+        .await
+        .unwrap();
+    let bevs = listener.declare_subscriber(keys.map_bev()).await.unwrap();
     let player = open(&client).await.unwrap();
     tokio::time::sleep(Duration::from_millis(500)).await;
 
@@ -88,6 +103,7 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
         .unwrap();
     assert_eq!(replayed.frames, 60);
     tokio::time::sleep(Duration::from_secs(2)).await;
+    let requested = requested_snapshot(&listener, &keys).await;
     stop_tx.send(()).unwrap();
     let summary = node.await.unwrap().unwrap();
 
@@ -114,8 +130,64 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
         assert!(l.bin_close_ns >= l.first_frame_arrival_ns);
     }
     assert!(summary.global_gaussians > 1000);
+
+    // Increments applied in order give every periodic snapshot and the requested one.
+    let mut replica = MapReplica::new();
+    let (mut last_seq, mut snapshots) = (0, 0);
+    while let Ok(Some(s)) = updates.try_recv() {
+        let msg = MapUpdate::decode(&s.payload().to_bytes()).unwrap();
+        match decode_update(&msg).unwrap() {
+            Update::Increment(inc) => {
+                assert_eq!(msg.sequence, last_seq + 1, "increments in order");
+                last_seq = msg.sequence;
+                replica.apply(&inc).unwrap();
+            }
+            Update::Snapshot(snap) => {
+                assert_eq!(msg.sequence, last_seq);
+                assert_eq!(snap.gaussians, replica.snapshot().gaussians);
+                snapshots += 1;
+            }
+        }
+    }
+    assert_eq!(last_seq, summary.bins_published);
+    assert_eq!(snapshots, summary.bins_published / 2);
+    assert_eq!(replica.len(), summary.global_gaussians);
+    assert_eq!(requested.gaussians, replica.snapshot().gaussians);
+
+    // One render of the input view and one bird's-eye view per bin.
+    let mut n_renders = 0;
+    while let Ok(Some(s)) = renders.try_recv() {
+        let img = Image::decode(&s.payload().to_bytes()).unwrap();
+        assert_eq!((img.width, img.height), (136, 40));
+        n_renders += 1;
+    }
+    assert_eq!(n_renders, summary.bins_published);
+    let mut n_bev = 0;
+    while let Ok(Some(s)) = bevs.try_recv() {
+        let img = Image::decode(&s.payload().to_bytes()).unwrap();
+        assert_eq!(
+            (img.width, img.height, img.encoding.as_str()),
+            (256, 256, "rgb8")
+        );
+        assert!(img.data.iter().any(|&b| b > 0), "the map shows from above");
+        n_bev += 1;
+    }
+    assert_eq!(n_bev, summary.bins_published);
     for f in ["global_map.ply", "global_map_bev.png", "global_map.ssgmap"] {
         assert!(root.join("out").join(f).exists(), "{f}");
     }
     let _ = std::fs::remove_dir_all(&root);
+}
+
+/// The snapshot the node answers a query with.
+async fn requested_snapshot(session: &zenoh::Session, keys: &Keys) -> Snapshot {
+    let replies = session.get(keys.snapshot_request()).await.unwrap();
+    let reply = replies.recv_async().await.expect("the node answers");
+    let sample = reply.result().expect("a snapshot, not an error");
+    let msg = MapUpdate::decode(&sample.payload().to_bytes()).unwrap();
+    assert!(msg.snapshot);
+    match decode_update(&msg).unwrap() {
+        Update::Snapshot(s) => s,
+        Update::Increment(_) => unreachable!("asserted a snapshot above"),
+    }
 }

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use model::kitti360::Calibration;
 use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
 use model::synth::{SynthConfig, SynthSequence};
-use node::pipeline::worker::{now_ns, Job, Output, Stamps, Submitted, Worker};
+use node::pipeline::worker::{now_ns, Job, Output, RenderWith, Stamps, Submitted, Worker};
 use renderer::GaussianSet;
 
 fn jobs(n: usize) -> Vec<Job> {
@@ -44,9 +44,8 @@ fn collect(rx: &mpsc::Receiver<Output>, n: usize) -> Vec<Output> {
 #[test]
 fn bins_come_back_in_order_with_maps_and_stamps() {
     let (tx, rx) = mpsc::channel();
-    let worker = Worker::spawn(model::methods::by_name("sgm").unwrap(), 4, move |o| {
-        tx.send(o).unwrap()
-    });
+    let sgm = model::methods::by_name("sgm").unwrap();
+    let worker = Worker::spawn(sgm, RenderWith::Cpu, 4, move |o| tx.send(o).unwrap());
     let input = jobs(3);
     for job in input.clone() {
         assert_eq!(worker.submit(job), Submitted::Queued);
@@ -62,6 +61,13 @@ fn bins_come_back_in_order_with_maps_and_stamps() {
         assert!(mean_z > 2.0, "{mean_z}");
         let s = o.stamps;
         assert!(s.arrival_ns <= s.model_start_ns && s.model_start_ns <= s.model_end_ns);
+        assert!(s.model_end_ns <= s.render_end_ns);
+        // The render from the input view looks like the input image.
+        let render = o.render.as_ref().expect("renders on").as_ref().unwrap();
+        let left = &job.frame.left;
+        assert_eq!((render.width, render.height), (left.width, left.height));
+        let psnr = model::metrics::psnr(render, left).unwrap();
+        assert!(psnr > 15.0, "render vs input: PSNR {psnr:.2} dB");
     }
     assert_eq!(worker.drops(), 0);
     worker.shutdown();
@@ -70,9 +76,12 @@ fn bins_come_back_in_order_with_maps_and_stamps() {
 #[test]
 fn a_burst_drops_the_oldest_waiting_bins_without_blocking() {
     let (tx, rx) = mpsc::channel();
-    let worker = Worker::spawn(model::methods::by_name("sgm").unwrap(), 2, move |o| {
-        tx.send(o).unwrap()
-    });
+    let worker = Worker::spawn(
+        model::methods::by_name("sgm").unwrap(),
+        RenderWith::Off,
+        2,
+        move |o| tx.send(o).unwrap(),
+    );
     let input = jobs(2);
     let start = Instant::now();
     let mut dropped = 0;
@@ -119,9 +128,12 @@ impl Reconstructor for PanicsOnSecond {
 #[test]
 fn a_panic_is_reported_on_its_bin_and_the_worker_goes_on() {
     let (tx, rx) = mpsc::channel();
-    let worker = Worker::spawn(Box::new(PanicsOnSecond { calls: 0 }), 4, move |o| {
-        tx.send(o).unwrap()
-    });
+    let worker = Worker::spawn(
+        Box::new(PanicsOnSecond { calls: 0 }),
+        RenderWith::Off,
+        4,
+        move |o| tx.send(o).unwrap(),
+    );
     for job in jobs(3) {
         worker.submit(job);
     }

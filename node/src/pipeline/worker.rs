@@ -1,5 +1,6 @@
-//! The worker thread: it owns the reconstructor, takes one bin's first stereo pair at a time
-//! from a bounded queue and hands back the bin's Gaussian map with its timings. The async side
+//! The worker thread: it owns the reconstructor and the rasterizer, takes one bin's first
+//! stereo pair at a time from a bounded queue and hands back the bin's Gaussian map, its
+//! render from the input view, and its timings. The async side
 //! never blocks on it: when the queue is full the oldest waiting bin is dropped and counted
 //! (keep newest), because a map of the road just driven is worth more than a late one. A panic
 //! inside the reconstructor is caught, reported on that bin, and the worker goes on.
@@ -11,9 +12,40 @@ use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 use glam::DAffine3;
-use model::frame::{Side, StereoFrame, StereoRig};
+use model::eval::raster::Raster;
+use model::frame::{RgbImage, Side, StereoFrame, StereoRig};
 use model::reconstruct::{Reconstructor, StereoView};
-use renderer::GaussianSet;
+use renderer::gpu::GpuRasterizer;
+use renderer::{GaussianSet, RenderSettings};
+
+/// Which rasterizer draws each bin's map from its input (left) view.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RenderWith {
+    /// No renders.
+    Off,
+    /// The CPU reference rasterizer.
+    Cpu,
+    /// wgpu; when no adapter is found the worker says so once and uses the CPU instead.
+    #[default]
+    Gpu,
+}
+
+impl RenderWith {
+    /// The rasterizer, made on the thread that will use it.
+    fn raster(self) -> Option<Raster> {
+        match self {
+            RenderWith::Off => None,
+            RenderWith::Cpu => Some(Raster::Cpu),
+            RenderWith::Gpu => Some(match GpuRasterizer::new() {
+                Ok(gpu) => Raster::Gpu(Box::new(gpu)),
+                Err(e) => {
+                    eprintln!("worker: no wgpu adapter ({e}); rendering on the CPU");
+                    Raster::Cpu
+                }
+            }),
+        }
+    }
+}
 
 /// Wall-clock time in nanoseconds since the Unix epoch: the clock of every latency stamp, so
 /// stamps from different processes compare.
@@ -62,6 +94,9 @@ pub struct Output {
     pub bin_to_world: DAffine3,
     /// The bin's map in the bin frame, or why there is none.
     pub result: Result<GaussianSet, String>,
+    /// The map rendered from the bin's input (left) view: none when renders are off or
+    /// there is no map, an error when the rasterizer failed.
+    pub render: Option<Result<RgbImage, String>>,
     /// Stamps up to the model's end.
     pub stamps: Stamps,
     /// Jobs still waiting when this one finished.
@@ -86,10 +121,11 @@ pub struct Worker {
 }
 
 impl Worker {
-    /// Starts the worker with `reconstructor`, a queue of `capacity` bins, and `on_output`
-    /// called on the worker thread for every finished bin.
+    /// Starts the worker with `reconstructor`, renders drawn `with` a rasterizer, a queue of
+    /// `capacity` bins, and `on_output` called on the worker thread for every finished bin.
     pub fn spawn(
         mut reconstructor: Box<dyn Reconstructor + Send>,
+        with: RenderWith,
         capacity: usize,
         mut on_output: impl FnMut(Output) + Send + 'static,
     ) -> Self {
@@ -98,8 +134,9 @@ impl Worker {
         let thread = std::thread::Builder::new()
             .name("stereosplat-worker".into())
             .spawn(move || {
+                let mut raster = with.raster();
                 for job in rx.iter() {
-                    let output = run_job(reconstructor.as_mut(), job, rx.len());
+                    let output = run_job(reconstructor.as_mut(), raster.as_mut(), job, rx.len());
                     on_output(output);
                 }
             })
@@ -163,13 +200,19 @@ impl Drop for Worker {
     }
 }
 
-fn run_job(reconstructor: &mut dyn Reconstructor, job: Job, queue_depth: usize) -> Output {
+fn run_job(
+    reconstructor: &mut dyn Reconstructor,
+    raster: Option<&mut Raster>,
+    job: Job,
+    queue_depth: usize,
+) -> Output {
     let mut stamps = job.stamps;
     let origin = job.frame.left_to_world;
+    let left_camera = job.rig.local_camera(origin, origin, Side::Left);
     let view = StereoView {
         left: &job.frame.left,
         right: &job.frame.right,
-        left_camera: job.rig.local_camera(origin, origin, Side::Left),
+        left_camera,
         right_camera: job.rig.local_camera(origin, origin, Side::Right),
     };
     stamps.model_start_ns = now_ns();
@@ -186,10 +229,26 @@ fn run_job(reconstructor: &mut dyn Reconstructor, job: Job, queue_depth: usize) 
         )),
     };
     stamps.model_end_ns = now_ns();
+    let render = match (raster, &result) {
+        (Some(raster), Ok(set)) => {
+            let out = raster.render(set, &left_camera, &RenderSettings::default());
+            stamps.render_end_ns = now_ns();
+            Some(
+                out.map(|o| RgbImage {
+                    width: o.width,
+                    height: o.height,
+                    data: o.rgb,
+                })
+                .map_err(|e| e.to_string()),
+            )
+        }
+        _ => None,
+    };
     Output {
         bin_id: job.bin_id,
         bin_to_world: origin,
         result,
+        render,
         stamps,
         queue_depth,
     }

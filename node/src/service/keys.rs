@@ -206,6 +206,16 @@ impl Keys {
         self.key(MAP_UPDATE)
     }
 
+    /// The zenoh queryable answering with a stereosplat_msgs/MapUpdate snapshot of the global
+    /// map: `<namespace>/map/snapshot` in both modes (a zenoh query, not a ROS 2 service).
+    pub fn snapshot_request(&self) -> String {
+        if self.namespace.is_empty() {
+            "map/snapshot".into()
+        } else {
+            format!("{}/map/snapshot", self.namespace)
+        }
+    }
+
     /// stereosplat_msgs/BinLatency, per bin (output).
     pub fn latency(&self) -> String {
         self.key(LATENCY)

@@ -6,6 +6,7 @@
 pub mod counters;
 pub mod keys;
 pub mod node;
+mod outputs;
 pub mod replay;
 
 pub use counters::Counters;

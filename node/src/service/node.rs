@@ -1,28 +1,25 @@
 //! The node's event loop.
 
-use std::collections::BTreeMap;
 use std::future::Future;
 use std::path::PathBuf;
 
 use glam::DVec2;
 use model::frame::{RgbImage, StereoFrame, StereoRig};
 use tokio::sync::mpsc;
-use zenoh::Session;
 
 use super::counters::Counters;
 use super::keys::Keys;
+use super::outputs::Outputs;
 use crate::fusion::{bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap};
-use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
-use crate::msg::latency::BinLatency;
-use crate::msg::pose::{affine_from_pose, pose_from_affine};
+use crate::msg::pose::affine_from_pose;
 use crate::msg::sensor_msgs::{CameraInfo, Image};
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
 use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
 use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
-use crate::pipeline::worker::{now_ns, Job, Output, Stamps, Worker};
+use crate::pipeline::worker::{now_ns, Job, Output, RenderWith, Stamps, Worker};
 use crate::transport::{open, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
@@ -46,9 +43,9 @@ pub struct NodeConfig {
     pub out_dir: Option<PathBuf>,
     /// A global map snapshot is published after every this many bins (0: only on request).
     pub snapshot_every: u64,
-    /// Publish per-bin renders: the bin map seen from its input view, and a bird's-eye view
-    /// of the global map.
-    pub renders: bool,
+    /// Per-bin renders: the bin map seen from its input view (drawn on the worker with this
+    /// rasterizer), and a bird's-eye view of the global map; `Off` publishes neither.
+    pub renders: RenderWith,
     /// The node's name (ROS 2 liveliness tokens, logs).
     pub name: String,
 }
@@ -67,7 +64,7 @@ impl Default for NodeConfig {
             fusion: FusionConfig::default(),
             out_dir: None,
             snapshot_every: 10,
-            renders: true,
+            renders: RenderWith::Gpu,
             name: "stereosplat_node".into(),
         }
     }
@@ -105,14 +102,6 @@ fn zenoh_err(e: zenoh::Error) -> TransportError {
     TransportError::Zenoh(e.to_string())
 }
 
-/// The bins in flight: stamps collected on the async side until the bin closed and its map
-/// was published, then the latency message goes out.
-#[derive(Default)]
-struct Pending {
-    closed_ns: BTreeMap<u64, i64>,
-    published: BTreeMap<u64, Stamps>,
-}
-
 /// Runs the node until `stop` completes; then finishes the queued bins, exports the global
 /// map and returns what happened.
 pub async fn run(
@@ -130,10 +119,15 @@ pub async fn run(
     let left_info = sub(keys.left_info()).await?;
     let right_info = sub(keys.right_info()).await?;
     let pose = sub(keys.pose()).await?;
+    let snapshot_requests = session
+        .declare_queryable(keys.snapshot_request())
+        .await
+        .map_err(zenoh_err)?;
 
     let (out_tx, mut out_rx) = mpsc::unbounded_channel::<Output>();
     let worker = Worker::spawn(
         model::methods::by_name(&config.method)?,
+        config.renders,
         config.queue_capacity,
         move |o| {
             let _ = out_tx.send(o);
@@ -142,10 +136,8 @@ pub async fn run(
     let mut sync: Synchronizer<(RgbImage, i64), RgbImage, glam::DAffine3> =
         Synchronizer::new(config.sync);
     let mut binner: Binner<(StereoFrame, Stamps)> = Binner::new(config.binner);
-    let mut map = GlobalMap::new(config.fusion)?;
-    let mut counters = Counters::default();
-    let mut pending = Pending::default();
-    let mut summary = NodeSummary::default();
+    let bev = config.renders != RenderWith::Off;
+    let mut outputs = Outputs::new(&session, keys, config.fusion, bev, config.snapshot_every)?;
     let (mut left_k, mut right_k): (Option<CameraInfo>, Option<CameraInfo>) = (None, None);
     let mut rig: Option<StereoRig> = None;
     let mut frame_index = 0u32;
@@ -153,6 +145,7 @@ pub async fn run(
 
     loop {
         let mut frames = Vec::new();
+        let counters = &mut outputs.counters;
         tokio::select! {
             _ = &mut stop => break,
             Ok(s) = left.recv_async() => match decode_image(&s) {
@@ -181,13 +174,18 @@ pub async fn run(
                 }
                 Err(_) => counters.add("bad_message/right_camera_info", 1),
             },
-            Some(out) = out_rx.recv() => {
-                publish_output(&session, keys, out, &mut map, &mut pending, &mut counters, &mut summary, worker.drops()).await?;
-            }
+            Ok(q) = snapshot_requests.recv_async() => {
+                let header = Header::new(now_ns(), "world");
+                match outputs.snapshot(header) {
+                    Ok(m) => q.reply(q.key_expr().clone(), m.encode()).await.map_err(zenoh_err)?,
+                    Err(_) => outputs.counters.add("error/encode_map_update", 1),
+                }
+            },
+            Some(out) = out_rx.recv() => outputs.bin_done(out, worker.drops()).await?,
         }
         for f in frames {
             let Some(rig) = rig else {
-                counters.add("dropped/no_camera_info", 1);
+                outputs.counters.add("dropped/no_camera_info", 1);
                 continue;
             };
             let job = frame_job(f, &mut frame_index);
@@ -196,41 +194,31 @@ pub async fn run(
                 BinEvent::Closed {
                     bin_id, next_first, ..
                 } => {
-                    pending.closed_ns.insert(bin_id, now_ns());
                     submit(&worker, bin_id + 1, next_first, rig);
-                    flush_latency(&session, keys, &mut pending, &counters, worker.drops()).await?;
+                    outputs.bin_closed(bin_id, worker.drops()).await?;
                 }
                 BinEvent::Inside => {}
-                BinEvent::Rejected => counters.add("dropped/non_finite_pose", 1),
+                BinEvent::Rejected => outputs.counters.add("dropped/non_finite_pose", 1),
             }
         }
         let c = sync.counters();
-        counters.set("sync/late", c.late);
-        counters.set("sync/unmatched", c.unmatched);
+        outputs.counters.set("sync/late", c.late);
+        outputs.counters.set("sync/unmatched", c.unmatched);
     }
 
     // Finish what is queued, then publish it.
     let drops = worker.drops();
     worker.shutdown();
     while let Ok(out) = out_rx.try_recv() {
-        publish_output(
-            &session,
-            keys,
-            out,
-            &mut map,
-            &mut pending,
-            &mut counters,
-            &mut summary,
-            drops,
-        )
-        .await?;
+        outputs.bin_done(out, drops).await?;
     }
-    counters.set("dropped/worker_queue", drops);
-    summary.global_gaussians = map.len();
+    outputs.counters.set("dropped/worker_queue", drops);
     if let Some(dir) = &config.out_dir {
-        export(&map, dir)?;
+        export(&outputs.map, dir)?;
     }
-    summary.counters = counters;
+    let mut summary = std::mem::take(&mut outputs.summary);
+    summary.global_gaussians = outputs.map.len();
+    summary.counters = std::mem::take(&mut outputs.counters);
     Ok(summary)
 }
 
@@ -282,86 +270,6 @@ fn submit(worker: &Worker, bin_id: u64, (frame, stamps): FrameJob, rig: StereoRi
         rig,
         stamps,
     });
-}
-
-#[allow(clippy::too_many_arguments)]
-async fn publish_output(
-    session: &Session,
-    keys: &Keys,
-    out: Output,
-    map: &mut GlobalMap,
-    pending: &mut Pending,
-    counters: &mut Counters,
-    summary: &mut NodeSummary,
-    drops: u64,
-) -> Result<(), ServiceError> {
-    let mut stamps = out.stamps;
-    stamps.render_end_ns = stamps.model_end_ns;
-    match out.result {
-        Ok(set) => {
-            let header = Header::new(stamps.arrival_ns, format!("bin_{}", out.bin_id));
-            match cloud_from_gaussians(&set, header, None) {
-                Ok(cloud) => put(session, keys.bin_map(), cloud.encode()).await?,
-                Err(_) => counters.add("error/encode_map", 1),
-            }
-            let pose = pose_from_affine(&out.bin_to_world, Header::new(stamps.arrival_ns, "world"));
-            put(session, keys.bin_pose(), pose.encode()).await?;
-            stamps.publish_ns = now_ns();
-            summary.bins_published += 1;
-            if map.insert_bin(out.bin_id, &set, out.bin_to_world).is_err() {
-                counters.add("error/fusion", 1);
-            }
-        }
-        Err(_) => counters.add("error/reconstruct", 1),
-    }
-    pending.published.insert(out.bin_id, stamps);
-    counters.set("queue/depth", out.queue_depth as u64);
-    flush_latency(session, keys, pending, counters, drops).await
-}
-
-/// Publishes the latency of every bin that is both closed and published, and the counters.
-async fn flush_latency(
-    session: &Session,
-    keys: &Keys,
-    pending: &mut Pending,
-    counters: &Counters,
-    drops: u64,
-) -> Result<(), ServiceError> {
-    let ready: Vec<u64> = pending
-        .published
-        .keys()
-        .filter(|id| pending.closed_ns.contains_key(id))
-        .copied()
-        .collect();
-    for id in ready {
-        let s = pending.published.remove(&id).unwrap_or_default();
-        let closed = pending.closed_ns.remove(&id).unwrap_or_default();
-        let msg = BinLatency {
-            bin_id: id,
-            first_frame_arrival_ns: s.arrival_ns,
-            bin_close_ns: closed,
-            model_start_ns: s.model_start_ns,
-            model_end_ns: s.model_end_ns,
-            render_end_ns: s.render_end_ns,
-            publish_ns: s.publish_ns,
-            queue_depth: counters.get("queue/depth") as u32,
-            drops,
-            bad_messages: counters.sum("bad_message/"),
-        };
-        put(session, keys.latency(), msg.encode()).await?;
-        put(
-            session,
-            keys.diagnostics(),
-            counters.diagnostics(now_ns()).encode(),
-        )
-        .await?;
-    }
-    Ok(())
-}
-
-async fn put(session: &Session, key: String, payload: Vec<u8>) -> Result<(), ServiceError> {
-    session.put(key, payload).await.map_err(zenoh_err)?;
-    Ok(())
 }
 
 /// Writes the global map as 3DGS PLY (positions relative to the latest bin's origin, which is

@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use node::cli::{bench, eval, launch, render, stream, synth};
+use node::cli::{bench, bench_node, demo, eval, launch, render, stream, synth};
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
 #[derive(Parser)]
@@ -15,6 +15,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job: a generated drive replayed through the node on loopback; per-bin maps,
+    /// the fused global map and a latency summary in one folder.
+    Demo(demo::DemoArgs),
     /// Render a PLY map, or a generated scene, to PNG pictures (RGB, depth, alpha).
     Render(render::RenderArgs),
     /// Write a synthetic drive in the KITTI-360 layout (training seeds).
@@ -38,10 +41,13 @@ enum Command {
 enum BenchCommand {
     /// Rasterizer speed: CPU forward and backward, wgpu forward.
     Render(bench::BenchRenderArgs),
+    /// A drive through the node on loopback: bins per second, stage latencies, memory.
+    Node(bench_node::BenchNodeArgs),
 }
 
 fn main() -> Result<()> {
     match Cli::parse().command {
+        Command::Demo(args) => demo::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Synth(args) => synth::run(&args),
         Command::SynthHeldout(args) => synth::run_heldout(&args),
@@ -50,5 +56,6 @@ fn main() -> Result<()> {
         Command::Run(args) => stream::run(&args),
         Command::Replay(args) => stream::replay(&args),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
+        Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
     }
 }

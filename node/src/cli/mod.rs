@@ -1,6 +1,8 @@
 //! Subcommands of the `stereosplat` binary, one module each, plus what they share.
 
 pub mod bench;
+pub mod bench_node;
+pub mod demo;
 pub mod eval;
 pub mod launch;
 pub mod progress;

@@ -7,9 +7,11 @@ use crate::bag::Rate;
 use crate::fusion::FusionConfig;
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::sync::SyncConfig;
+use crate::pipeline::worker::RenderWith;
+use crate::service::keys::KeyMode;
 use crate::service::{self, Keys, NodeConfig};
 use crate::transport::{open, TransportConfig};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use model::kitti360::Sequence;
 
@@ -33,6 +35,56 @@ pub struct ZenohArgs {
     /// Namespace of every key.
     #[arg(long, default_value = "stereosplat")]
     namespace: String,
+    /// Key mode: `plain` (`<ns>/<topic>`) or `ros2` (rmw_zenoh's keys, attachments and
+    /// liveliness tokens, so ROS 2 nodes on rmw_zenoh see the topics).
+    #[arg(long, value_enum, default_value_t = KeyModeArg::Plain)]
+    key_mode: KeyModeArg,
+    /// ROS domain id of the ros2 key mode.
+    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
+    domain_id: u32,
+}
+
+/// `--key-mode` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KeyModeArg {
+    /// `<ns>/<topic>`.
+    Plain,
+    /// rmw_zenoh-compatible.
+    Ros2,
+}
+
+/// `--renders` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RenderArg {
+    /// No renders.
+    Off,
+    /// The CPU reference rasterizer.
+    Cpu,
+    /// wgpu (the CPU when no adapter is found).
+    Gpu,
+    /// wgpu on a hardware GPU, else the CPU reference.
+    Auto,
+}
+
+impl From<RenderArg> for RenderWith {
+    fn from(r: RenderArg) -> Self {
+        match r {
+            RenderArg::Off => RenderWith::Off,
+            RenderArg::Cpu => RenderWith::Cpu,
+            RenderArg::Gpu => RenderWith::Gpu,
+            RenderArg::Auto => RenderWith::Auto,
+        }
+    }
+}
+
+/// The replay rate of a `--rate` value: 0 = as fast as possible, 1 = recorded, else a factor.
+pub fn rate_of(rate: f64) -> Result<Rate> {
+    Ok(match rate {
+        0.0 => Rate::AsFastAsPossible,
+        1.0 => Rate::Recorded,
+        r if r.is_finite() && r > 0.0 => Rate::Factor(r),
+        r => anyhow::bail!("--rate must be 0 (as fast as possible) or positive, not {r}"),
+    })
 }
 
 impl ZenohArgs {
@@ -44,6 +96,17 @@ impl ZenohArgs {
             connect: self.connect.clone(),
             multicast_scouting: false,
         }
+    }
+
+    /// The keys these flags name.
+    pub fn keys(&self) -> Keys {
+        let mode = match self.key_mode {
+            KeyModeArg::Plain => KeyMode::Plain,
+            KeyModeArg::Ros2 => KeyMode::Ros2 {
+                domain_id: self.domain_id,
+            },
+        };
+        Keys::with_mode(&self.namespace, mode)
     }
 }
 
@@ -64,13 +127,19 @@ pub struct RunArgs {
     /// Where the fused global map is written when the node stops.
     #[arg(long, default_value = "out/node")]
     out: PathBuf,
+    /// Rasterizer of the per-bin renders (input view and bird's-eye view); `off` for none.
+    #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
+    renders: RenderArg,
+    /// Publish a global map snapshot every this many bins (0: only when queried).
+    #[arg(long, default_value_t = 10)]
+    snapshot_every: u64,
 }
 
 /// Runs the node until Ctrl-C or SIGTERM.
 pub fn run(args: &RunArgs) -> Result<()> {
     let config = NodeConfig {
         transport: args.zenoh.transport(),
-        keys: Keys::new(&args.zenoh.namespace),
+        keys: args.zenoh.keys(),
         sync: SyncConfig::default(),
         binner: BinnerConfig {
             length_m: args.bin_length,
@@ -80,6 +149,8 @@ pub fn run(args: &RunArgs) -> Result<()> {
         method: args.method.clone(),
         fusion: FusionConfig::default(),
         out_dir: Some(args.out.clone()),
+        renders: args.renders.into(),
+        snapshot_every: args.snapshot_every,
         ..NodeConfig::default()
     };
     let runtime = tokio::runtime::Runtime::new()?;
@@ -131,24 +202,16 @@ pub struct ReplayArgs {
 pub fn replay(args: &ReplayArgs) -> Result<()> {
     let name = match &args.seq {
         Some(s) => s.clone(),
-        None => Sequence::list(&args.data)?
-            .into_iter()
-            .next()
-            .with_context(|| format!("no sequence under {}", args.data.display()))?,
+        None => super::synth::first_sequence(&args.data)?,
     };
     let sequence = Sequence::open(&args.data, &name)?;
-    let rate = match args.rate {
-        0.0 => Rate::AsFastAsPossible,
-        1.0 => Rate::Recorded,
-        r if r.is_finite() && r > 0.0 => Rate::Factor(r),
-        r => anyhow::bail!("--rate must be 0 (as fast as possible) or positive, not {r}"),
-    };
+    let rate = rate_of(args.rate)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let summary = runtime.block_on(async {
         let session = open(&args.zenoh.transport()).await?;
         tokio::time::sleep(std::time::Duration::from_secs_f64(args.warmup.max(0.0))).await;
         let bar = progress::bar(sequence.frames().len(), "replay");
-        let keys = Keys::new(&args.zenoh.namespace);
+        let keys = args.zenoh.keys();
         let s = service::replay(&session, &keys, &sequence, rate, &mut progress::hook(&bar)).await;
         bar.finish_and_clear();
         anyhow::Ok(s?)

@@ -2,11 +2,12 @@
 //! layout, for training (any seed below the held-out range) and for evaluation (seeds from
 //! [`HELDOUT_SEED_BASE`] up, which training never uses).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use model::generate::{write_synthetic, HELDOUT_SEED_BASE};
+use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 
 use super::progress;
@@ -93,4 +94,28 @@ fn write(drive: &DriveArgs, seed: u64) -> Result<()> {
         drive.out.display()
     );
     Ok(())
+}
+
+/// The generated drive of `config` under `root`, written (with a progress bar) unless a
+/// sequence of that seed, length and size is already there; returns its name.
+pub fn cached_drive(root: &Path, config: &SynthConfig) -> Result<String> {
+    let name = model::generate::sequence_name(config.seed);
+    let ready = Sequence::open(root, &name).is_ok_and(|s| {
+        let k = s.rig().intrinsics;
+        s.frames().len() == config.frames as usize && (k.width, k.height) == (config.width, config.height)
+    });
+    if !ready {
+        let bar = progress::bar(config.frames as usize, "generate");
+        write_synthetic(root, config, &mut progress::hook(&bar))?;
+        bar.finish_and_clear();
+    }
+    Ok(name)
+}
+
+/// The first sequence under a KITTI-360-layout root.
+pub fn first_sequence(root: &Path) -> Result<String> {
+    Sequence::list(root)?
+        .into_iter()
+        .next()
+        .with_context(|| format!("no sequence under {}", root.display()))
 }

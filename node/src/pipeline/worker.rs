@@ -26,8 +26,11 @@ pub enum RenderWith {
     /// The CPU reference rasterizer.
     Cpu,
     /// wgpu; when no adapter is found the worker says so once and uses the CPU instead.
-    #[default]
     Gpu,
+    /// wgpu on a hardware GPU, else the CPU reference (a software Vulkan adapter runs the
+    /// same shaders several times slower than the CPU reference).
+    #[default]
+    Auto,
 }
 
 impl RenderWith {
@@ -42,6 +45,10 @@ impl RenderWith {
                     eprintln!("worker: no wgpu adapter ({e}); rendering on the CPU");
                     Raster::Cpu
                 }
+            }),
+            RenderWith::Auto => Some(match GpuRasterizer::new() {
+                Ok(gpu) if !gpu.is_software() => Raster::Gpu(Box::new(gpu)),
+                _ => Raster::Cpu,
             }),
         }
     }

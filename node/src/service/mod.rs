@@ -5,6 +5,8 @@
 
 pub mod counters;
 pub mod keys;
+pub mod latency_stats;
+pub mod loopback;
 pub mod node;
 mod outputs;
 pub mod replay;

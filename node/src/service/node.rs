@@ -64,7 +64,7 @@ impl Default for NodeConfig {
             fusion: FusionConfig::default(),
             out_dir: None,
             snapshot_every: 10,
-            renders: RenderWith::Gpu,
+            renders: RenderWith::Auto,
             name: "stereosplat_node".into(),
         }
     }

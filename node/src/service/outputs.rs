@@ -85,9 +85,6 @@ impl<'a> Outputs<'a> {
                     Ok(cloud) => self.put(keys::BIN_MAP, cloud.encode()).await?,
                     Err(_) => self.counters.add("error/encode_map", 1),
                 }
-                let pose = pose_from_affine(&out.bin_to_world, header("world"));
-                self.put(keys::BIN_POSE, pose.encode()).await?;
-                stamps.publish_ns = now_ns();
                 match out.render {
                     Some(Ok(img)) => {
                         let msg = image_from_rgb(&img, header(&frame));
@@ -96,6 +93,10 @@ impl<'a> Outputs<'a> {
                     Some(Err(_)) => self.counters.add("error/render", 1),
                     None => {}
                 }
+                // The pose last: a subscriber holding map and pose has the whole bin.
+                let pose = pose_from_affine(&out.bin_to_world, header("world"));
+                self.put(keys::BIN_POSE, pose.encode()).await?;
+                stamps.publish_ns = now_ns();
                 self.summary.bins_published += 1;
                 match self.map.insert_bin(out.bin_id, &set, out.bin_to_world) {
                     Ok(inc) => {

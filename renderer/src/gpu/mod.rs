@@ -147,6 +147,12 @@ impl GpuRasterizer {
         &self.ctx.info
     }
 
+    /// True on a software adapter (Mesa's lavapipe or llvmpipe): the same code runs, but
+    /// slower than the CPU reference rasterizer, so callers that only want speed pick that.
+    pub fn is_software(&self) -> bool {
+        self.ctx.info.device_type == wgpu::DeviceType::Cpu
+    }
+
     /// GPU buffers created since [`GpuRasterizer::new`]: constant over repeated renders of
     /// scenes no larger than one already rendered (buffers are reused, grown only on demand).
     pub fn buffer_allocations(&self) -> u64 {

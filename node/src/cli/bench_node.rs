@@ -1,0 +1,166 @@
+//! `stereosplat bench node`: a drive through the node on loopback zenoh, as JSON on stdout.
+//!
+//! Per replay rate: bins per second (bins published over the span from the first bin's
+//! first frame to the last publish), per-stage latency percentiles from the node's own
+//! latency messages, drops, and the process's resident memory: sampled every 50 frames and
+//! its peak. The node, the replay and the listener share the process (three zenoh sessions
+//! over loopback TCP), so memory figures cover all three.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Result;
+use clap::Args;
+use model::kitti360::Sequence;
+use model::synth::SynthConfig;
+use serde::Serialize;
+
+use super::progress;
+use super::stream::{rate_of, RenderArg};
+use super::synth::{cached_drive, first_sequence};
+use crate::pipeline::binner::BinnerConfig;
+use crate::service::latency_stats::{LatencyStats, LatencySummary};
+use crate::service::loopback::run_loopback;
+use crate::service::NodeConfig;
+
+/// Flags of `bench node`.
+#[derive(Args, Clone, Debug)]
+pub struct BenchNodeArgs {
+    /// A KITTI-360-layout root (its first sequence); default: generate one into --cache.
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Where the generated drive is kept between runs.
+    #[arg(long, default_value = "out/bench_node/drive")]
+    cache: PathBuf,
+    /// Frames of the generated drive.
+    #[arg(long, default_value_t = 1000)]
+    frames: u32,
+    /// Image width of the generated drive.
+    #[arg(long, default_value_t = 544)]
+    width: u32,
+    /// Image height of the generated drive.
+    #[arg(long, default_value_t = 112)]
+    height: u32,
+    /// Replay rates to run, one node each (0 = as fast as possible, 1 = recorded rate).
+    #[arg(long, default_values_t = [0.0, 1.0])]
+    rate: Vec<f64>,
+    /// The reconstructor.
+    #[arg(long, default_value = "sgm")]
+    method: String,
+    /// Rasterizer of the per-bin renders.
+    #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
+    renders: RenderArg,
+    /// Bins waiting for the worker at most (keep newest beyond it).
+    #[arg(long, default_value_t = 2)]
+    queue: usize,
+}
+
+/// One rate's figures.
+#[derive(Serialize)]
+struct RunReport {
+    rate: f64,
+    frames: u64,
+    bins_expected: u64,
+    bins_published: u64,
+    bins_per_second: f64,
+    drops: u64,
+    latency: LatencySummary,
+    /// (frames replayed, MiB) every 50 frames.
+    rss_mib: Vec<(u64, f64)>,
+    /// Resident memory at the end minus after the first 200 frames, MiB.
+    rss_growth_after_200_frames_mib: f64,
+    peak_rss_mib: f64,
+    wall_s: f64,
+}
+
+/// Runs the benchmark and prints one JSON object.
+pub fn run(args: &BenchNodeArgs) -> Result<()> {
+    let (root, name) = drive(args)?;
+    let sequence = Sequence::open(&root, &name)?;
+    let runtime = tokio::runtime::Runtime::new()?;
+    let mut runs = Vec::new();
+    for &rate in &args.rate {
+        let config = NodeConfig {
+            method: args.method.clone(),
+            renders: args.renders.into(),
+            queue_capacity: args.queue,
+            binner: BinnerConfig::default(),
+            ..NodeConfig::default()
+        };
+        let bar = progress::bar(sequence.frames().len(), &format!("rate {rate}"));
+        let report = runtime.block_on(run_loopback(
+            config,
+            &sequence,
+            rate_of(rate)?,
+            Duration::from_secs(20),
+            &mut progress::hook(&bar),
+            &mut |_| {},
+        ))?;
+        bar.finish_and_clear();
+        let mut stats = LatencyStats::default();
+        for l in &report.latencies {
+            stats.push(l);
+        }
+        let span_ns = report
+            .latencies
+            .iter()
+            .map(|l| l.publish_ns)
+            .max()
+            .zip(report.latencies.iter().map(|l| l.first_frame_arrival_ns).min())
+            .map_or(0, |(last, first)| last - first);
+        let mib = |b: u64| b as f64 / (1 << 20) as f64;
+        let rss_after = |frames: u64| {
+            report
+                .rss_samples
+                .iter()
+                .find(|(f, _)| *f >= frames)
+                .map_or(0.0, |&(_, b)| mib(b))
+        };
+        let rss_end = report.rss_samples.last().map_or(0.0, |&(_, b)| mib(b));
+        runs.push(RunReport {
+            rate,
+            frames: report.frames,
+            bins_expected: report.bins_expected,
+            bins_published: report.node.bins_published,
+            bins_per_second: match span_ns {
+                0 => 0.0,
+                ns => report.latencies.len() as f64 / (ns as f64 * 1e-9),
+            },
+            drops: report.node.counters.get("dropped/worker_queue"),
+            latency: stats.summary(),
+            rss_mib: report
+                .rss_samples
+                .iter()
+                .map(|&(f, b)| (f, mib(b)))
+                .collect(),
+            rss_growth_after_200_frames_mib: rss_end - rss_after(200),
+            peak_rss_mib: mib(report.peak_rss_bytes),
+            wall_s: report.wall_s,
+        });
+    }
+    let out = serde_json::json!({
+        "sequence": name,
+        "size": [sequence.rig().intrinsics.width, sequence.rig().intrinsics.height],
+        "method": args.method,
+        "renders": format!("{:?}", args.renders).to_lowercase(),
+        "threads": std::thread::available_parallelism().map_or(1, |n| n.get()),
+        "runs": runs,
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
+
+/// The drive to replay: `--data`, or one generated into `--cache` (kept for later runs).
+fn drive(args: &BenchNodeArgs) -> Result<(PathBuf, String)> {
+    if let Some(root) = &args.data {
+        return Ok((root.clone(), first_sequence(root)?));
+    }
+    let config = SynthConfig {
+        seed: 5,
+        frames: args.frames,
+        width: args.width,
+        height: args.height,
+        ..SynthConfig::default()
+    };
+    Ok((args.cache.clone(), cached_drive(&args.cache, &config)?))
+}

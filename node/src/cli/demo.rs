@@ -1,0 +1,154 @@
+//! `stereosplat demo`: the main job on the embedded default. It generates a short synthetic
+//! drive, runs the node and a replay on loopback zenoh, and leaves in one folder what a user
+//! would look at: per-bin maps (3DGS PLY, pose, render), the fused global map (PLY,
+//! bird's-eye PNG) and a latency summary.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::Result;
+use clap::Args;
+use model::kitti360::images::write_png;
+use model::kitti360::Sequence;
+use model::synth::SynthConfig;
+
+use super::progress;
+use super::stream::{rate_of, RenderArg};
+use super::synth::{cached_drive, first_sequence};
+use crate::service::latency_stats::LatencyStats;
+use crate::service::loopback::{run_loopback, ReceivedBin};
+use crate::service::NodeConfig;
+
+/// Flags of `demo`.
+#[derive(Args, Clone, Debug)]
+pub struct DemoArgs {
+    /// Output folder.
+    #[arg(long, default_value = "out/demo")]
+    out: PathBuf,
+    /// Use this KITTI-360-layout root (its first sequence) instead of generating a drive.
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Seed of the generated drive.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
+    /// Frames of the generated drive (10 per second).
+    #[arg(long, default_value_t = 100)]
+    frames: u32,
+    /// Image width of the generated drive.
+    #[arg(long, default_value_t = 544)]
+    width: u32,
+    /// Image height of the generated drive.
+    #[arg(long, default_value_t = 112)]
+    height: u32,
+    /// Replay speed: 1 = recorded rate, 2 = twice as fast, 0 = as fast as possible.
+    #[arg(long, default_value_t = 1.0)]
+    rate: f64,
+    /// The reconstructor.
+    #[arg(long, default_value = "sgm")]
+    method: String,
+    /// Rasterizer of the per-bin renders.
+    #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
+    renders: RenderArg,
+}
+
+/// Runs the demo and prints where its outputs are.
+pub fn run(args: &DemoArgs) -> Result<()> {
+    let (root, name) = match &args.data {
+        Some(root) => (root.clone(), first_sequence(root)?),
+        None => {
+            let root = args.out.join("drive");
+            let config = SynthConfig {
+                seed: args.seed,
+                frames: args.frames,
+                width: args.width,
+                height: args.height,
+                ..SynthConfig::default()
+            };
+            let name = cached_drive(&root, &config)?;
+            (root, name)
+        }
+    };
+    let sequence = Sequence::open(&root, &name)?;
+    let bins_dir = args.out.join("bins");
+    std::fs::create_dir_all(&bins_dir)?;
+    let config = NodeConfig {
+        method: args.method.clone(),
+        renders: args.renders.into(),
+        out_dir: Some(args.out.join("map")),
+        ..NodeConfig::default()
+    };
+    let bar = progress::bar(sequence.frames().len(), "replay");
+    let mut write_error = None;
+    let mut on_bin = |bin: ReceivedBin| {
+        if let Err(e) = write_bin(&bins_dir, &bin) {
+            write_error.get_or_insert(e);
+        }
+    };
+    let runtime = tokio::runtime::Runtime::new()?;
+    let report = runtime.block_on(run_loopback(
+        config,
+        &sequence,
+        rate_of(args.rate)?,
+        Duration::from_secs(60),
+        &mut progress::hook(&bar),
+        &mut on_bin,
+    ))?;
+    bar.finish_and_clear();
+    if let Some(e) = write_error {
+        return Err(e.context("writing a bin's files"));
+    }
+
+    let mut stats = LatencyStats::default();
+    for l in &report.latencies {
+        stats.push(l);
+    }
+    let summary = serde_json::json!({
+        "sequence": name,
+        "frames": report.frames,
+        "bins_expected": report.bins_expected,
+        "bins_received": report.bins_received,
+        "global_gaussians": report.node.global_gaussians,
+        "peak_rss_mib": report.peak_rss_bytes as f64 / (1 << 20) as f64,
+        "latency": stats.summary(),
+        "counters": report.node.counters,
+    });
+    let latency_path = args.out.join("latency.json");
+    std::fs::write(&latency_path, serde_json::to_string_pretty(&summary)? + "\n")?;
+
+    let mut out = std::io::stdout().lock();
+    writeln!(
+        out,
+        "demo: {} frames of {name} -> {} of {} bins, {} Gaussians in the global map",
+        report.frames, report.bins_received, report.bins_expected, report.node.global_gaussians
+    )?;
+    writeln!(out, "{}", stats.summary())?;
+    writeln!(out, "per-bin maps:  {}", bins_dir.display())?;
+    for f in ["global_map.ply", "global_map_bev.png"] {
+        writeln!(out, "global map:    {}", args.out.join("map").join(f).display())?;
+    }
+    writeln!(out, "latency:       {}", latency_path.display())?;
+    Ok(())
+}
+
+/// Writes one bin: `bin_<id>.ply` (bin frame), `bin_<id>_pose.json` (bin frame to world,
+/// f64) and `bin_<id>_render.png` when there is a render.
+fn write_bin(dir: &Path, bin: &ReceivedBin) -> Result<()> {
+    let stem = dir.join(format!("bin_{:04}", bin.bin_id));
+    renderer::ply::save_ply(&bin.gaussians, stem.with_extension("ply"))?;
+    let m = bin.bin_to_world;
+    let pose = serde_json::json!({
+        "bin_id": bin.bin_id,
+        "rotation_rows": [m.matrix3.row(0).to_array(), m.matrix3.row(1).to_array(), m.matrix3.row(2).to_array()],
+        "translation": m.translation.to_array(),
+        "gaussians": bin.gaussians.len(),
+    });
+    std::fs::write(
+        dir.join(format!("bin_{:04}_pose.json", bin.bin_id)),
+        serde_json::to_string_pretty(&pose)? + "\n",
+    )?;
+    if let Some(render) = &bin.render {
+        write_png(&dir.join(format!("bin_{:04}_render.png", bin.bin_id)), render)?;
+    }
+    Ok(())
+}

@@ -12,6 +12,11 @@
 
 mod bilinear;
 mod cpu;
+mod render;
 
 pub use bilinear::{grid_sample, upsample_bilinear};
 pub use cpu::OpError;
+pub use render::{
+    render, SplatTensors, CH_ALPHA, CH_B, CH_CONFIDENCE, CH_DEPTH, CH_G, CH_R, COL_COLOR,
+    COL_CONFIDENCE, COL_LOG_SCALE, COL_MEAN, COL_OPACITY_LOGIT, COL_ROTATION, OUT_CHANNELS, PARAMS,
+};

@@ -121,7 +121,7 @@ impl<T: Float> Taps<T> {
     }
 }
 
-/// Sizes shared by the three kernels: batch, channels, input plane, output plane.
+/// Sizes the three kernels share: channels, input plane, output pixels per plane.
 #[derive(Clone, Copy, Debug)]
 struct Dims {
     c: usize,

@@ -1,7 +1,8 @@
 //! The StereoSplat model side: the data it learns from and is judged on (KITTI-360 layout
 //! reader, the synthetic street generator, bins, metrics), the reconstructors that turn
 //! stereo frames into Gaussian sets (the classical baseline now, the candle network later),
-//! and the evaluation protocol of the paper's section 4.
+//! the differentiable candle ops the network trains through ([`ops`]), the LPIPS loss and
+//! metric ([`lpips`]), and the evaluation protocol of the paper's section 4.
 //!
 //! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
 //! about transport (`node`).
@@ -12,7 +13,9 @@ pub mod eval;
 pub mod frame;
 pub mod generate;
 pub mod kitti360;
+pub mod lpips;
 pub mod methods;
 pub mod metrics;
+pub mod ops;
 pub mod reconstruct;
 pub mod synth;

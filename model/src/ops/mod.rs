@@ -1,0 +1,22 @@
+//! Differentiable operations that candle lacks, as candle custom ops with CPU kernels.
+//!
+//! - [`grid_sample`] / [`upsample_bilinear`]: bilinear sampling of feature maps at arbitrary
+//!   points, forward and backward (candle has no grid_sample and its upsampling has no
+//!   backward); the plane-sweep warp and deformable attention are built on it.
+//! - [`render`]: the renderer's CPU rasterizer as an op, so losses on rendered images, depth
+//!   and confidence train the network that predicts the Gaussians.
+//!
+//! The kernels run on CPU tensors of `f32` (training) or `f64` (gradient checks). Second
+//! derivatives are not supported: the gradients these ops return are not themselves
+//! differentiable.
+
+mod bilinear;
+mod cpu;
+mod render;
+
+pub use bilinear::{grid_sample, upsample_bilinear};
+pub use cpu::OpError;
+pub use render::{
+    render, SplatTensors, CH_ALPHA, CH_B, CH_CONFIDENCE, CH_DEPTH, CH_G, CH_R, COL_COLOR,
+    COL_CONFIDENCE, COL_LOG_SCALE, COL_MEAN, COL_OPACITY_LOGIT, COL_ROTATION, OUT_CHANNELS, PARAMS,
+};

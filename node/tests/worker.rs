@@ -9,7 +9,9 @@ use std::time::{Duration, Instant};
 use model::kitti360::Calibration;
 use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
 use model::synth::{SynthConfig, SynthSequence};
-use node::pipeline::worker::{now_ns, Job, Output, RenderWith, Stamps, Submitted, Worker};
+use node::pipeline::worker::{
+    now_ns, Job, Output, RenderWith, Stamps, Submitted, Worker, WorkerEvent,
+};
 use renderer::GaussianSet;
 
 fn jobs(n: usize) -> Vec<Job> {
@@ -35,10 +37,19 @@ fn jobs(n: usize) -> Vec<Job> {
         .collect()
 }
 
-fn collect(rx: &mpsc::Receiver<Output>, n: usize) -> Vec<Output> {
+fn collect<T>(rx: &mpsc::Receiver<T>, n: usize) -> Vec<T> {
     (0..n)
         .map(|_| rx.recv_timeout(Duration::from_secs(60)).expect("an output"))
         .collect()
+}
+
+/// Sends the maps on, ignoring renders (for workers with renders off).
+fn maps_to(tx: mpsc::Sender<Output>) -> impl FnMut(WorkerEvent) + Send + 'static {
+    move |e| {
+        if let WorkerEvent::Map(o) = e {
+            tx.send(*o).unwrap();
+        }
+    }
 }
 
 #[test]
@@ -50,9 +61,14 @@ fn bins_come_back_in_order_with_maps_and_stamps() {
     for job in input.clone() {
         assert_eq!(worker.submit(job), Submitted::Queued);
     }
-    let out = collect(&rx, 3);
-    for (o, job) in out.iter().zip(&input) {
-        assert_eq!(o.bin_id, job.bin_id);
+    // Each map, then its render.
+    let events = collect(&rx, 6);
+    for (pair, job) in events.chunks(2).zip(&input) {
+        let (WorkerEvent::Map(o), WorkerEvent::Render(r)) = (&pair[0], &pair[1]) else {
+            panic!("a map, then its render: {pair:?}");
+        };
+        assert_eq!((o.bin_id, r.bin_id), (job.bin_id, job.bin_id));
+        assert!(o.render_follows);
         assert_eq!(o.bin_to_world, job.frame.left_to_world);
         let set = o.result.as_ref().unwrap();
         assert!(set.len() > 1000, "{} Gaussians", set.len());
@@ -61,9 +77,9 @@ fn bins_come_back_in_order_with_maps_and_stamps() {
         assert!(mean_z > 2.0, "{mean_z}");
         let s = o.stamps;
         assert!(s.arrival_ns <= s.model_start_ns && s.model_start_ns <= s.model_end_ns);
-        assert!(s.model_end_ns <= s.render_end_ns);
+        assert!(s.model_end_ns <= r.render_end_ns);
         // The render from the input view looks like the input image.
-        let render = o.render.as_ref().expect("renders on").as_ref().unwrap();
+        let render = r.image.as_ref().unwrap();
         let left = &job.frame.left;
         assert_eq!((render.width, render.height), (left.width, left.height));
         let psnr = model::metrics::psnr(render, left).unwrap();
@@ -80,7 +96,7 @@ fn a_burst_drops_the_oldest_waiting_bins_without_blocking() {
         model::methods::by_name("sgm").unwrap(),
         RenderWith::Off,
         2,
-        move |o| tx.send(o).unwrap(),
+        maps_to(tx),
     );
     let input = jobs(2);
     let start = Instant::now();
@@ -132,7 +148,7 @@ fn a_panic_is_reported_on_its_bin_and_the_worker_goes_on() {
         Box::new(PanicsOnSecond { calls: 0 }),
         RenderWith::Off,
         4,
-        move |o| tx.send(o).unwrap(),
+        maps_to(tx),
     );
     for job in jobs(3) {
         worker.submit(job);

@@ -106,7 +106,13 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
             .iter()
             .map(|l| l.publish_ns)
             .max()
-            .zip(report.latencies.iter().map(|l| l.first_frame_arrival_ns).min())
+            .zip(
+                report
+                    .latencies
+                    .iter()
+                    .map(|l| l.first_frame_arrival_ns)
+                    .min(),
+            )
             .map_or(0, |(last, first)| last - first);
         let mib = |b: u64| b as f64 / (1 << 20) as f64;
         let rss_after = |frames: u64| {

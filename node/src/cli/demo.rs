@@ -17,7 +17,7 @@ use super::progress;
 use super::stream::{rate_of, RenderArg};
 use super::synth::{cached_drive, first_sequence};
 use crate::service::latency_stats::LatencyStats;
-use crate::service::loopback::{run_loopback, ReceivedBin};
+use crate::service::loopback::{run_loopback, Received, ReceivedBin};
 use crate::service::NodeConfig;
 
 /// Flags of `demo`.
@@ -80,8 +80,15 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     };
     let bar = progress::bar(sequence.frames().len(), "replay");
     let mut write_error = None;
-    let mut on_bin = |bin: ReceivedBin| {
-        if let Err(e) = write_bin(&bins_dir, &bin) {
+    let mut on_bin = |received: Received| {
+        let written = match received {
+            Received::Bin(bin) => write_bin(&bins_dir, &bin),
+            Received::Render { bin_id, image } => {
+                let path = bins_dir.join(format!("bin_{bin_id:04}_render.png"));
+                write_png(&path, &image).map_err(Into::into)
+            }
+        };
+        if let Err(e) = written {
             write_error.get_or_insert(e);
         }
     };
@@ -114,7 +121,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         "counters": report.node.counters,
     });
     let latency_path = args.out.join("latency.json");
-    std::fs::write(&latency_path, serde_json::to_string_pretty(&summary)? + "\n")?;
+    std::fs::write(
+        &latency_path,
+        serde_json::to_string_pretty(&summary)? + "\n",
+    )?;
 
     let mut out = std::io::stdout().lock();
     writeln!(
@@ -125,14 +135,18 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     writeln!(out, "{}", stats.summary())?;
     writeln!(out, "per-bin maps:  {}", bins_dir.display())?;
     for f in ["global_map.ply", "global_map_bev.png"] {
-        writeln!(out, "global map:    {}", args.out.join("map").join(f).display())?;
+        writeln!(
+            out,
+            "global map:    {}",
+            args.out.join("map").join(f).display()
+        )?;
     }
     writeln!(out, "latency:       {}", latency_path.display())?;
     Ok(())
 }
 
-/// Writes one bin: `bin_<id>.ply` (bin frame), `bin_<id>_pose.json` (bin frame to world,
-/// f64) and `bin_<id>_render.png` when there is a render.
+/// Writes one bin: `bin_<id>.ply` (bin frame) and `bin_<id>_pose.json` (bin frame to
+/// world, f64).
 fn write_bin(dir: &Path, bin: &ReceivedBin) -> Result<()> {
     let stem = dir.join(format!("bin_{:04}", bin.bin_id));
     renderer::ply::save_ply(&bin.gaussians, stem.with_extension("ply"))?;
@@ -147,8 +161,5 @@ fn write_bin(dir: &Path, bin: &ReceivedBin) -> Result<()> {
         dir.join(format!("bin_{:04}_pose.json", bin.bin_id)),
         serde_json::to_string_pretty(&pose)? + "\n",
     )?;
-    if let Some(render) = &bin.render {
-        write_png(&dir.join(format!("bin_{:04}_render.png", bin.bin_id)), render)?;
-    }
     Ok(())
 }

@@ -102,7 +102,8 @@ pub fn cached_drive(root: &Path, config: &SynthConfig) -> Result<String> {
     let name = model::generate::sequence_name(config.seed);
     let ready = Sequence::open(root, &name).is_ok_and(|s| {
         let k = s.rig().intrinsics;
-        s.frames().len() == config.frames as usize && (k.width, k.height) == (config.width, config.height)
+        s.frames().len() == config.frames as usize
+            && (k.width, k.height) == (config.width, config.height)
     });
     if !ready {
         let bar = progress::bar(config.frames as usize, "generate");

@@ -1,6 +1,7 @@
 //! The worker thread: it owns the reconstructor and the rasterizer, takes one bin's first
-//! stereo pair at a time from a bounded queue and hands back the bin's Gaussian map, its
-//! render from the input view, and its timings. The async side
+//! stereo pair at a time from a bounded queue and hands back the bin's Gaussian map with its
+//! timings as soon as the model is done, then the map's render from the input view (so
+//! renders never delay the map). The async side
 //! never blocks on it: when the queue is full the oldest waiting bin is dropped and counted
 //! (keep newest), because a map of the road just driven is worth more than a late one. A panic
 //! inside the reconstructor is caught, reported on that bin, and the worker goes on.
@@ -101,13 +102,32 @@ pub struct Output {
     pub bin_to_world: DAffine3,
     /// The bin's map in the bin frame, or why there is none.
     pub result: Result<GaussianSet, String>,
-    /// The map rendered from the bin's input (left) view: none when renders are off or
-    /// there is no map, an error when the rasterizer failed.
-    pub render: Option<Result<RgbImage, String>>,
+    /// A [`Rendered`] follows for this bin.
+    pub render_follows: bool,
     /// Stamps up to the model's end.
     pub stamps: Stamps,
     /// Jobs still waiting when this one finished.
     pub queue_depth: usize,
+}
+
+/// A bin's map rendered from its input (left) view, sent after its [`Output`].
+#[derive(Debug)]
+pub struct Rendered {
+    /// The bin.
+    pub bin_id: u64,
+    /// The render, or why the rasterizer failed.
+    pub image: Result<RgbImage, String>,
+    /// When the render was done ([`now_ns`]).
+    pub render_end_ns: i64,
+}
+
+/// What the worker hands back, in order: a bin's map, then (renders on, map made) its render.
+#[derive(Debug)]
+pub enum WorkerEvent {
+    /// The map and its timings.
+    Map(Box<Output>),
+    /// The render of the map just sent.
+    Render(Rendered),
 }
 
 /// Whether [`Worker::submit`] had to drop a waiting bin.
@@ -129,12 +149,12 @@ pub struct Worker {
 
 impl Worker {
     /// Starts the worker with `reconstructor`, renders drawn `with` a rasterizer, a queue of
-    /// `capacity` bins, and `on_output` called on the worker thread for every finished bin.
+    /// `capacity` bins, and `on_event` called on the worker thread for every map and render.
     pub fn spawn(
         mut reconstructor: Box<dyn Reconstructor + Send>,
         with: RenderWith,
         capacity: usize,
-        mut on_output: impl FnMut(Output) + Send + 'static,
+        mut on_event: impl FnMut(WorkerEvent) + Send + 'static,
     ) -> Self {
         let (tx, rx) = crossbeam_channel::bounded::<Job>(capacity.max(1));
         let steal = rx.clone();
@@ -143,8 +163,13 @@ impl Worker {
             .spawn(move || {
                 let mut raster = with.raster();
                 for job in rx.iter() {
-                    let output = run_job(reconstructor.as_mut(), raster.as_mut(), job, rx.len());
-                    on_output(output);
+                    run_job(
+                        reconstructor.as_mut(),
+                        raster.as_mut(),
+                        job,
+                        rx.len(),
+                        &mut on_event,
+                    );
                 }
             })
             .expect("spawning the worker thread");
@@ -212,7 +237,8 @@ fn run_job(
     raster: Option<&mut Raster>,
     job: Job,
     queue_depth: usize,
-) -> Output {
+    on_event: &mut dyn FnMut(WorkerEvent),
+) {
     let mut stamps = job.stamps;
     let origin = job.frame.left_to_world;
     let left_camera = job.rig.local_camera(origin, origin, Side::Left);
@@ -236,27 +262,32 @@ fn run_job(
         )),
     };
     stamps.model_end_ns = now_ns();
-    let render = match (raster, &result) {
-        (Some(raster), Ok(set)) => {
-            let out = raster.render(set, &left_camera, &RenderSettings::default());
-            stamps.render_end_ns = now_ns();
-            Some(
-                out.map(|o| RgbImage {
-                    width: o.width,
-                    height: o.height,
-                    data: o.rgb,
-                })
-                .map_err(|e| e.to_string()),
-            )
-        }
+    // The set goes out with the map; the render needs only a copy of what it draws.
+    let to_render = match (&raster, &result) {
+        (Some(_), Ok(set)) => Some(set.clone()),
         _ => None,
     };
-    Output {
+    on_event(WorkerEvent::Map(Box::new(Output {
         bin_id: job.bin_id,
         bin_to_world: origin,
         result,
-        render,
+        render_follows: to_render.is_some(),
         stamps,
         queue_depth,
+    })));
+    if let (Some(raster), Some(set)) = (raster, to_render) {
+        let image = raster
+            .render(&set, &left_camera, &RenderSettings::default())
+            .map(|o| RgbImage {
+                width: o.width,
+                height: o.height,
+                data: o.rgb,
+            })
+            .map_err(|e| e.to_string());
+        on_event(WorkerEvent::Render(Rendered {
+            bin_id: job.bin_id,
+            image,
+            render_end_ns: now_ns(),
+        }));
     }
 }

@@ -37,8 +37,11 @@ pub struct LatencyStats {
     last: Option<BinLatency>,
 }
 
-/// Names and stamp pairs `(from, to)` of the stages, in the order of the module's table.
-const STAGES: [(&str, fn(&BinLatency) -> (i64, i64)); 5] = [
+/// The stamps `(from, to)` a stage runs between.
+type Stamps = fn(&BinLatency) -> (i64, i64);
+
+/// Names and stamps of the stages, in the order of the module's table.
+const STAGES: [(&str, Stamps); 5] = [
     ("arrival_to_publish", |l| {
         (l.first_frame_arrival_ns, l.publish_ns)
     }),
@@ -236,7 +239,7 @@ mod tests {
         let mut stats = LatencyStats::new();
         // Model times 1..=10 ms, pushed out of order.
         for (i, model) in [7, 3, 10, 1, 5, 2, 9, 4, 8, 6].into_iter().enumerate() {
-            stats.push(&bin(i as u64, 1000 * i as i64, 4, model, 2, 500));
+            stats.push(&bin(i as u64, 1000 * (i as i64 + 1), 4, model, 2, 500));
         }
         let s = stats.summary();
         assert_eq!(s.bins, 10);
@@ -252,7 +255,10 @@ mod tests {
         assert_eq!((wait.p50_ms, wait.max_ms, wait.mean_ms), (4.0, 4.0, 4.0));
         // wait 4 + model + render 2 + publish 1.
         let total = s.arrival_to_publish.unwrap();
-        assert_eq!((total.p50_ms, total.max_ms, total.mean_ms), (12.0, 17.0, 12.5));
+        assert_eq!(
+            (total.p50_ms, total.max_ms, total.mean_ms),
+            (12.0, 17.0, 12.5)
+        );
         // The map is out 7 + model ms after arrival, the bin closes 500 ms after it.
         let close = s.close_to_publish.unwrap();
         assert_eq!((close.p50_ms, close.p90_ms), (-488.0, -484.0));
@@ -315,7 +321,7 @@ mod tests {
     #[test]
     fn one_bin_is_every_percentile() {
         let mut stats = LatencyStats::new();
-        stats.push(&bin(3, 0, 1, 250, 0, 10));
+        stats.push(&bin(3, 5, 1, 250, 0, 10));
         let model = stats.summary().model.unwrap();
         assert_eq!(
             (model.p50_ms, model.p90_ms, model.p99_ms, model.max_ms),

@@ -34,8 +34,20 @@ pub struct ReceivedBin {
     pub gaussians: GaussianSet,
     /// Bin frame to world, f64.
     pub bin_to_world: DAffine3,
-    /// The map rendered from the input view, when renders are on.
-    pub render: Option<RgbImage>,
+}
+
+/// What the listener hands on, as it arrives.
+#[derive(Clone, Debug)]
+pub enum Received {
+    /// A bin's map and pose.
+    Bin(Box<ReceivedBin>),
+    /// A bin's map rendered from its input view (after the bin, when renders are on).
+    Render {
+        /// The bin.
+        bin_id: u64,
+        /// The render.
+        image: RgbImage,
+    },
 }
 
 /// How a loopback run went.
@@ -72,8 +84,8 @@ pub enum LoopbackError {
 }
 
 /// Replays `sequence` at `rate` into a node configured by `config` (its transport is
-/// replaced by a fresh loopback endpoint), hands every bin the listener receives to
-/// `on_bin`, waits until every expected bin is published or nothing has come for `idle`,
+/// replaced by a fresh loopback endpoint), hands every bin and render the listener receives
+/// to `on_bin`, waits until every expected bin is published or nothing has come for `idle`,
 /// then stops the node and reports.
 pub async fn run_loopback(
     mut config: NodeConfig,
@@ -81,7 +93,7 @@ pub async fn run_loopback(
     rate: Rate,
     idle: Duration,
     progress: &mut dyn FnMut(usize, usize),
-    on_bin: &mut dyn FnMut(ReceivedBin),
+    on_bin: &mut dyn FnMut(Received),
 ) -> Result<LoopbackReport, LoopbackError> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
@@ -122,7 +134,7 @@ pub async fn run_loopback(
     let mut listener = listener;
     {
         let mut hook = |done: usize, total: usize| {
-            if done % 50 == 0 || done == total {
+            if done.is_multiple_of(50) || done == total {
                 report.rss_samples.push((done as u64, rss_bytes()));
             }
             progress(done, total);
@@ -168,8 +180,6 @@ struct Listener {
     latency: zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
     /// Maps by header stamp (the bin's first arrival), waiting for their pose.
     waiting: BTreeMap<i64, (u64, GaussianSet)>,
-    /// Renders by bin id, waiting for their bin.
-    rendered: BTreeMap<u64, RgbImage>,
     latencies: Vec<BinLatency>,
     bins: u64,
     _session: zenoh::Session,
@@ -192,7 +202,6 @@ impl Listener {
             renders: sub(keys.bin_render()).await?,
             latency: sub(keys.latency()).await?,
             waiting: BTreeMap::new(),
-            rendered: BTreeMap::new(),
             latencies: Vec::new(),
             bins: 0,
             _session: session,
@@ -200,13 +209,14 @@ impl Listener {
     }
 
     /// Takes what has arrived; hands complete bins to `on_bin`. True if a bin completed.
-    fn drain(&mut self, on_bin: &mut dyn FnMut(ReceivedBin)) -> bool {
+    fn drain(&mut self, on_bin: &mut dyn FnMut(Received)) -> bool {
         while let Ok(Some(s)) = self.renders.try_recv() {
             let Ok(msg) = Image::decode(&s.payload().to_bytes()) else {
                 continue;
             };
-            if let (Some(id), Ok(img)) = (bin_id(&msg.header.frame_id), rgb_from_image(&msg)) {
-                self.rendered.insert(id, img);
+            if let (Some(bin_id), Ok(image)) = (bin_id(&msg.header.frame_id), rgb_from_image(&msg))
+            {
+                on_bin(Received::Render { bin_id, image });
             }
         }
         while let Ok(Some(s)) = self.maps.try_recv() {
@@ -219,7 +229,8 @@ impl Listener {
             ) else {
                 continue;
             };
-            self.waiting.insert(cloud.header.stamp.to_nanos(), (id, set));
+            self.waiting
+                .insert(cloud.header.stamp.to_nanos(), (id, set));
         }
         while let Ok(Some(s)) = self.latency.try_recv() {
             if let Ok(l) = BinLatency::decode(&s.payload().to_bytes()) {
@@ -239,12 +250,11 @@ impl Listener {
             };
             self.bins += 1;
             completed = true;
-            on_bin(ReceivedBin {
+            on_bin(Received::Bin(Box::new(ReceivedBin {
                 bin_id,
                 gaussians,
                 bin_to_world: pose,
-                render: self.rendered.remove(&bin_id),
-            });
+            })));
         }
         completed
     }

@@ -19,7 +19,7 @@ use crate::msg::std_msgs::Header;
 use crate::msg::Message;
 use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
 use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
-use crate::pipeline::worker::{now_ns, Job, Output, RenderWith, Stamps, Worker};
+use crate::pipeline::worker::{now_ns, Job, RenderWith, Stamps, Worker, WorkerEvent};
 use crate::transport::{open, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
@@ -124,7 +124,7 @@ pub async fn run(
         .await
         .map_err(zenoh_err)?;
 
-    let (out_tx, mut out_rx) = mpsc::unbounded_channel::<Output>();
+    let (out_tx, mut out_rx) = mpsc::unbounded_channel::<WorkerEvent>();
     let worker = Worker::spawn(
         model::methods::by_name(&config.method)?,
         config.renders,
@@ -181,7 +181,7 @@ pub async fn run(
                     Err(_) => outputs.counters.add("error/encode_map_update", 1),
                 }
             },
-            Some(out) = out_rx.recv() => outputs.bin_done(out, worker.drops()).await?,
+            Some(event) = out_rx.recv() => outputs.worker_event(event, worker.drops()).await?,
         }
         for f in frames {
             let Some(rig) = rig else {
@@ -209,8 +209,8 @@ pub async fn run(
     // Finish what is queued, then publish it.
     let drops = worker.drops();
     worker.shutdown();
-    while let Ok(out) = out_rx.try_recv() {
-        outputs.bin_done(out, drops).await?;
+    while let Ok(event) = out_rx.try_recv() {
+        outputs.worker_event(event, drops).await?;
     }
     outputs.counters.set("dropped/worker_queue", drops);
     if let Some(dir) = &config.out_dir {

@@ -1,8 +1,9 @@
-//! Everything the node sends, and the state behind it: per finished bin its map, pose,
-//! renders, the global map's increment (and a snapshot every N bins or on request), then
-//! the bin's latency once the bin has also closed, with the counters beside it.
+//! Everything the node sends, and the state behind it: per finished bin its map, pose, the
+//! global map's increment (and a snapshot every N bins or on request) and bird's-eye view,
+//! then its render when the worker has drawn it, and the bin's latency once the bin has
+//! also closed, with the counters beside it.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use glam::DVec2;
 use zenoh::Session;
@@ -21,7 +22,7 @@ use crate::msg::pose::pose_from_affine;
 use crate::msg::sensor_msgs::Image;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
-use crate::pipeline::worker::{now_ns, Output, Stamps};
+use crate::pipeline::worker::{now_ns, Output, Rendered, Stamps, WorkerEvent};
 use crate::transport::TransportError;
 
 /// The bird's-eye view published per bin: 256 x 256 pixels at 0.25 m, 64 m square around
@@ -42,8 +43,10 @@ pub(super) struct Outputs<'a> {
     sequence: u64,
     /// Stamps of closed bins, until their map is published.
     closed_ns: BTreeMap<u64, i64>,
-    /// Stamps of published bins, until they close.
+    /// Stamps of published bins, until they close (and their render is out).
     published: BTreeMap<u64, Stamps>,
+    /// Published bins whose render is still to come.
+    awaiting_render: BTreeSet<u64>,
     /// Bad input, drops, errors.
     pub counters: Counters,
     /// What the run did.
@@ -68,14 +71,23 @@ impl<'a> Outputs<'a> {
             sequence: 0,
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
+            awaiting_render: BTreeSet::new(),
             counters: Counters::default(),
             summary: NodeSummary::default(),
         })
     }
 
-    /// Publishes one finished bin: map, pose, render, map increment (and a snapshot when
-    /// due), bird's-eye view, then its latency if the bin has closed.
-    pub async fn bin_done(&mut self, out: Output, drops: u64) -> Result<(), ServiceError> {
+    /// Publishes what the worker handed back.
+    pub async fn worker_event(&mut self, e: WorkerEvent, drops: u64) -> Result<(), ServiceError> {
+        match e {
+            WorkerEvent::Map(out) => self.bin_done(*out, drops).await,
+            WorkerEvent::Render(r) => self.rendered(r, drops).await,
+        }
+    }
+
+    /// Publishes one finished bin: map, pose, map increment (and a snapshot when due),
+    /// bird's-eye view, then its latency if the bin has closed and needs no render.
+    async fn bin_done(&mut self, out: Output, drops: u64) -> Result<(), ServiceError> {
         let mut stamps = out.stamps;
         let header = |frame: &str| Header::new(stamps.arrival_ns, frame);
         match out.result {
@@ -84,14 +96,6 @@ impl<'a> Outputs<'a> {
                 match cloud_from_gaussians(&set, header(&frame), None) {
                     Ok(cloud) => self.put(keys::BIN_MAP, cloud.encode()).await?,
                     Err(_) => self.counters.add("error/encode_map", 1),
-                }
-                match out.render {
-                    Some(Ok(img)) => {
-                        let msg = image_from_rgb(&img, header(&frame));
-                        self.put(keys::BIN_RENDER, msg.encode()).await?;
-                    }
-                    Some(Err(_)) => self.counters.add("error/render", 1),
-                    None => {}
                 }
                 // The pose last: a subscriber holding map and pose has the whole bin.
                 let pose = pose_from_affine(&out.bin_to_world, header("world"));
@@ -104,7 +108,7 @@ impl<'a> Outputs<'a> {
                         let msg = increment_message(&inc, self.sequence, header("world"));
                         self.put_update(msg).await?;
                         let due = self.snapshot_every > 0
-                            && self.summary.bins_published % self.snapshot_every == 0;
+                            && self.summary.bins_published.is_multiple_of(self.snapshot_every);
                         if due {
                             self.put_update(self.snapshot(header("world"))).await?;
                         }
@@ -117,8 +121,31 @@ impl<'a> Outputs<'a> {
             }
             Err(_) => self.counters.add("error/reconstruct", 1),
         }
+        if out.render_follows {
+            self.awaiting_render.insert(out.bin_id);
+        }
         self.published.insert(out.bin_id, stamps);
         self.counters.set("queue/depth", out.queue_depth as u64);
+        self.flush_latency(drops).await
+    }
+
+    /// Publishes a bin's render (frame `bin_<id>`, stamped like its map) and then its
+    /// latency if the bin has closed.
+    async fn rendered(&mut self, r: Rendered, drops: u64) -> Result<(), ServiceError> {
+        self.awaiting_render.remove(&r.bin_id);
+        let stamps = self.published.get_mut(&r.bin_id);
+        let arrival_ns = stamps.as_ref().map_or(0, |s| s.arrival_ns);
+        if let Some(s) = stamps {
+            s.render_end_ns = r.render_end_ns;
+        }
+        match r.image {
+            Ok(img) => {
+                let header = Header::new(arrival_ns, format!("bin_{}", r.bin_id));
+                let msg = image_from_rgb(&img, header);
+                self.put(keys::BIN_RENDER, msg.encode()).await?;
+            }
+            Err(_) => self.counters.add("error/render", 1),
+        }
         self.flush_latency(drops).await
     }
 
@@ -177,13 +204,13 @@ impl<'a> Outputs<'a> {
         }
     }
 
-    /// Publishes the latency of every bin that is both closed and published, and the
-    /// counters.
+    /// Publishes the latency of every bin that is closed, published and rendered (when a
+    /// render was due), and the counters.
     async fn flush_latency(&mut self, drops: u64) -> Result<(), ServiceError> {
         let ready: Vec<u64> = self
             .published
             .keys()
-            .filter(|id| self.closed_ns.contains_key(id))
+            .filter(|id| self.closed_ns.contains_key(id) && !self.awaiting_render.contains(id))
             .copied()
             .collect();
         for id in ready {

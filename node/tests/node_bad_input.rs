@@ -22,6 +22,7 @@ use node::msg::latency::{BinLatency, Diagnostics};
 use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
+use node::pipeline::worker::RenderWith;
 use node::service::{Keys, NodeConfig};
 
 /// The counter of each input key, in the order the tests send to them.
@@ -67,7 +68,7 @@ async fn bad_then_drive(tag: &str, bad: impl Fn(&Drive) -> [Vec<u8>; 5]) {
     let node = RunningNode::start(NodeConfig {
         keys: keys.clone(),
         queue_capacity: 64,
-        renders: false,
+        renders: RenderWith::Off,
         ..NodeConfig::default()
     })
     .await;
@@ -172,7 +173,7 @@ async fn well_formed_but_unusable_images_and_poses_are_counted() {
     let node = RunningNode::start(NodeConfig {
         keys: keys.clone(),
         queue_capacity: 64,
-        renders: false,
+        renders: RenderWith::Off,
         ..NodeConfig::default()
     })
     .await;

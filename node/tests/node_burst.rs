@@ -27,6 +27,7 @@ use node::bag::Rate;
 use node::fusion::FusionConfig;
 use node::msg::latency::{BinLatency, Diagnostics};
 use node::pipeline::binner::BinnerConfig;
+use node::pipeline::worker::RenderWith;
 use node::service::{replay, Keys, NodeConfig, NodeSummary};
 
 /// Bins waiting for the worker at most.
@@ -87,7 +88,7 @@ async fn burst(tag: &str) -> Burst {
             max_gaussians: MAX_GAUSSIANS,
             ..FusionConfig::default()
         },
-        renders: false,
+        renders: RenderWith::Off,
         ..NodeConfig::default()
     })
     .await;

@@ -19,6 +19,7 @@ use node::msg::gaussians::records_from_cloud;
 use node::msg::geometry_msgs::PoseStamped;
 use node::msg::pose::affine_from_pose;
 use node::msg::sensor_msgs::PointCloud2;
+use node::pipeline::worker::RenderWith;
 use node::service::{Keys, NodeConfig};
 
 const OFFSET: DVec3 = DVec3::new(1.0e5, -1.0e5, 50.0);
@@ -39,7 +40,7 @@ async fn run_drive(drive: &Drive, shift: DVec3, out: &Path) -> Run {
     let node = RunningNode::start(NodeConfig {
         keys: keys.clone(),
         queue_capacity: 64, // never full here: every bin is published
-        renders: false,
+        renders: RenderWith::Off,
         out_dir: Some(out.to_path_buf()),
         ..NodeConfig::default()
     })

@@ -206,6 +206,19 @@ impl Keys {
         self.key(MAP_UPDATE)
     }
 
+    /// A key expression matching every input key (and the outputs too: subscribers filter
+    /// with [`Keys::topic_of`]).
+    pub fn input_wildcard(&self) -> String {
+        let ns = match self.namespace.is_empty() {
+            true => String::new(),
+            false => format!("{}/", self.namespace),
+        };
+        match self.mode {
+            KeyMode::Plain => format!("{ns}**"),
+            KeyMode::Ros2 { domain_id } => format!("{domain_id}/{ns}**"),
+        }
+    }
+
     /// The zenoh queryable answering with a stereosplat_msgs/MapUpdate snapshot of the global
     /// map: `<namespace>/map/snapshot` in both modes (a zenoh query, not a ROS 2 service).
     pub fn snapshot_request(&self) -> String {

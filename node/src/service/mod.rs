@@ -4,6 +4,7 @@
 //! exported when the node stops.
 
 pub mod counters;
+mod inputs;
 pub mod keys;
 pub mod latency_stats;
 pub mod loopback;

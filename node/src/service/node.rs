@@ -4,23 +4,20 @@ use std::future::Future;
 use std::path::PathBuf;
 
 use glam::DVec2;
-use model::frame::{RgbImage, StereoFrame, StereoRig};
 use tokio::sync::mpsc;
+use zenoh::sample::Locality;
 
 use super::counters::Counters;
-use super::keys::Keys;
+use super::inputs::{Inputs, Step};
+use super::keys::{Direction, Keys, Topic, TOPICS};
 use super::outputs::Outputs;
 use crate::fusion::{bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap};
-use crate::msg::geometry_msgs::PoseStamped;
-use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
-use crate::msg::pose::affine_from_pose;
-use crate::msg::sensor_msgs::{CameraInfo, Image};
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
-use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
-use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
-use crate::pipeline::worker::{now_ns, Job, RenderWith, Stamps, Worker, WorkerEvent};
-use crate::transport::{open, TransportConfig, TransportError};
+use crate::pipeline::binner::BinnerConfig;
+use crate::pipeline::sync::SyncConfig;
+use crate::pipeline::worker::{now_ns, RenderWith, Worker, WorkerEvent};
+use crate::transport::{open, Outlet, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
 #[derive(Clone, Debug)]
@@ -93,6 +90,9 @@ pub enum ServiceError {
     /// The fusion settings.
     #[error(transparent)]
     Fusion(#[from] crate::fusion::FusionError),
+    /// Declaring the publishers (a bad node name) or publishing.
+    #[error(transparent)]
+    Outlet(#[from] crate::transport::OutletError),
     /// Writing the exports.
     #[error("exporting the global map: {0}")]
     Export(String),
@@ -110,15 +110,17 @@ pub async fn run(
 ) -> Result<NodeSummary, ServiceError> {
     let session = open(&config.transport).await?;
     let keys = &config.keys;
-    let sub = |key: String| {
-        let s = &session;
-        async move { s.declare_subscriber(key).await.map_err(zenoh_err) }
-    };
-    let left = sub(keys.left_image()).await?;
-    let right = sub(keys.right_image()).await?;
-    let left_info = sub(keys.left_info()).await?;
-    let right_info = sub(keys.right_info()).await?;
-    let pose = sub(keys.pose()).await?;
+    let (inputs, outputs): (Vec<Topic>, Vec<Topic>) =
+        TOPICS.iter().partition(|t| t.direction == Direction::Input);
+    let outlet = Outlet::declare(&session, keys, &config.name, &outputs, &inputs).await?;
+    // One subscriber for every input key keeps the samples in arrival order across keys,
+    // so left, right and pose of a frame reach the synchroniser together. Samples this
+    // session publishes itself are not delivered to it.
+    let input = session
+        .declare_subscriber(keys.input_wildcard())
+        .allowed_origin(Locality::Remote)
+        .await
+        .map_err(zenoh_err)?;
     let snapshot_requests = session
         .declare_queryable(keys.snapshot_request())
         .await
@@ -133,46 +135,22 @@ pub async fn run(
             let _ = out_tx.send(o);
         },
     );
-    let mut sync: Synchronizer<(RgbImage, i64), RgbImage, glam::DAffine3> =
-        Synchronizer::new(config.sync);
-    let mut binner: Binner<(StereoFrame, Stamps)> = Binner::new(config.binner);
+    let mut steps = Inputs::new(config.sync, config.binner);
     let bev = config.renders != RenderWith::Off;
-    let mut outputs = Outputs::new(&session, keys, config.fusion, bev, config.snapshot_every)?;
-    let (mut left_k, mut right_k): (Option<CameraInfo>, Option<CameraInfo>) = (None, None);
-    let mut rig: Option<StereoRig> = None;
-    let mut frame_index = 0u32;
+    let mut outputs = Outputs::new(&outlet, config.fusion, bev, config.snapshot_every)?;
     tokio::pin!(stop);
 
     loop {
-        let mut frames = Vec::new();
-        let counters = &mut outputs.counters;
+        let mut todo = Vec::new();
         tokio::select! {
             _ = &mut stop => break,
-            Ok(s) = left.recv_async() => match decode_image(&s) {
-                Some((t, img)) => frames = sync.push_left(t, (img, now_ns())),
-                None => counters.add("bad_message/left_image", 1),
-            },
-            Ok(s) = right.recv_async() => match decode_image(&s) {
-                Some((t, img)) => frames = sync.push_right(t, img),
-                None => counters.add("bad_message/right_image", 1),
-            },
-            Ok(s) = pose.recv_async() => match decode_pose(&s) {
-                Some((t, p)) => frames = sync.push_pose(t, p),
-                None => counters.add("bad_message/pose", 1),
-            },
-            Ok(s) = left_info.recv_async() => match CameraInfo::decode(&s.payload().to_bytes()) {
-                Ok(m) => {
-                    left_k = Some(m);
-                    rig = rig_of(left_k.as_ref(), right_k.as_ref());
+            Ok(s) = input.recv_async() => {
+                match keys.topic_of(s.key_expr().as_str()) {
+                    Some(t) if t.direction == Direction::Input => {
+                        todo = steps.on_sample(t, &s.payload().to_bytes(), &mut outputs.counters);
+                    }
+                    _ => outputs.counters.add("ignored/unknown_key", 1),
                 }
-                Err(_) => counters.add("bad_message/left_camera_info", 1),
-            },
-            Ok(s) = right_info.recv_async() => match CameraInfo::decode(&s.payload().to_bytes()) {
-                Ok(m) => {
-                    right_k = Some(m);
-                    rig = rig_of(left_k.as_ref(), right_k.as_ref());
-                }
-                Err(_) => counters.add("bad_message/right_camera_info", 1),
             },
             Ok(q) = snapshot_requests.recv_async() => {
                 let header = Header::new(now_ns(), "world");
@@ -183,27 +161,15 @@ pub async fn run(
             },
             Some(event) = out_rx.recv() => outputs.worker_event(event, worker.drops()).await?,
         }
-        for f in frames {
-            let Some(rig) = rig else {
-                outputs.counters.add("dropped/no_camera_info", 1);
-                continue;
-            };
-            let job = frame_job(f, &mut frame_index);
-            match binner.push(job.clone(), job.0.left_to_world) {
-                BinEvent::Opened { bin_id, first } => submit(&worker, bin_id, first, rig),
-                BinEvent::Closed {
-                    bin_id, next_first, ..
-                } => {
-                    submit(&worker, bin_id + 1, next_first, rig);
-                    outputs.bin_closed(bin_id, worker.drops()).await?;
+        for step in todo {
+            match step {
+                Step::Submit(job) => {
+                    worker.submit(job);
                 }
-                BinEvent::Inside => {}
-                BinEvent::Rejected => outputs.counters.add("dropped/non_finite_pose", 1),
+                Step::Closed(bin_id) => outputs.bin_closed(bin_id, worker.drops()).await?,
             }
         }
-        let c = sync.counters();
-        outputs.counters.set("sync/late", c.late);
-        outputs.counters.set("sync/unmatched", c.unmatched);
+        outputs.counters.set("dropped/worker_queue", worker.drops());
     }
 
     // Finish what is queued, then publish it.
@@ -219,57 +185,11 @@ pub async fn run(
     let mut summary = std::mem::take(&mut outputs.summary);
     summary.global_gaussians = outputs.map.len();
     summary.counters = std::mem::take(&mut outputs.counters);
+    drop(outputs);
+    drop(outlet);
+    // Closing (rather than dropping) the session flushes what is still queued for peers.
+    session.close().await.map_err(zenoh_err)?;
     Ok(summary)
-}
-
-/// A stamped image from a sample, `None` if it does not decode or convert.
-fn decode_image(sample: &zenoh::sample::Sample) -> Option<(i64, RgbImage)> {
-    let msg = Image::decode(&sample.payload().to_bytes()).ok()?;
-    Some((msg.header.stamp.to_nanos(), rgb_from_image(&msg).ok()?))
-}
-
-/// A stamped camera-to-world pose from a sample, `None` if it does not decode or is invalid.
-fn decode_pose(sample: &zenoh::sample::Sample) -> Option<(i64, glam::DAffine3)> {
-    let msg = PoseStamped::decode(&sample.payload().to_bytes()).ok()?;
-    Some((msg.header.stamp.to_nanos(), affine_from_pose(&msg).ok()?))
-}
-
-/// The rig once both camera infos are known and consistent.
-fn rig_of(left: Option<&CameraInfo>, right: Option<&CameraInfo>) -> Option<StereoRig> {
-    let (k, _) = intrinsics_from_camera_info(left?).ok()?;
-    let (_, baseline) = intrinsics_from_camera_info(right?).ok()?;
-    (baseline > 0.0).then_some(StereoRig {
-        intrinsics: k,
-        baseline,
-    })
-}
-
-type FrameJob = (StereoFrame, Stamps);
-
-fn frame_job(f: Synced<(RgbImage, i64), RgbImage, glam::DAffine3>, index: &mut u32) -> FrameJob {
-    let ((left, arrival_ns), right, left_to_world) = (f.left, f.right, f.pose);
-    *index += 1;
-    let frame = StereoFrame {
-        index: *index - 1,
-        left,
-        right,
-        left_to_world,
-    };
-    let stamps = Stamps {
-        arrival_ns,
-        opened_ns: now_ns(),
-        ..Stamps::default()
-    };
-    (frame, stamps)
-}
-
-fn submit(worker: &Worker, bin_id: u64, (frame, stamps): FrameJob, rig: StereoRig) {
-    worker.submit(Job {
-        bin_id,
-        frame,
-        rig,
-        stamps,
-    });
 }
 
 /// Writes the global map as 3DGS PLY (positions relative to the latest bin's origin, which is

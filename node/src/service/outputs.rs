@@ -6,10 +6,9 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use glam::DVec2;
-use zenoh::Session;
 
 use super::counters::Counters;
-use super::keys::{self, Keys, Topic};
+use super::keys::{self, Topic};
 use super::node::{NodeSummary, ServiceError};
 use crate::fusion::{
     bev_image, increment_message, snapshot_message, BevView, FusionConfig, GlobalMap,
@@ -23,7 +22,7 @@ use crate::msg::sensor_msgs::Image;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
 use crate::pipeline::worker::{now_ns, Output, Rendered, Stamps, WorkerEvent};
-use crate::transport::TransportError;
+use crate::transport::Outlet;
 
 /// The bird's-eye view published per bin: 256 x 256 pixels at 0.25 m, 64 m square around
 /// the latest bin's origin.
@@ -31,8 +30,7 @@ const BEV: (u32, f64) = (256, 0.25);
 
 /// The node's outputs and the state they are made from.
 pub(super) struct Outputs<'a> {
-    session: &'a Session,
-    keys: &'a Keys,
+    outlet: &'a Outlet,
     /// The fused global map.
     pub map: GlobalMap,
     /// Publish the bird's-eye view per bin.
@@ -56,15 +54,13 @@ pub(super) struct Outputs<'a> {
 impl<'a> Outputs<'a> {
     /// Nothing published yet; `bev` switches the per-bin bird's-eye view on.
     pub fn new(
-        session: &'a Session,
-        keys: &'a Keys,
+        outlet: &'a Outlet,
         fusion: FusionConfig,
         bev: bool,
         snapshot_every: u64,
     ) -> Result<Self, ServiceError> {
         Ok(Self {
-            session,
-            keys,
+            outlet,
             map: GlobalMap::new(fusion)?,
             bev,
             snapshot_every,
@@ -108,7 +104,10 @@ impl<'a> Outputs<'a> {
                         let msg = increment_message(&inc, self.sequence, header("world"));
                         self.put_update(msg).await?;
                         let due = self.snapshot_every > 0
-                            && self.summary.bins_published.is_multiple_of(self.snapshot_every);
+                            && self
+                                .summary
+                                .bins_published
+                                .is_multiple_of(self.snapshot_every);
                         if due {
                             self.put_update(self.snapshot(header("world"))).await?;
                         }
@@ -236,10 +235,6 @@ impl<'a> Outputs<'a> {
     }
 
     async fn put(&self, topic: Topic, payload: Vec<u8>) -> Result<(), ServiceError> {
-        self.session
-            .put(self.keys.key(topic), payload)
-            .await
-            .map_err(|e| TransportError::Zenoh(e.to_string()))?;
-        Ok(())
+        Ok(self.outlet.put(topic, payload).await?)
     }
 }

@@ -7,8 +7,10 @@
 //!
 //! - one liveliness token for the node (`NN`), one per published topic (`MP`) and one per
 //!   subscribed topic (`MS`), alive as long as the outlet is;
-//! - a zenoh publisher per published topic on rmw_zenoh's data key (reliable, congestion
-//!   control *drop*, as rmw_zenoh for reliable keep-last publishers);
+//! - a zenoh publisher per published topic on rmw_zenoh's data key, reliable with congestion
+//!   control *block*: a slow subscriber slows the publisher rather than losing maps (rmw_zenoh
+//!   drops for keep-last publishers; the node's outputs are its product, so nothing it
+//!   counts as published may vanish on the way);
 //! - every sample with rmw_zenoh's 33-byte attachment: the publisher's sequence number from 1,
 //!   the source timestamp (ns since the Unix epoch) and the publisher's GID.
 //!
@@ -112,7 +114,7 @@ impl Outlet {
         for topic in unique {
             let publisher = session
                 .declare_publisher(keys.key(topic))
-                .congestion_control(CongestionControl::Drop)
+                .congestion_control(CongestionControl::Block)
                 .await
                 .map_err(zenoh_err)?;
             let gid = node.as_ref().map(|node| {

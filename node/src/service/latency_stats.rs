@@ -1,0 +1,331 @@
+//! Percentiles of the node's per-bin latency ([`BinLatency`] messages), for `monitor`, the
+//! demo's summary and `bench node`.
+//!
+//! Every [`BinLatency`] gives up to five stage durations (nanoseconds on the node's clock):
+//!
+//! | stage | from | to |
+//! | --- | --- | --- |
+//! | `arrival_to_publish` | first frame arrival | map published |
+//! | `wait` | first frame arrival | model start (sync, binning and the worker queue) |
+//! | `model` | model start | model end |
+//! | `render` | model end | render end |
+//! | `close_to_publish` | bin close | map published |
+//!
+//! A stage is left out for a bin when either of its stamps is 0 (the bin never reached it).
+//! `close_to_publish` is usually **negative**: the bin's first stereo pair goes to the worker
+//! as soon as the bin opens, so its map is normally published before the frame that closes
+//! the bin (8 m later) arrives; a positive value means the worker was slower than the drive.
+//!
+//! Percentiles are nearest-rank: the p-th percentile of n sorted values is the value at rank
+//! `ceil(p / 100 * n)` (1-based), so it is always one of the measured values; p100 is the
+//! maximum. Every duration is kept (8 bytes per stage and bin), so memory grows with the
+//! number of bins, about 40 MB per million bins.
+
+use std::fmt;
+
+use serde::Serialize;
+
+use crate::msg::latency::BinLatency;
+
+/// Collects [`BinLatency`] messages and summarises them per stage.
+#[derive(Clone, Debug, Default)]
+pub struct LatencyStats {
+    bins: u64,
+    /// Durations in nanoseconds, one vector per stage in [`STAGES`] order.
+    durations: [Vec<i64>; STAGES.len()],
+    max_queue_depth: u32,
+    last: Option<BinLatency>,
+}
+
+/// The stamps `(from, to)` a stage runs between.
+type Stamps = fn(&BinLatency) -> (i64, i64);
+
+/// Names and stamps of the stages, in the order of the module's table.
+const STAGES: [(&str, Stamps); 5] = [
+    ("arrival_to_publish", |l| {
+        (l.first_frame_arrival_ns, l.publish_ns)
+    }),
+    ("wait", |l| (l.first_frame_arrival_ns, l.model_start_ns)),
+    ("model", |l| (l.model_start_ns, l.model_end_ns)),
+    ("render", |l| (l.model_end_ns, l.render_end_ns)),
+    ("close_to_publish", |l| (l.bin_close_ns, l.publish_ns)),
+];
+
+/// Each stage's duration for one bin in nanoseconds, in [`STAGES`] order, `None` where a
+/// stamp is 0.
+fn stage_ns(latency: &BinLatency) -> [Option<i64>; STAGES.len()] {
+    STAGES.map(|(_, stamps)| {
+        let (from, to) = stamps(latency);
+        (from != 0 && to != 0).then(|| to.saturating_sub(from))
+    })
+}
+
+/// One bin's stage durations in milliseconds with the stages' names, in the order of the
+/// module's table, `None` where the bin lacks a stamp (for a live line per bin).
+pub fn bin_stages_ms(latency: &BinLatency) -> [(&'static str, Option<f64>); STAGES.len()] {
+    let durations = stage_ns(latency);
+    std::array::from_fn(|i| (STAGES[i].0, durations[i].map(|ns| ns as f64 / 1e6)))
+}
+
+impl LatencyStats {
+    /// No bins yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds one bin's latency (in any order; bins are not deduplicated).
+    pub fn push(&mut self, latency: &BinLatency) {
+        self.bins += 1;
+        for (duration, durations) in stage_ns(latency).into_iter().zip(&mut self.durations) {
+            durations.extend(duration);
+        }
+        self.max_queue_depth = self.max_queue_depth.max(latency.queue_depth);
+        self.last = Some(*latency);
+    }
+
+    /// Bins pushed so far.
+    pub fn bins(&self) -> u64 {
+        self.bins
+    }
+
+    /// The percentiles of every stage so far, and the queue and counter figures.
+    pub fn summary(&self) -> LatencySummary {
+        let stage = |i: usize| StageSummary::of(&self.durations[i]);
+        LatencySummary {
+            bins: self.bins,
+            arrival_to_publish: stage(0),
+            wait: stage(1),
+            model: stage(2),
+            render: stage(3),
+            close_to_publish: stage(4),
+            max_queue_depth: self.max_queue_depth,
+            drops: self.last.map_or(0, |l| l.drops),
+            bad_messages: self.last.map_or(0, |l| l.bad_messages),
+        }
+    }
+}
+
+/// One stage's durations over the bins that reached it, in milliseconds.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct StageSummary {
+    /// Bins with both stamps of the stage.
+    pub count: usize,
+    /// Median (nearest rank).
+    pub p50_ms: f64,
+    /// 90th percentile (nearest rank).
+    pub p90_ms: f64,
+    /// 99th percentile (nearest rank).
+    pub p99_ms: f64,
+    /// Largest.
+    pub max_ms: f64,
+    /// Arithmetic mean.
+    pub mean_ms: f64,
+}
+
+impl StageSummary {
+    /// The summary of `durations_ns`, `None` when it is empty.
+    fn of(durations_ns: &[i64]) -> Option<Self> {
+        let mut sorted = durations_ns.to_vec();
+        sorted.sort_unstable();
+        let n = sorted.len();
+        let max = *sorted.last()?;
+        let ms = |ns: i64| ns as f64 / 1e6;
+        let percentile = |p: usize| sorted[(p * n).div_ceil(100).max(1) - 1];
+        let sum: i128 = sorted.iter().map(|&d| i128::from(d)).sum();
+        Some(Self {
+            count: n,
+            p50_ms: ms(percentile(50)),
+            p90_ms: ms(percentile(90)),
+            p99_ms: ms(percentile(99)),
+            max_ms: ms(max),
+            mean_ms: sum as f64 / n as f64 / 1e6,
+        })
+    }
+}
+
+/// What [`LatencyStats::summary`] reports; serialises to JSON as the field names say
+/// (a stage no bin reached is `null`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct LatencySummary {
+    /// Bins seen.
+    pub bins: u64,
+    /// First frame arrival to map published: what a user of the map waits.
+    pub arrival_to_publish: Option<StageSummary>,
+    /// First frame arrival to model start: synchronisation, binning and the worker queue.
+    pub wait: Option<StageSummary>,
+    /// The reconstructor.
+    pub model: Option<StageSummary>,
+    /// Renders of the bin's map after the model.
+    pub render: Option<StageSummary>,
+    /// Bin close to map published; negative when the map was out before the bin closed.
+    pub close_to_publish: Option<StageSummary>,
+    /// Largest worker queue depth any bin reported.
+    pub max_queue_depth: u32,
+    /// Bins dropped by the worker queue, as of the last bin pushed (the node counts since
+    /// it started).
+    pub drops: u64,
+    /// Malformed input messages, as of the last bin pushed.
+    pub bad_messages: u64,
+}
+
+impl LatencySummary {
+    /// Every stage with its name, in the order of the module's table.
+    pub fn stages(&self) -> [(&'static str, Option<StageSummary>); 5] {
+        [
+            (STAGES[0].0, self.arrival_to_publish),
+            (STAGES[1].0, self.wait),
+            (STAGES[2].0, self.model),
+            (STAGES[3].0, self.render),
+            (STAGES[4].0, self.close_to_publish),
+        ]
+    }
+}
+
+/// A text table: one row per stage (count, p50, p90, p99, max, mean in ms), then the bins,
+/// queue and counter figures.
+impl fmt::Display for LatencySummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{:<20} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "stage (ms)", "count", "p50", "p90", "p99", "max", "mean"
+        )?;
+        for (name, stage) in self.stages() {
+            match stage {
+                Some(s) => writeln!(
+                    f,
+                    "{name:<20} {:>6} {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>9.1}",
+                    s.count, s.p50_ms, s.p90_ms, s.p99_ms, s.max_ms, s.mean_ms
+                )?,
+                None => writeln!(f, "{name:<20} {:>6}", 0)?,
+            }
+        }
+        write!(
+            f,
+            "bins {}, max queue depth {}, drops {}, bad messages {}",
+            self.bins, self.max_queue_depth, self.drops, self.bad_messages
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MS: i64 = 1_000_000;
+
+    /// A bin whose stages take the given milliseconds, arriving at `t0` ms.
+    fn bin(id: u64, t0: i64, wait: i64, model: i64, render: i64, close: i64) -> BinLatency {
+        let arrival = t0 * MS;
+        let model_start = arrival + wait * MS;
+        let model_end = model_start + model * MS;
+        let render_end = model_end + render * MS;
+        BinLatency {
+            bin_id: id,
+            first_frame_arrival_ns: arrival,
+            bin_close_ns: arrival + close * MS,
+            model_start_ns: model_start,
+            model_end_ns: model_end,
+            render_end_ns: render_end,
+            publish_ns: render_end + MS,
+            queue_depth: id as u32 % 3,
+            drops: id,
+            bad_messages: 2 * id,
+        }
+    }
+
+    #[test]
+    fn nearest_rank_percentiles_of_known_values() {
+        let mut stats = LatencyStats::new();
+        // Model times 1..=10 ms, pushed out of order.
+        for (i, model) in [7, 3, 10, 1, 5, 2, 9, 4, 8, 6].into_iter().enumerate() {
+            stats.push(&bin(i as u64, 1000 * (i as i64 + 1), 4, model, 2, 500));
+        }
+        let s = stats.summary();
+        assert_eq!(s.bins, 10);
+        let model = s.model.unwrap();
+        assert_eq!(model.count, 10);
+        // Ranks ceil(0.5 * 10) = 5, ceil(0.9 * 10) = 9, ceil(0.99 * 10) = 10.
+        assert_eq!(
+            (model.p50_ms, model.p90_ms, model.p99_ms, model.max_ms),
+            (5.0, 9.0, 10.0, 10.0)
+        );
+        assert_eq!(model.mean_ms, 5.5);
+        let wait = s.wait.unwrap();
+        assert_eq!((wait.p50_ms, wait.max_ms, wait.mean_ms), (4.0, 4.0, 4.0));
+        // wait 4 + model + render 2 + publish 1.
+        let total = s.arrival_to_publish.unwrap();
+        assert_eq!(
+            (total.p50_ms, total.max_ms, total.mean_ms),
+            (12.0, 17.0, 12.5)
+        );
+        // The map is out 7 + model ms after arrival, the bin closes 500 ms after it.
+        let close = s.close_to_publish.unwrap();
+        assert_eq!((close.p50_ms, close.p90_ms), (-488.0, -484.0));
+        assert_eq!(s.max_queue_depth, 2);
+        // The last bin pushed was bin 9.
+        assert_eq!((s.drops, s.bad_messages), (9, 18));
+    }
+
+    #[test]
+    fn stages_with_zero_stamps_are_left_out() {
+        let mut stats = LatencyStats::new();
+        let mut unfinished = bin(0, 100, 5, 20, 0, 300);
+        unfinished.publish_ns = 0;
+        unfinished.bin_close_ns = 0;
+        stats.push(&unfinished);
+        let mut never_started = bin(1, 200, 0, 0, 0, 0);
+        never_started.model_start_ns = 0;
+        never_started.model_end_ns = 0;
+        never_started.render_end_ns = 0;
+        never_started.publish_ns = 0;
+        stats.push(&never_started);
+        let s = stats.summary();
+        assert_eq!(s.bins, 2);
+        assert_eq!(s.arrival_to_publish, None);
+        assert_eq!(s.close_to_publish, None);
+        assert_eq!(s.wait.unwrap().count, 1);
+        assert_eq!(s.model.unwrap().p50_ms, 20.0);
+        // render_end == model_end: a zero-length render stage is still a stage.
+        assert_eq!(s.render.unwrap().max_ms, 0.0);
+        let json = serde_json::to_value(s).unwrap();
+        assert!(json["arrival_to_publish"].is_null());
+        assert_eq!(json["model"]["p99_ms"], 20.0);
+        assert!(s.to_string().contains("model"));
+    }
+
+    #[test]
+    fn an_empty_summary_has_no_stages() {
+        let s = LatencyStats::new().summary();
+        assert_eq!(s.bins, 0);
+        assert!(s.stages().iter().all(|(_, stage)| stage.is_none()));
+    }
+
+    #[test]
+    fn one_bins_stages_in_milliseconds() {
+        let mut l = bin(0, 10, 3, 40, 0, 100);
+        l.bin_close_ns = 0;
+        let stages = bin_stages_ms(&l);
+        assert_eq!(
+            stages,
+            [
+                ("arrival_to_publish", Some(44.0)),
+                ("wait", Some(3.0)),
+                ("model", Some(40.0)),
+                ("render", Some(0.0)),
+                ("close_to_publish", None),
+            ]
+        );
+    }
+
+    #[test]
+    fn one_bin_is_every_percentile() {
+        let mut stats = LatencyStats::new();
+        stats.push(&bin(3, 5, 1, 250, 0, 10));
+        let model = stats.summary().model.unwrap();
+        assert_eq!(
+            (model.p50_ms, model.p90_ms, model.p99_ms, model.max_ms),
+            (250.0, 250.0, 250.0, 250.0)
+        );
+    }
+}

@@ -3,8 +3,10 @@
 pub mod bench;
 pub mod eval;
 pub mod launch;
+pub mod logs;
 pub mod progress;
 pub mod render;
 pub mod scene_source;
+pub mod shutdown;
 pub mod stream;
 pub mod synth;

@@ -76,11 +76,11 @@ pub fn record(args: &RecordArgs) -> Result<()> {
 #[derive(Args, Clone, Debug)]
 pub struct BagReplayArgs {
     /// Publish only the node's input topics (images, camera infos, poses), to feed a node.
-    #[arg(long, requires = "mcap")]
+    #[arg(long, conflicts_with = "data")]
     inputs_only: bool,
     /// The namespace the recording was made under, if not `--namespace` (its topics are
     /// published under `--namespace`).
-    #[arg(long, requires = "mcap")]
+    #[arg(long, conflicts_with = "data")]
     bag_namespace: Option<String>,
 }
 

@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use node::cli::{bench, bench_node, demo, eval, launch, render, stream, synth};
+use node::cli::{bench, bench_node, demo, eval, launch, logs, render, stream, synth};
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
 #[derive(Parser)]
@@ -30,8 +30,13 @@ enum Command {
     Launch(launch::LaunchArgs),
     /// The streaming node: stereo frames and poses in over zenoh, Gaussian maps out.
     Run(stream::RunArgs),
-    /// Replay a KITTI-360-layout sequence onto the node's input topics.
+    /// Replay a KITTI-360-layout sequence onto the node's input topics, or an MCAP
+    /// recording onto the node's topics.
     Replay(stream::ReplayArgs),
+    /// Record every topic of the node (inputs and outputs) to an MCAP file.
+    Record(logs::RecordArgs),
+    /// Print the node's per-bin latency live, with percentiles.
+    Monitor(logs::MonitorArgs),
     /// Benchmarks that print JSON on stdout.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -55,6 +60,8 @@ fn main() -> Result<()> {
         Command::Launch(args) => launch::run(&args),
         Command::Run(args) => stream::run(&args),
         Command::Replay(args) => stream::replay(&args),
+        Command::Record(args) => logs::record(&args),
+        Command::Monitor(args) => logs::monitor(&args),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
     }

@@ -127,9 +127,6 @@ async fn a_payload_that_is_not_the_type_is_counted_once_per_input_key() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-#[ignore = "node bug: service/node.rs counts a CameraInfo as bad only when it fails to decode; \
-            one that decodes but has a zero or NaN focal length is stored, silently unsets the \
-            rig (frames then go to `dropped/no_camera_info`) and is never counted"]
 async fn well_formed_but_unusable_content_is_counted_once_per_input_key() {
     bad_then_drive("badvalue", |d| {
         let (_, f) = &d.frames[0];

@@ -300,8 +300,6 @@ async fn a_burst_drops_the_oldest_waiting_bins_counts_them_and_keeps_memory_boun
 /// README lists Diagnostics as the node's counters, and `dropped/worker_queue` is one of
 /// them in the summary.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-#[ignore = "node bug: service/node.rs sets `dropped/worker_queue` only after the loop ends, \
-            after the last Diagnostics went out, so no Diagnostics message ever carries it"]
 async fn diagnostics_carry_the_worker_queue_drops() {
     let b = burst("burstdiag").await;
     let drops = b.summary.counters.get("dropped/worker_queue");

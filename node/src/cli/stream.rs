@@ -1,7 +1,7 @@
 //! `stereosplat run` (the streaming node) and `stereosplat replay` (a KITTI-360-layout
-//! sequence onto the node's input topics), sharing the zenoh flags.
+//! sequence, or an MCAP recording, onto the node's topics), sharing the zenoh flags.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::bag::Rate;
 use crate::fusion::FusionConfig;
@@ -15,7 +15,9 @@ use anyhow::Result;
 use clap::Args;
 use model::kitti360::Sequence;
 
+use super::logs::{self, BagReplayArgs};
 use super::progress;
+use super::shutdown::shutdown_signal;
 
 /// zenoh flags shared by the node's commands. Default: peer mode, loopback only.
 #[derive(Args, Clone, Debug)]
@@ -88,7 +90,8 @@ pub fn rate_of(rate: f64) -> Result<Rate> {
 }
 
 impl ZenohArgs {
-    fn transport(&self) -> TransportConfig {
+    /// The transport these flags describe.
+    pub(crate) fn transport(&self) -> TransportConfig {
         TransportConfig {
             config_file: self.zenoh_config.clone(),
             mode: self.mode.clone(),
@@ -156,16 +159,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let runtime = tokio::runtime::Runtime::new()?;
     let summary = runtime.block_on(async {
         eprintln!("node ready: {}", config.keys.namespace);
-        service::run(config, async {
-            let mut term =
-                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
-                    .expect("installing a SIGTERM handler");
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {}
-                _ = term.recv() => {}
-            }
-        })
-        .await
+        service::run(config, shutdown_signal()).await
     })?;
     println!(
         "{}",
@@ -185,31 +179,57 @@ pub struct ReplayArgs {
     #[command(flatten)]
     zenoh: ZenohArgs,
     /// Data root in the KITTI-360 layout.
-    #[arg(long)]
-    data: PathBuf,
+    #[arg(long, required_unless_present = "mcap", conflicts_with = "mcap")]
+    data: Option<PathBuf>,
     /// Sequence (default: the first under data_2d_raw).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "mcap")]
     seq: Option<String>,
+    /// An MCAP recording of the node's topics (`stereosplat record`) to replay instead.
+    #[arg(long)]
+    mcap: Option<PathBuf>,
+    #[command(flatten)]
+    bag: BagReplayArgs,
     /// Speed: 1 = the recorded rate, 2 = twice as fast, 0 = as fast as possible.
     #[arg(long, default_value_t = 1.0)]
     rate: f64,
+    /// As fast as possible (the same as `--rate 0`).
+    #[arg(long, conflicts_with = "rate")]
+    as_fast_as_possible: bool,
     /// Seconds to wait after connecting, so subscribers are in place before the first frame.
     #[arg(long, default_value_t = 1.0)]
     warmup: f64,
 }
 
-/// Replays a sequence onto the node's input topics.
+/// Replays a sequence onto the node's input topics, or with `--mcap` a recording onto its topics.
 pub fn replay(args: &ReplayArgs) -> Result<()> {
+    let rate = match args.as_fast_as_possible {
+        true => Rate::AsFastAsPossible,
+        false => rate_of(args.rate)?,
+    };
+    let warmup = std::time::Duration::from_secs_f64(args.warmup.max(0.0));
+    match (&args.mcap, &args.data) {
+        (Some(mcap), _) => logs::replay_mcap(&args.zenoh, mcap, &args.bag, rate, warmup),
+        (None, Some(data)) => replay_sequence(args, data, rate, warmup),
+        (None, None) => anyhow::bail!("--data or --mcap is required"),
+    }
+}
+
+/// Replays the sequence under `data` (`--data`).
+fn replay_sequence(
+    args: &ReplayArgs,
+    data: &Path,
+    rate: Rate,
+    warmup: std::time::Duration,
+) -> Result<()> {
     let name = match &args.seq {
         Some(s) => s.clone(),
-        None => super::synth::first_sequence(&args.data)?,
+        None => super::synth::first_sequence(data)?,
     };
-    let sequence = Sequence::open(&args.data, &name)?;
-    let rate = rate_of(args.rate)?;
+    let sequence = Sequence::open(data, &name)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let summary = runtime.block_on(async {
         let session = open(&args.zenoh.transport()).await?;
-        tokio::time::sleep(std::time::Duration::from_secs_f64(args.warmup.max(0.0))).await;
+        tokio::time::sleep(warmup).await;
         let bar = progress::bar(sequence.frames().len(), "replay");
         let keys = args.zenoh.keys();
         let s = service::replay(&session, &keys, &sequence, rate, &mut progress::hook(&bar)).await;

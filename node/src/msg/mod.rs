@@ -8,7 +8,8 @@
 //! * conversions to and from the project's types: [`image`] (RgbImage, Intrinsics),
 //!   [`pose`] (DAffine3), [`gaussians`] (GaussianSet as a PointCloud2 in the 3DGS PLY
 //!   convention), failing with [`ConvertError`];
-//! * names and REP 2011 type hashes for rmw_zenoh: [`MessageKind`], [`type_hash`].
+//! * names and REP 2011 type hashes for rmw_zenoh: [`MessageKind`], [`type_hash`]; complete
+//!   definitions as MCAP schemas: [`schema`].
 //!
 //! Decoders never panic and never allocate much more than their input: every malformed
 //! payload is a [`DecodeError`] naming the field and byte offset.
@@ -21,6 +22,7 @@ pub mod kind;
 pub mod latency;
 pub mod map_update;
 pub mod pose;
+pub mod schema;
 pub mod sensor_msgs;
 pub mod std_msgs;
 pub mod type_hash;

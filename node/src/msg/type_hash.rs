@@ -143,6 +143,19 @@ fn parse_fields(type_name: &str, text: &str) -> Result<Vec<Field>, TypeHashError
     Ok(fields)
 }
 
+/// The message types the fields of `type_name` (defined by the `.msg` text `text`) refer to,
+/// as `pkg/msg/Type` names, each once, in field order: the direct dependencies that a
+/// complete definition ([`super::schema`]) or a type description includes.
+pub fn referenced_types(type_name: &str, text: &str) -> Result<Vec<String>, TypeHashError> {
+    let mut names: Vec<String> = Vec::new();
+    for field in parse_fields(type_name, text)? {
+        if !field.nested_type_name.is_empty() && !names.contains(&field.nested_type_name) {
+            names.push(field.nested_type_name);
+        }
+    }
+    Ok(names)
+}
+
 /// Appends `{"type_name": ..., "fields": [...]}` in Python's `json.dumps` layout. Names are
 /// ROS identifiers (ASCII letters, digits, `_` and `/`), which need no escaping.
 fn write_type(out: &mut String, type_name: &str, fields: &[Field]) {

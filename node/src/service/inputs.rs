@@ -26,7 +26,7 @@ const MAX_WAITING_FOR_RIG: usize = 16;
 #[derive(Debug)]
 pub(super) enum Step {
     /// A bin opened: its first frame goes to the worker.
-    Submit(Job),
+    Submit(Box<Job>),
     /// A bin closed (its last frame arrived).
     Closed(u64),
 }
@@ -99,11 +99,13 @@ impl Inputs {
         let mut steps = Vec::new();
         while let Some(frame) = self.waiting_for_rig.pop_front() {
             let pose = frame.0.left_to_world;
-            let job = |bin_id: u64, (frame, stamps): Frame| Job {
-                bin_id,
-                frame,
-                rig,
-                stamps,
+            let job = |bin_id: u64, (frame, stamps): Frame| {
+                Box::new(Job {
+                    bin_id,
+                    frame,
+                    rig,
+                    stamps,
+                })
             };
             match self.binner.push(frame, pose) {
                 BinEvent::Opened { bin_id, first } => steps.push(Step::Submit(job(bin_id, first))),

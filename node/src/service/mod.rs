@@ -2,17 +2,28 @@
 //! first stereo pair goes to the worker, and every finished bin is published (its map in the
 //! bin frame, the bin's world pose, its latency) and fused into the global map, which is
 //! exported when the node stops.
+//!
+//! Around the node: [`replay()`] of a KITTI-360-layout sequence, [`record()`] of its topics to
+//! MCAP and [`replay_bag()`] of such a recording, [`monitor()`] of its latency with
+//! [`LatencyStats`].
 
 pub mod counters;
 mod inputs;
 pub mod keys;
 pub mod latency_stats;
 pub mod loopback;
+pub mod monitor;
 pub mod node;
 mod outputs;
+pub mod record;
 pub mod replay;
+pub mod replay_bag;
 
 pub use counters::Counters;
 pub use keys::Keys;
+pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
+pub use monitor::{monitor, MonitorEvent, MonitorReport};
 pub use node::{run, NodeConfig, NodeSummary, ServiceError};
+pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};
 pub use replay::{replay, ReplaySummary};
+pub use replay_bag::{replay_bag, BagReplayOptions, BagReplaySummary};

@@ -164,7 +164,7 @@ pub async fn run(
         for step in todo {
             match step {
                 Step::Submit(job) => {
-                    worker.submit(job);
+                    worker.submit(*job);
                 }
                 Step::Closed(bin_id) => outputs.bin_closed(bin_id, worker.drops()).await?,
             }

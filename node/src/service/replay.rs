@@ -1,20 +1,22 @@
 //! Replaying a sequence in the KITTI-360 layout (real or synthetic) onto the node's input
 //! topics: camera infos, then per frame the left and right images and the pose, paced by the
-//! recorded timestamps (or a multiple of them, or as fast as possible).
+//! recorded timestamps (or a multiple of them, or as fast as possible). Puts block rather
+//! than drop when zenoh's queues are full (the Outlet's publishers), so "as fast as
+//! possible" means as fast as the node takes them.
 
 use std::time::{Duration, Instant};
 
 use model::kitti360::Sequence;
 use zenoh::Session;
 
-use super::keys::Keys;
+use super::keys::{self, Direction, Keys, Topic, TOPICS};
 use super::node::ServiceError;
 use crate::bag::Rate;
 use crate::msg::image::{camera_info, image_from_rgb};
 use crate::msg::pose::pose_from_affine;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
-use crate::transport::TransportError;
+use crate::transport::Outlet;
 
 /// What a replay published.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -33,11 +35,14 @@ pub async fn replay(
     rate: Rate,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ReplaySummary, ServiceError> {
-    let put = |key: String, payload: Vec<u8>| async move {
-        session
-            .put(key, payload)
-            .await
-            .map_err(|e| ServiceError::Transport(TransportError::Zenoh(e.to_string())))
+    let inputs: Vec<_> = TOPICS
+        .into_iter()
+        .filter(|t| t.direction == Direction::Input)
+        .collect();
+    let outlet = Outlet::declare(session, keys, "stereosplat_replay", &inputs, &[]).await?;
+    let put = |topic: Topic, payload: Vec<u8>| {
+        let outlet = &outlet;
+        async move { outlet.put(topic, payload).await }
     };
     let rig = sequence.rig();
     let frames = sequence.frames();
@@ -53,29 +58,29 @@ pub async fn replay(
         }
         let header = |frame_id: &str| Header::new(t, frame_id);
         put(
-            keys.left_info(),
+            keys::LEFT_INFO,
             camera_info(&rig.intrinsics, 0.0, header("left")).encode(),
         )
         .await?;
         put(
-            keys.right_info(),
+            keys::RIGHT_INFO,
             camera_info(&rig.intrinsics, rig.baseline, header("right")).encode(),
         )
         .await?;
         match sequence.load_frame(f.index) {
             Ok(frame) => {
                 put(
-                    keys.left_image(),
+                    keys::LEFT_IMAGE,
                     image_from_rgb(&frame.left, header("left")).encode(),
                 )
                 .await?;
                 put(
-                    keys.right_image(),
+                    keys::RIGHT_IMAGE,
                     image_from_rgb(&frame.right, header("right")).encode(),
                 )
                 .await?;
                 put(
-                    keys.pose(),
+                    keys::POSE,
                     pose_from_affine(&frame.left_to_world, header("world")).encode(),
                 )
                 .await?;

@@ -3,6 +3,8 @@
 //! processes (unix).
 #![cfg(unix)]
 
+mod net_support;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -444,7 +446,7 @@ fn example_files_check() {
     }
     let plan = Plan::load(&root.join("launch/node_demo.toml"), &[], Path::new(EXE)).unwrap();
     let names: Vec<&str> = plan.processes.iter().map(|p| p.name.as_str()).collect();
-    assert_eq!(names, ["data", "node", "replay"]);
+    assert_eq!(names, ["data", "node", "record", "monitor", "replay"]);
     let node = &plan.processes[1];
     assert_eq!(node.args[..3], ["run", "--listen", "tcp/127.0.0.1:7447"]);
 }
@@ -454,17 +456,15 @@ fn the_node_demo_replays_a_drive_into_the_node_and_exports_the_map() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let tmp = std::env::temp_dir().join(format!("stereosplat-demo-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = net_support::free_port();
+    let record_port = net_support::free_port();
     let set = |k: &str, v: String| ["--set".to_string(), format!("{k}={v}")];
     let mut args = vec![root.join("launch/node_demo.toml").display().to_string()];
     for (k, v) in [
         ("data", tmp.join("data").display().to_string()),
         ("out", tmp.join("out").display().to_string()),
         ("endpoint", format!("tcp/127.0.0.1:{port}")),
+        ("record_endpoint", format!("tcp/127.0.0.1:{record_port}")),
         ("frames", "40".into()),
         ("width", "136".into()),
         ("height", "40".into()),
@@ -480,6 +480,23 @@ fn the_node_demo_replays_a_drive_into_the_node_and_exports_the_map() {
     for f in ["global_map.ply", "global_map_bev.png", "global_map.ssgmap"] {
         assert!(tmp.join("out").join(f).exists(), "{f}");
     }
+    // The recorder heard the inputs and the outputs; the monitor summarised the latency.
+    let bag = node::bag::BagReader::open(tmp.join("out/drive.mcap")).unwrap();
+    let topics: Vec<&str> = bag
+        .channels()
+        .iter()
+        .map(|c| c.info.topic.as_str())
+        .collect();
+    for t in [
+        "/stereosplat/left/image",
+        "/stereosplat/bin/map",
+        "/stereosplat/latency",
+    ] {
+        assert!(topics.contains(&t), "{t} in {topics:?}");
+    }
+    let latency: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tmp.join("out/latency.json")).unwrap()).unwrap();
+    assert!(latency["bins"].as_u64().unwrap() >= 1, "{latency}");
     let _ = std::fs::remove_dir_all(&tmp);
 }
 

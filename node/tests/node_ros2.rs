@@ -60,7 +60,10 @@ async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {
         .collect();
     assert_eq!(nodes.len(), 1, "{tokens:?}");
     assert_eq!(
-        (nodes[0].node.name.as_str(), nodes[0].node.namespace.as_str()),
+        (
+            nodes[0].node.name.as_str(),
+            nodes[0].node.namespace.as_str()
+        ),
         ("mapper", "/robot_ns")
     );
     for t in TOPICS {
@@ -81,9 +84,15 @@ async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {
 
     let player = open(&node.client()).await.unwrap();
     tokio::time::sleep(std::time::Duration::from_millis(300)).await;
-    let replayed = replay(&player, &keys, &drive.sequence, Rate::Factor(4.0), &mut |_, _| {})
-        .await
-        .unwrap();
+    let replayed = replay(
+        &player,
+        &keys,
+        &drive.sequence,
+        Rate::Factor(4.0),
+        &mut |_, _| {},
+    )
+    .await
+    .unwrap();
     assert_eq!(replayed.frames, 30);
     let expected = drive.bins_opened(8.0) as u64;
     let mut sequences = Vec::new();
@@ -97,12 +106,20 @@ async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {
             "42/robot_ns/bin/map/{}/RIHS01_",
             MessageKind::PointCloud2.dds_type_name()
         )));
-        let bytes = sample.attachment().expect("an rmw_zenoh attachment").to_bytes();
+        let bytes = sample
+            .attachment()
+            .expect("an rmw_zenoh attachment")
+            .to_bytes();
         let a = Attachment::decode(&bytes).unwrap();
         assert_eq!(*gid.get_or_insert(a.gid), a.gid, "one publisher, one GID");
         sequences.push(a.sequence);
         let cloud = PointCloud2::decode(&sample.payload().to_bytes()).unwrap();
-        assert!(gaussians_from_cloud(&cloud, glam::DVec3::ZERO).unwrap().len() > 500);
+        assert!(
+            gaussians_from_cloud(&cloud, glam::DVec3::ZERO)
+                .unwrap()
+                .len()
+                > 500
+        );
     }
     assert_eq!(sequences, (1..=expected as i64).collect::<Vec<_>>());
     let summary = node.stop().await;

@@ -67,8 +67,9 @@ struct RunReport {
     latency: LatencySummary,
     /// (frames replayed, MiB) every 50 frames.
     rss_mib: Vec<(u64, f64)>,
-    /// Resident memory at the end minus after the first 200 frames, MiB.
-    rss_growth_after_200_frames_mib: f64,
+    /// Resident memory at the end minus after the first 200 frames, MiB (`null` for a
+    /// drive of 200 frames or fewer: nothing to compare).
+    rss_growth_after_200_frames_mib: Option<f64>,
     peak_rss_mib: f64,
     wall_s: f64,
 }
@@ -115,14 +116,8 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
             )
             .map_or(0, |(last, first)| last - first);
         let mib = |b: u64| b as f64 / (1 << 20) as f64;
-        let rss_after = |frames: u64| {
-            report
-                .rss_samples
-                .iter()
-                .find(|(f, _)| *f >= frames)
-                .map_or(0.0, |&(_, b)| mib(b))
-        };
-        let rss_end = report.rss_samples.last().map_or(0.0, |&(_, b)| mib(b));
+        let rss_200 = report.rss_samples.iter().find(|(f, _)| *f >= 200);
+        let rss_end = report.rss_samples.last().filter(|(f, _)| *f > 200);
         runs.push(RunReport {
             rate,
             frames: report.frames,
@@ -139,7 +134,9 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
                 .iter()
                 .map(|&(f, b)| (f, mib(b)))
                 .collect(),
-            rss_growth_after_200_frames_mib: rss_end - rss_after(200),
+            rss_growth_after_200_frames_mib: rss_200
+                .zip(rss_end)
+                .map(|(&(_, a), &(_, b))| mib(b) - mib(a)),
             peak_rss_mib: mib(report.peak_rss_bytes),
             wall_s: report.wall_s,
         });

@@ -49,6 +49,7 @@ pub fn record(args: &RecordArgs) -> Result<()> {
         count: args.count,
     };
     let keys = args.zenoh.keys();
+    create_parent(&args.out)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let summary = runtime.block_on(async {
         let session = open(&args.zenoh.transport()).await?;
@@ -170,6 +171,7 @@ pub fn monitor(args: &MonitorArgs) -> Result<()> {
         println!("counters: {}", counters.join(", "));
     }
     if let Some(path) = &args.json {
+        create_parent(path)?;
         let text = serde_json::to_string_pretty(&summary)?;
         std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
     }
@@ -194,4 +196,14 @@ fn bin_line(l: &BinLatency) -> String {
         l.drops,
         l.bad_messages
     )
+}
+
+/// Creates the folder `path` will be written in.
+fn create_parent(path: &std::path::Path) -> Result<()> {
+    match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(dir) => {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))
+        }
+        None => Ok(()),
+    }
 }

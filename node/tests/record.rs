@@ -23,36 +23,10 @@ use node::service::{
     channel_of, monitor, record, replay_bag, BagReplayOptions, Keys, MonitorEvent, RecordLimits,
     RecordSummary,
 };
-use node::transport::{open, TransportConfig};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use zenoh::qos::CongestionControl;
 use zenoh::Session;
-
-/// A recorder-side session listening on a free loopback port and a player-side session
-/// connected to it, once they see each other.
-async fn sessions() -> (Session, Session) {
-    let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
-    let listener = open(&TransportConfig {
-        listen: vec![endpoint.clone()],
-        ..TransportConfig::default()
-    })
-    .await
-    .unwrap();
-    let player = open(&TransportConfig {
-        connect: vec![endpoint],
-        ..TransportConfig::default()
-    })
-    .await
-    .unwrap();
-    for _ in 0..250 {
-        if listener.info().peers_zid().await.next().is_some() {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    (listener, player)
-}
 
 /// A file in a fresh scratch folder of this test process.
 fn scratch(name: &str) -> PathBuf {
@@ -198,7 +172,7 @@ async fn recorded_drive(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_recording_replayed_as_fast_as_possible_records_again_bit_for_bit() {
-    let (recorder, player) = sessions().await;
+    let (recorder, player) = net_support::connected_pair().await;
     let keys = Keys::new("rec_bits");
     let (first, published) = recorded_drive(&recorder, &player, "rec_bits", "first.mcap").await;
     assert_eq!(contents(&first), published);
@@ -265,7 +239,7 @@ fn python_check(path: &Path) -> serde_json::Value {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn python_mcap_and_rosbags_read_a_recording_with_its_schemas() {
-    let (recorder, player) = sessions().await;
+    let (recorder, player) = net_support::connected_pair().await;
     let (path, published) = recorded_drive(&recorder, &player, "rec_py", "python.mcap").await;
     let seen = python_check(&path);
     assert_eq!(seen["profile"], "ros2");
@@ -305,7 +279,7 @@ async fn python_mcap_and_rosbags_read_a_recording_with_its_schemas() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn replay_maps_the_recorded_namespace_skips_outputs_and_unknown_topics() {
-    let (receiver, player) = sessions().await;
+    let (receiver, player) = net_support::connected_pair().await;
     let old = Keys::new("old_ns");
     let new = Keys::new("new_ns");
     let path = scratch("mapped.mcap");
@@ -366,7 +340,7 @@ async fn replay_maps_the_recorded_namespace_skips_outputs_and_unknown_topics() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn monitor_summarises_known_latencies() {
-    let (watcher, node) = sessions().await;
+    let (watcher, node) = net_support::connected_pair().await;
     let keys = Keys::new("mon");
     const MS: i64 = 1_000_000;
     let t0 = 1_700_000_000_000 * MS;

@@ -15,30 +15,6 @@ use zenoh::Session;
 
 const WAIT: Duration = Duration::from_secs(5);
 
-/// Two sessions on loopback, connected: (publisher side, observer side).
-async fn pair() -> (Session, Session) {
-    let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
-    let a = open(&TransportConfig {
-        listen: vec![endpoint.clone()],
-        ..TransportConfig::default()
-    })
-    .await
-    .unwrap();
-    let b = open(&TransportConfig {
-        connect: vec![endpoint],
-        ..TransportConfig::default()
-    })
-    .await
-    .unwrap();
-    for _ in 0..250 {
-        if !a.info().peers_zid().await.collect::<Vec<_>>().is_empty() {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    (a, b)
-}
-
 /// The liveliness tokens under `@ros2_lv/**` that `session` sees now, sorted.
 async fn live_tokens(session: &Session) -> Vec<String> {
     let replies = session
@@ -60,7 +36,7 @@ const SUBSCRIBES: [Topic; 2] = [LEFT_IMAGE, POSE];
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ros2_outlet_publishes_on_rmw_zenoh_keys_with_attachments() {
-    let (a, b) = pair().await;
+    let (a, b) = net_support::connected_pair().await;
     let keys = Keys::with_mode("stereosplat", KeyMode::Ros2 { domain_id: 0 });
     let sub = b.declare_subscriber("0/**").await.unwrap();
     let outlet = Outlet::declare(&a, &keys, "stereosplat_node", &PUBLISHES, &SUBSCRIBES)
@@ -116,7 +92,7 @@ async fn ros2_outlet_publishes_on_rmw_zenoh_keys_with_attachments() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ros2_outlet_announces_node_and_topics_until_dropped() {
-    let (a, b) = pair().await;
+    let (a, b) = net_support::connected_pair().await;
     let keys = Keys::with_mode("stereosplat", KeyMode::Ros2 { domain_id: 3 });
     let watcher = b
         .liveliness()
@@ -205,7 +181,7 @@ async fn ros2_outlet_announces_node_and_topics_until_dropped() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn plain_outlet_has_plain_keys_no_attachment_no_tokens() {
-    let (a, b) = pair().await;
+    let (a, b) = net_support::connected_pair().await;
     let keys = Keys::new("stereosplat");
     let sub = b.declare_subscriber("stereosplat/**").await.unwrap();
     let outlet = Outlet::declare(&a, &keys, "stereosplat_node", &PUBLISHES, &SUBSCRIBES)

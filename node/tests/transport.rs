@@ -5,29 +5,11 @@ mod net_support;
 
 use std::time::Duration;
 
-use node::transport::{open, TransportConfig};
+use node::transport::TransportConfig;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_loopback_peers_exchange_samples_in_order() {
-    let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
-    let a = open(&TransportConfig {
-        listen: vec![endpoint.clone()],
-        ..TransportConfig::default()
-    })
-    .await
-    .unwrap();
-    let b = open(&TransportConfig {
-        connect: vec![endpoint],
-        ..TransportConfig::default()
-    })
-    .await
-    .unwrap();
-    for _ in 0..100 {
-        if !a.info().peers_zid().await.collect::<Vec<_>>().is_empty() {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
+    let (a, b) = net_support::connected_pair().await;
     let sub = a.declare_subscriber("test/ns/**").await.unwrap();
     tokio::time::sleep(Duration::from_millis(200)).await;
     let publisher = b.declare_publisher("test/ns/data").await.unwrap();

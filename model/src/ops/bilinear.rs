@@ -132,6 +132,21 @@ struct Dims {
 }
 
 impl Dims {
+    /// The sizes of an `(N, C, H, W)` input and an `(N, Ho, Wo, 2)` grid, with `N`.
+    fn of(input: &Layout, grid: &Layout) -> Result<(usize, Self)> {
+        let (n, c, h, w) = input.shape().dims4()?;
+        let (_, ho, wo, _) = grid.shape().dims4()?;
+        Ok((
+            n,
+            Self {
+                c,
+                h,
+                w,
+                p: ho * wo,
+            },
+        ))
+    }
+
     fn hw(&self) -> usize {
         self.h * self.w
     }
@@ -171,21 +186,15 @@ impl CustomOp2 for GridSample {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (n, c, h, w) = l1.shape().dims4()?;
-        let (_, ho, wo, _) = l2.shape().dims4()?;
-        let d = Dims {
-            c,
-            h,
-            w,
-            p: ho * wo,
-        };
+        let (n, d) = Dims::of(l1, l2)?;
         let dtype = float_dtype(Self::NAME, &[s1, s2])?;
         let out = float_kernel!(dtype, T => Self::run(
                 slice::<T>(Self::NAME, s1, l1)?,
                 slice::<T>(Self::NAME, s2, l2)?,
                 d,
         ));
-        Ok((out, Shape::from((n, c, ho, wo))))
+        let (_, ho, wo, _) = l2.shape().dims4()?;
+        Ok((out, Shape::from((n, d.c, ho, wo))))
     }
 
     fn bwd(
@@ -311,14 +320,7 @@ impl CustomOp3 for GridGrad {
         s3: &CpuStorage,
         l3: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (_, c, h, w) = l1.shape().dims4()?;
-        let (_, ho, wo, _) = l2.shape().dims4()?;
-        let d = Dims {
-            c,
-            h,
-            w,
-            p: ho * wo,
-        };
+        let (_, d) = Dims::of(l1, l2)?;
         let dtype = float_dtype(Self::NAME, &[s1, s2, s3])?;
         let out = float_kernel!(dtype, T => Self::run(
                 slice::<T>(Self::NAME, s1, l1)?,

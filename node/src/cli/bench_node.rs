@@ -18,6 +18,7 @@ use serde::Serialize;
 use super::progress;
 use super::stream::{rate_of, RenderArg};
 use super::synth::{cached_drive, first_sequence};
+use crate::fusion::FusionConfig;
 use crate::pipeline::binner::BinnerConfig;
 use crate::service::latency_stats::{LatencyStats, LatencySummary};
 use crate::service::loopback::run_loopback;
@@ -53,6 +54,9 @@ pub struct BenchNodeArgs {
     /// Bins waiting for the worker at most (keep newest beyond it).
     #[arg(long, default_value_t = 2)]
     queue: usize,
+    /// The global map's Gaussian budget (its memory bound).
+    #[arg(long, default_value_t = FusionConfig::default().max_gaussians)]
+    max_gaussians: usize,
 }
 
 /// One rate's figures.
@@ -64,6 +68,7 @@ struct RunReport {
     bins_published: u64,
     bins_per_second: f64,
     drops: u64,
+    global_gaussians: usize,
     latency: LatencySummary,
     /// (frames replayed, MiB) every 50 frames.
     rss_mib: Vec<(u64, f64)>,
@@ -86,6 +91,10 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
             renders: args.renders.into(),
             queue_capacity: args.queue,
             binner: BinnerConfig::default(),
+            fusion: FusionConfig {
+                max_gaussians: args.max_gaussians,
+                ..FusionConfig::default()
+            },
             ..NodeConfig::default()
         };
         let bar = progress::bar(sequence.frames().len(), &format!("rate {rate}"));
@@ -128,6 +137,7 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
                 ns => report.latencies.len() as f64 / (ns as f64 * 1e-9),
             },
             drops: report.node.counters.get("dropped/worker_queue"),
+            global_gaussians: report.node.global_gaussians,
             latency: stats.summary(),
             rss_mib: report
                 .rss_samples
@@ -147,6 +157,7 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
         "method": args.method,
         "renders": format!("{:?}", args.renders).to_lowercase(),
         "threads": std::thread::available_parallelism().map_or(1, |n| n.get()),
+        "max_gaussians": args.max_gaussians,
         "runs": runs,
     });
     println!("{}", serde_json::to_string_pretty(&out)?);

@@ -8,6 +8,7 @@
 //! fails and says how to install them.
 
 mod msg_support;
+mod python_support;
 
 use std::io::Write;
 use std::process::{Command, Stdio};
@@ -23,21 +24,10 @@ use renderer::ply::SH_C0;
 use serde_json::{json, Value};
 
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/cdr_decode.py");
-const INSTALL: &str = "run `pip install -r scripts/requirements.txt` (CI does it in .ci/setup)";
 
 /// Sends one request to the script and returns its reply.
 fn rosbags(request: &Value) -> Value {
-    let probe = Command::new("python3")
-        .args(["-c", "import rosbags, numpy"])
-        .output();
-    match probe {
-        Ok(out) if out.status.success() => {}
-        Ok(out) => panic!(
-            "python3 cannot import rosbags: {INSTALL}\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        ),
-        Err(e) => panic!("cannot run python3 ({e}): install Python 3, then {INSTALL}"),
-    }
+    python_support::require("rosbags, numpy");
     let mut child = Command::new("python3")
         .arg(SCRIPT)
         .stdin(Stdio::piped())

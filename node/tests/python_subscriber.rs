@@ -17,6 +17,7 @@
 //! fails and says how to install them.
 
 mod drive_support;
+mod python_support;
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
@@ -36,7 +37,6 @@ use node::service::{replay, Keys, NodeConfig};
 use serde_json::Value;
 
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/zenoh_listen.py");
-const INSTALL: &str = "run `pip install -r scripts/requirements.txt` (CI does it in .ci/setup)";
 
 /// The Python listener, started and subscribed.
 struct PyListener {
@@ -48,17 +48,7 @@ impl PyListener {
     /// Starts the script connected to `endpoint`, subscribed to `<namespace>/**`, and waits
     /// for its `ready` line. Blocking.
     fn start(endpoint: &str, namespace: &str) -> Self {
-        let probe = Command::new("python3")
-            .args(["-c", "import zenoh, rosbags, numpy"])
-            .output();
-        match probe {
-            Ok(out) if out.status.success() => {}
-            Ok(out) => panic!(
-                "python3 cannot import zenoh (eclipse-zenoh) and rosbags: {INSTALL}\n{}",
-                String::from_utf8_lossy(&out.stderr)
-            ),
-            Err(e) => panic!("cannot run python3 ({e}): install Python 3, then {INSTALL}"),
-        }
+        python_support::require("zenoh, rosbags, numpy");
         let mut child = Command::new("python3")
             .arg(SCRIPT)
             .args(["--connect", endpoint, "--namespace", namespace])

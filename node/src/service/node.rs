@@ -1,5 +1,6 @@
 //! The node's event loop.
 
+use std::collections::HashMap;
 use std::future::Future;
 use std::path::PathBuf;
 
@@ -113,6 +114,8 @@ pub async fn run(
     let (inputs, outputs): (Vec<Topic>, Vec<Topic>) =
         TOPICS.iter().partition(|t| t.direction == Direction::Input);
     let outlet = Outlet::declare(&session, keys, &config.name, &outputs, &inputs).await?;
+    // Input keys looked up per sample, built once.
+    let input_keys: HashMap<String, Topic> = inputs.iter().map(|&t| (keys.key(t), t)).collect();
     // One subscriber for every input key keeps the samples in arrival order across keys,
     // so left, right and pose of a frame reach the synchroniser together. Samples this
     // session publishes itself are not delivered to it.
@@ -145,11 +148,11 @@ pub async fn run(
         tokio::select! {
             _ = &mut stop => break,
             Ok(s) = input.recv_async() => {
-                match keys.topic_of(s.key_expr().as_str()) {
-                    Some(t) if t.direction == Direction::Input => {
+                match input_keys.get(s.key_expr().as_str()) {
+                    Some(&t) => {
                         todo = steps.on_sample(t, &s.payload().to_bytes(), &mut outputs.counters);
                     }
-                    _ => outputs.counters.add("ignored/unknown_key", 1),
+                    None => outputs.counters.add("ignored/unknown_key", 1),
                 }
             },
             Ok(q) = snapshot_requests.recv_async() => {

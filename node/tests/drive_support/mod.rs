@@ -377,14 +377,9 @@ pub fn bin_of_frame_id(frame_id: &str) -> u64 {
 
 /// This process's resident set size in bytes (`VmRSS` of /proc/self/status; Linux only).
 pub fn rss_bytes() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
-    let kb: u64 = status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
-        .and_then(|v| v.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("VmRSS in /proc/self/status");
-    kb * 1024
+    let bytes = node::service::loopback::rss_bytes();
+    assert!(bytes > 0, "VmRSS in /proc/self/status");
+    bytes
 }
 
 /// A file under the node's out folder.

@@ -16,6 +16,8 @@ pub mod kitti360;
 pub mod lpips;
 pub mod methods;
 pub mod metrics;
+pub mod net;
 pub mod ops;
 pub mod reconstruct;
 pub mod synth;
+pub mod train;

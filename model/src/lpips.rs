@@ -15,7 +15,9 @@
 use std::path::Path;
 
 use candle_core::{DType, Device, Module, Result, Tensor, D};
-use candle_nn::{Conv2d, Conv2dConfig, VarBuilder};
+use candle_nn::VarBuilder;
+
+use crate::ops::Conv;
 
 /// The shipped weights (AlexNet backbone and the five linear heads, f32).
 pub const DEFAULT_WEIGHTS: &str = concat!(
@@ -110,8 +112,8 @@ impl Config {
 /// layer (`lin{0..}`), names as `scripts/lpips_convert.py` writes them.
 #[derive(Clone, Debug)]
 pub struct Lpips {
-    convs: Vec<Conv2d>,
-    heads: Vec<Conv2d>,
+    convs: Vec<Conv>,
+    heads: Vec<Conv>,
     pool_before: Vec<bool>,
     shift: Tensor,
     scale: Tensor,
@@ -124,24 +126,21 @@ impl Lpips {
         let mut heads = Vec::with_capacity(cfg.layers.len());
         let mut in_channels = 3;
         for (i, l) in cfg.layers.iter().enumerate() {
-            let conv_cfg = Conv2dConfig {
-                padding: l.padding,
-                stride: l.stride,
-                ..Default::default()
-            };
-            convs.push(candle_nn::conv2d(
-                in_channels,
-                l.out_channels,
-                l.kernel,
-                conv_cfg,
+            convs.push(Conv::new(
                 vb.pp(format!("alex.conv{}", i + 1)),
+                (in_channels, l.out_channels),
+                l.kernel,
+                l.stride,
+                l.padding,
+                true,
             )?);
-            heads.push(candle_nn::conv2d_no_bias(
-                l.out_channels,
-                1,
-                1,
-                Default::default(),
+            heads.push(Conv::new(
                 vb.pp(format!("lin{i}")),
+                (l.out_channels, 1),
+                1,
+                1,
+                0,
+                false,
             )?);
             in_channels = l.out_channels;
         }

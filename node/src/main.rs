@@ -3,7 +3,7 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use node::cli::{bench, bench_node, demo, eval, launch, logs, render, stream, synth};
+use node::cli::{bench, bench_node, demo, eval, launch, logs, render, stream, synth, train};
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
 #[derive(Parser)]
@@ -26,6 +26,8 @@ enum Command {
     SynthHeldout(synth::HeldoutArgs),
     /// The paper's evaluation protocol on a data root: table, JSON, pictures.
     Eval(eval::EvalArgs),
+    /// Train a network preset: checkpoints, resume, CSV log, loss curve, safetensors.
+    Train(train::TrainArgs),
     /// Start a graph of processes from a launch file; stop them together.
     Launch(launch::LaunchArgs),
     /// The streaming node: stereo frames and poses in over zenoh, Gaussian maps out.
@@ -57,6 +59,7 @@ fn main() -> Result<()> {
         Command::Synth(args) => synth::run(&args),
         Command::SynthHeldout(args) => synth::run_heldout(&args),
         Command::Eval(args) => eval::run(&args),
+        Command::Train(args) => train::run(&args),
         Command::Launch(args) => launch::run(&args),
         Command::Run(args) => stream::run(&args),
         Command::Replay(args) => stream::replay(&args),

@@ -6,15 +6,19 @@
 //! - [`render`]: the renderer's CPU rasterizer as an op, so losses on rendered images, depth
 //!   and confidence train the network that predicts the Gaussians.
 //!
+//! - [`Conv`]: a convolution whose gradients are matrix products (fast on the CPU).
+//!
 //! The kernels run on CPU tensors of `f32` (training) or `f64` (gradient checks). Second
 //! derivatives are not supported: the gradients these ops return are not themselves
 //! differentiable.
 
 mod bilinear;
+mod conv;
 mod cpu;
 mod render;
 
 pub use bilinear::{grid_sample, upsample_bilinear};
+pub use conv::Conv;
 pub use cpu::OpError;
 pub use render::{
     render, SplatTensors, CH_ALPHA, CH_B, CH_CONFIDENCE, CH_DEPTH, CH_G, CH_R, COL_COLOR,

@@ -12,3 +12,4 @@ pub mod scene_source;
 pub mod shutdown;
 pub mod stream;
 pub mod synth;
+pub mod train;

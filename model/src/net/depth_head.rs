@@ -1,0 +1,108 @@
+//! The light 2D U-Net depth head: cost volume and view features in, a softmax over the depth
+//! candidates out (its expectation in inverse depth is the depth, its peak the matching
+//! confidence), then a refinement of that depth at the Gaussians' resolution.
+
+use candle_core::{Module, Result, Tensor, D};
+use candle_nn::VarBuilder;
+
+use crate::ops::Conv;
+
+use super::blocks::{conv, ConvRelu, ResBlock};
+use super::Config;
+use crate::ops::upsample_bilinear;
+
+/// The head's estimate at 1/4 resolution.
+pub struct CoarseDepth {
+    /// Softmax over the candidates, `(V, D, h, w)`.
+    pub probabilities: Tensor,
+    /// Expected normalised inverse depth in `[0, 1]` (0 = far, 1 = near), `(V, 1, h, w)`.
+    pub inverse: Tensor,
+}
+
+/// The U-Net over (cost volume, features).
+#[derive(Clone, Debug)]
+pub struct DepthHead {
+    enter: ConvRelu,
+    down: ConvRelu,
+    bottom: ResBlock,
+    up: ConvRelu,
+    logits: Conv,
+    /// Normalised inverse depth of each candidate (1 = nearest), `(1, D, 1, 1)`.
+    candidates: Tensor,
+}
+
+impl DepthHead {
+    /// Built for the preset's candidates and U-Net width on `cost_channels` features.
+    pub fn new(vb: VarBuilder, cfg: &Config) -> Result<Self> {
+        let (d, u) = (cfg.candidates, cfg.unet_channels);
+        let steps: Vec<f32> = (0..d)
+            .map(|k| 1.0 - k as f32 / (d - 1).max(1) as f32)
+            .collect();
+        Ok(Self {
+            enter: ConvRelu::new(vb.pp("enter"), d + cfg.cost_channels, u, 1)?,
+            down: ConvRelu::new(vb.pp("down"), u, 2 * u, 2)?,
+            bottom: ResBlock::new(vb.pp("bottom"), 2 * u)?,
+            up: ConvRelu::new(vb.pp("up"), 3 * u, u, 1)?,
+            logits: conv(vb.pp("logits"), u, d, 3, 1)?,
+            candidates: Tensor::from_vec(steps, (1, d, 1, 1), vb.device())?,
+        })
+    }
+
+    /// Cost volume `(V, D, h, w)` and features `(V, Cc, h, w)` to the coarse depth. The
+    /// U-Net's logits are added to the raw correlation, so matching drives the softmax from
+    /// the first step and the U-Net learns the corrections.
+    pub fn forward(&self, cost: &Tensor, features: &Tensor) -> Result<CoarseDepth> {
+        let (_, _, h, w) = cost.dims4()?;
+        let x1 = self.enter.forward(&Tensor::cat(&[cost, features], 1)?)?;
+        let x2 = self.bottom.forward(&self.down.forward(&x1)?)?;
+        let up = upsample_bilinear(&x2, h, w)?;
+        let x = self.up.forward(&Tensor::cat(&[&up, &x1], 1)?)?;
+        let logits = (self.logits.forward(&x)? + cost)?;
+        let probabilities = candle_nn::ops::softmax(&logits, 1)?;
+        let inverse = probabilities
+            .broadcast_mul(&self.candidates)?
+            .sum_keepdim(1)?;
+        Ok(CoarseDepth {
+            probabilities,
+            inverse,
+        })
+    }
+}
+
+/// Refines the normalised inverse depth at the Gaussians' resolution from the upsampled
+/// estimate, features and the image: a bounded residual, clamped to the candidate range.
+#[derive(Clone, Debug)]
+pub struct DepthRefiner {
+    hidden: ConvRelu,
+    out: Conv,
+}
+
+impl DepthRefiner {
+    /// `context` channels of per-pixel context besides the depth itself.
+    pub fn new(vb: VarBuilder, cfg: &Config, context: usize) -> Result<Self> {
+        Ok(Self {
+            hidden: ConvRelu::new(vb.pp("hidden"), context + 1, cfg.head_channels, 1)?,
+            out: conv(vb.pp("out"), cfg.head_channels, 1, 3, 1)?,
+        })
+    }
+
+    /// `inverse` `(V, 1, Hg, Wg)` and `context` `(V, k, Hg, Wg)` to the refined inverse depth.
+    pub fn forward(&self, inverse: &Tensor, context: &Tensor) -> Result<Tensor> {
+        let x = self
+            .hidden
+            .forward(&Tensor::cat(&[inverse, context], 1)?)?;
+        let delta = (self.out.forward(&x)?.tanh()? * 0.1)?;
+        (inverse + delta)?.clamp(0f32, 1f32)
+    }
+}
+
+/// Metric depth of a normalised inverse depth (1 = `near`, 0 = `far`).
+pub fn metric_depth(inverse: &Tensor, cfg: &Config) -> Result<Tensor> {
+    let (a, b) = (1.0 / cfg.near as f64, 1.0 / cfg.far as f64);
+    ((inverse * (a - b))? + b)?.recip()
+}
+
+/// The matching confidence: the softmax's peak, `(V, 1, h, w)`.
+pub fn peak(probabilities: &Tensor) -> Result<Tensor> {
+    probabilities.max_keepdim(D::Minus(3))
+}

@@ -1,0 +1,24 @@
+//! The StereoSplat cost-volume branch (paper section 3.2) in candle: a shared CNN backbone
+//! and a monocular geometry encoder, a multi-view transformer, the input-invariant plane-sweep
+//! cost volume over each view's nearest views, a U-Net depth head, and per-pixel Gaussian
+//! heads. One [`Config`] holds every size; [`Config::preset`] names them.
+//!
+//! [`StereoSplat::forward`] returns every Gaussian with its features (the interface the
+//! triplane branch will plug into); [`LearnedReconstructor`] prunes them to what the scene
+//! needs and implements the project's `Reconstructor`.
+
+mod blocks;
+mod config;
+mod cost_volume;
+mod depth_head;
+mod encoders;
+mod gaussian_head;
+mod geometry;
+mod reconstructor;
+mod stereosplat;
+mod transformer;
+
+pub use config::{Config, UnknownPreset, PRESETS};
+pub use cost_volume::candidate_depths;
+pub use reconstructor::{default_weights, images_and_cameras, LearnedReconstructor, LoadError};
+pub use stereosplat::{every_nth_pixel, Prediction, StereoSplat, COST_STRIDE};

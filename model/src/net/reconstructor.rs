@@ -1,0 +1,174 @@
+//! The network as the project's `Reconstructor`: stereo views in, the Gaussians the scene
+//! needs out (those above the preset's opacity floor, at most its budget, the most opaque
+//! kept), so the node and `eval` use the learned model exactly as they use the baseline.
+
+use std::path::{Path, PathBuf};
+
+use candle_core::{DType, Device, Tensor};
+use candle_nn::VarBuilder;
+use glam::{Quat, Vec3};
+use renderer::{Camera, GaussianSet};
+
+use super::{Config, StereoSplat};
+use crate::ops::SplatTensors;
+use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
+
+/// The shipped weights of a preset: `model/weights/stereosplat_<preset>.safetensors`.
+pub fn default_weights(preset: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("weights")
+        .join(format!("stereosplat_{preset}.safetensors"))
+}
+
+/// Why weights could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// No file there (the preset has no shipped weights: train them with `stereosplat train`).
+    #[error("no weights at {0} (train them with `stereosplat train`)")]
+    Missing(PathBuf),
+    /// The file is not safetensors or does not fit the preset's network.
+    #[error("weights {path} do not fit the network: {source}")]
+    Mismatch {
+        /// The file.
+        path: PathBuf,
+        /// What candle said.
+        source: candle_core::Error,
+    },
+}
+
+/// The learned reconstructor.
+pub struct LearnedReconstructor {
+    net: StereoSplat,
+    name: String,
+}
+
+impl LearnedReconstructor {
+    /// The network of `cfg` with weights from `path` (safetensors, f32), on the CPU.
+    pub fn load(cfg: &Config, path: &Path) -> Result<Self, LoadError> {
+        if !path.exists() {
+            return Err(LoadError::Missing(path.to_path_buf()));
+        }
+        let mismatch = |source| LoadError::Mismatch {
+            path: path.to_path_buf(),
+            source,
+        };
+        let tensors = candle_core::safetensors::load(path, &Device::Cpu).map_err(mismatch)?;
+        let vb = VarBuilder::from_tensors(tensors, DType::F32, &Device::Cpu);
+        Ok(Self::from_net(StereoSplat::new(vb, cfg).map_err(mismatch)?))
+    }
+
+    /// Wraps a network (trained or not).
+    pub fn from_net(net: StereoSplat) -> Self {
+        let name = format!("stereosplat-{}", net.config().name);
+        Self { net, name }
+    }
+
+    /// The network.
+    pub fn net(&self) -> &StereoSplat {
+        &self.net
+    }
+}
+
+/// The views' images as one `(2K, 3, H, W)` tensor in `[0, 1]` (left, right, left, ...) and
+/// their cameras. Errors if images differ in size or from their cameras' resolution.
+pub fn images_and_cameras(
+    views: &[StereoView<'_>],
+    device: &Device,
+) -> Result<(Tensor, Vec<Camera>), ReconstructError> {
+    let first = views.first().ok_or(ReconstructError::NoViews)?;
+    let (w, h) = (first.left.width, first.left.height);
+    let mut data = Vec::with_capacity(views.len() * 6 * (w * h) as usize);
+    let mut cameras = Vec::with_capacity(2 * views.len());
+    for view in views {
+        for (image, camera) in [
+            (view.left, view.left_camera),
+            (view.right, view.right_camera),
+        ] {
+            let k = camera.intrinsics;
+            if (image.width, image.height) != (w, h) || (k.width, k.height) != (w, h) {
+                return Err(ReconstructError::InvalidInput(format!(
+                    "image {}x{} with camera {}x{}, expected {w}x{h}",
+                    image.width, image.height, k.width, k.height
+                )));
+            }
+            // Non-finite pixels would poison every feature: they become black.
+            data.extend(
+                image
+                    .data
+                    .iter()
+                    .map(|v| if v.is_finite() { *v } else { 0.0 }),
+            );
+            cameras.push(camera);
+        }
+    }
+    let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
+    let images = Tensor::from_vec(data, (cameras.len(), h as usize, w as usize, 3), device)
+        .and_then(|t| t.permute((0, 3, 1, 2))?.contiguous())
+        .map_err(backend)?;
+    Ok((images, cameras))
+}
+
+impl Reconstructor for LearnedReconstructor {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn reconstruct(&mut self, views: &[StereoView<'_>]) -> Result<GaussianSet, ReconstructError> {
+        let (images, cameras) = images_and_cameras(views, &Device::Cpu)?;
+        let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
+        let prediction = self.net.forward(&images, &cameras).map_err(backend)?;
+        let cfg = self.net.config();
+        to_set(&prediction.splats, cfg.opacity_floor, cfg.max_gaussians).map_err(backend)
+    }
+}
+
+/// The Gaussians whose opacity reaches `floor`, the `budget` most opaque if more, as a set.
+/// Non-finite Gaussians are dropped.
+pub fn to_set(splats: &SplatTensors, floor: f32, budget: usize) -> candle_core::Result<GaussianSet> {
+    let rows = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
+    let (means, scales, rots) = (
+        rows(&splats.means)?,
+        rows(&splats.log_scales)?,
+        rows(&splats.rotations)?,
+    );
+    let (logits, colors, conf) = (
+        rows(&splats.opacity_logits)?,
+        rows(&splats.colors)?,
+        rows(&splats.confidences)?,
+    );
+    let opacity = |i: usize| 1.0 / (1.0 + (-logits[i]).exp());
+    let finite = |i: usize| {
+        means[3 * i..3 * i + 3]
+            .iter()
+            .chain(&scales[3 * i..3 * i + 3])
+            .chain(&rots[4 * i..4 * i + 4])
+            .chain(&colors[3 * i..3 * i + 3])
+            .chain([&logits[i], &conf[i]])
+            .all(|v| v.is_finite())
+    };
+    let mut keep: Vec<usize> = (0..logits.len())
+        .filter(|&i| opacity(i) >= floor && finite(i))
+        .collect();
+    if keep.len() > budget {
+        keep.sort_by(|&a, &b| opacity(b).total_cmp(&opacity(a)).then(a.cmp(&b)));
+        keep.truncate(budget);
+        keep.sort_unstable();
+    }
+    let mut set = GaussianSet::with_capacity(keep.len());
+    let v3 = |v: &[f32], i: usize| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+    for i in keep {
+        let q = Quat::from_xyzw(rots[4 * i + 1], rots[4 * i + 2], rots[4 * i + 3], rots[4 * i]);
+        let q = if q.length_squared() > 1e-12 {
+            q.normalize()
+        } else {
+            Quat::IDENTITY
+        };
+        set.means.push(v3(&means, i));
+        set.log_scales.push(v3(&scales, i));
+        set.rotations.push(q);
+        set.opacities.push(opacity(i));
+        set.colors.push(v3(&colors, i).clamp(Vec3::ZERO, Vec3::ONE));
+        set.confidences.push(conf[i]);
+    }
+    Ok(set)
+}

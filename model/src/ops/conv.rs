@@ -1,0 +1,103 @@
+//! A 2D convolution composed of tensor ops (im2col by one gather, then a matrix product), so that training is fast on the CPU: candle's own convolution backward runs a
+//! direct transposed convolution for the input and a whole-image-kernel convolution for the
+//! weights, both slow on the CPU, while here both gradients are matrix products. Weights are
+//! named and shaped as candle-nn's `Conv2d` (`weight` `(out, in, k, k)`, `bias` `(out,)`),
+//! so files are interchangeable.
+
+use candle_core::{Module, Result, Tensor};
+use candle_nn::{Init, VarBuilder};
+
+/// A square-kernel convolution with zero padding.
+#[derive(Clone, Debug)]
+pub struct Conv {
+    weight: Tensor,
+    bias: Option<Tensor>,
+    kernel: usize,
+    stride: usize,
+    padding: usize,
+}
+
+impl Conv {
+    /// A `kernel` x `kernel` convolution `cin -> cout`, initialised as candle-nn's (Kaiming
+    /// normal weights, uniform bias within `1/sqrt(fan_in)`).
+    pub fn new(
+        vb: VarBuilder,
+        (cin, cout): (usize, usize),
+        kernel: usize,
+        stride: usize,
+        padding: usize,
+        bias: bool,
+    ) -> Result<Self> {
+        let weight = vb.get_with_hints(
+            (cout, cin, kernel, kernel),
+            "weight",
+            candle_nn::init::DEFAULT_KAIMING_NORMAL,
+        )?;
+        let bound = 1.0 / ((cin * kernel * kernel) as f64).sqrt();
+        let bias = if bias {
+            Some(vb.get_with_hints(
+                cout,
+                "bias",
+                Init::Uniform {
+                    lo: -bound,
+                    up: bound,
+                },
+            )?)
+        } else {
+            None
+        };
+        Ok(Self {
+            weight,
+            bias,
+            kernel,
+            stride,
+            padding,
+        })
+    }
+
+    /// `(N, k^2 C, Ho Wo)` columns of `x` `(N, C, H, W)` and the output size.
+    fn columns(&self, x: &Tensor) -> Result<(Tensor, usize, usize)> {
+        let (n, c, h, w) = x.dims4()?;
+        let (k, s, p) = (self.kernel, self.stride, self.padding);
+        if k == 1 && s == 1 && p == 0 {
+            return Ok((x.reshape((n, c, h * w))?, h, w));
+        }
+        let ho = (h + 2 * p).saturating_sub(k) / s + 1;
+        let wo = (w + 2 * p).saturating_sub(k) / s + 1;
+        let padded = x.pad_with_zeros(2, p, p)?.pad_with_zeros(3, p, p)?;
+        let wp = w + 2 * p;
+        // One gather for all taps: its backward is a single scatter-add, where slicing per
+        // tap would add k^2 full-size gradients.
+        let mut idx = Vec::with_capacity(k * k * ho * wo);
+        for dy in 0..k {
+            for dx in 0..k {
+                for i in 0..ho {
+                    let row = (dy + s * i) * wp + dx;
+                    idx.extend((0..wo).map(|j| (row + s * j) as u32));
+                }
+            }
+        }
+        let idx = Tensor::from_vec(idx, k * k * ho * wo, x.device())?;
+        let flat = padded.reshape((n, c, (h + 2 * p) * wp))?;
+        // (N, C, k^2 Ho Wo): channel-major then tap, the order of the weight's (C, k, k).
+        let cols = flat
+            .index_select(&idx, 2)?
+            .reshape((n, c * k * k, ho * wo))?;
+        Ok((cols, ho, wo))
+    }
+}
+
+impl Module for Conv {
+    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let n = x.dim(0)?;
+        let (cols, ho, wo) = self.columns(x)?;
+        let (cout, cin, k, _) = self.weight.dims4()?;
+        let w = self.weight.reshape((1, cout, cin * k * k))?;
+        let y = w.broadcast_matmul(&cols)?;
+        let y = match &self.bias {
+            Some(b) => y.broadcast_add(&b.reshape((1, cout, 1))?)?,
+            None => y,
+        };
+        y.reshape((n, cout, ho, wo))
+    }
+}

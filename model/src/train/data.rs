@@ -1,0 +1,224 @@
+//! Training samples from bins (paper section 3.2.4): the input is a random subset of a bin's
+//! stereo pairs, `m ~ U{1..K}` (stochastic view subsampling; switched off, the bin's first
+//! pair), the targets are other frames of the same bin, with their sparse LiDAR depth.
+
+use std::path::Path;
+
+use candle_core::{Device, Tensor};
+use rand::seq::index::sample;
+use rand::Rng;
+use renderer::Camera;
+
+use crate::bins::{make_bins, Bin, BinConfig};
+use crate::frame::{DepthMap, RgbImage, Side, StereoFrame};
+use crate::kitti360::{Kitti360Error, Sequence};
+use crate::net::every_nth_pixel;
+use crate::reconstruct::StereoView;
+
+/// Why training data could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// The layout could not be read.
+    #[error(transparent)]
+    Kitti360(#[from] Kitti360Error),
+    /// The root holds no usable bin.
+    #[error("no bin of {length} m in any sequence under {root}")]
+    NoBins {
+        /// The data root.
+        root: String,
+        /// The bin length.
+        length: f64,
+    },
+    /// A tensor could not be built.
+    #[error(transparent)]
+    Tensor(#[from] candle_core::Error),
+    /// The views do not fit the network (sizes).
+    #[error(transparent)]
+    Views(#[from] crate::reconstruct::ReconstructError),
+}
+
+/// How samples are drawn.
+#[derive(Clone, Debug)]
+pub struct SampleConfig {
+    /// At most this many input pairs (the paper's K).
+    pub max_pairs: usize,
+    /// Draw the number and placement of input pairs at random (the paper's stochastic view
+    /// subsampling); off, the input is the bin's first pair.
+    pub subsample_views: bool,
+    /// Target frames per sample (each with a random camera of the pair).
+    pub targets: usize,
+    /// Stride of the estimated depth the depth loss compares against LiDAR.
+    pub gaussian_stride: usize,
+}
+
+/// A frame to render and compare with.
+pub struct Target {
+    /// Its camera in the bin's frame.
+    pub camera: Camera,
+    /// The recorded image, `(3, H, W)`.
+    pub image: Tensor,
+    /// Sparse LiDAR depth, `(H, W)`, 0 where none.
+    pub depth: Tensor,
+}
+
+/// One training sample.
+pub struct Sample {
+    /// Input images `(2m, 3, H, W)`.
+    pub images: Tensor,
+    /// Their cameras in the bin's frame.
+    pub cameras: Vec<Camera>,
+    /// LiDAR depth of the inputs at the Gaussians' pixels, `(2m, 1, Hg, Wg)`, 0 where none.
+    pub input_depth: Tensor,
+    /// The frames to render.
+    pub targets: Vec<Target>,
+}
+
+/// Every bin of every sequence under a root.
+pub struct TrainingSet {
+    sequences: Vec<Sequence>,
+    bins: Vec<(usize, Bin)>,
+}
+
+impl TrainingSet {
+    /// Opens every sequence under `root` and cuts it into bins.
+    pub fn open(root: &Path, bins: &BinConfig) -> Result<Self, DataError> {
+        let mut sequences = Vec::new();
+        let mut all = Vec::new();
+        for name in Sequence::list(root)? {
+            let sequence = Sequence::open(root, &name)?;
+            let poses: Vec<_> = sequence.frames().iter().map(|f| f.left_to_world).collect();
+            all.extend(make_bins(&poses, bins).into_iter().map(|b| (sequences.len(), b)));
+            sequences.push(sequence);
+        }
+        if all.is_empty() {
+            return Err(DataError::NoBins {
+                root: root.display().to_string(),
+                length: bins.length_m,
+            });
+        }
+        Ok(Self {
+            sequences,
+            bins: all,
+        })
+    }
+
+    /// How many bins there are.
+    pub fn len(&self) -> usize {
+        self.bins.len()
+    }
+
+    /// Whether there are none (never, once opened).
+    pub fn is_empty(&self) -> bool {
+        self.bins.is_empty()
+    }
+
+    /// Draws a sample with `rng`.
+    pub fn sample(
+        &self,
+        rng: &mut impl Rng,
+        cfg: &SampleConfig,
+        device: &Device,
+    ) -> Result<Sample, DataError> {
+        let (s, bin) = self.bins[rng.random_range(0..self.bins.len())];
+        let sequence = &self.sequences[s];
+        let frames: Vec<usize> = bin.frames().collect();
+        let inputs: Vec<usize> = if cfg.subsample_views {
+            let k = cfg.max_pairs.min(frames.len() - 1).max(1);
+            let m = rng.random_range(1..=k);
+            let mut picked: Vec<usize> = sample(rng, frames.len(), m)
+                .into_iter()
+                .map(|i| frames[i])
+                .collect();
+            picked.sort_unstable();
+            picked
+        } else {
+            vec![bin.first]
+        };
+        let rest: Vec<usize> = frames
+            .iter()
+            .copied()
+            .filter(|f| !inputs.contains(f))
+            .collect();
+        let chosen: Vec<usize> = sample(rng, rest.len(), cfg.targets.min(rest.len()))
+            .into_iter()
+            .map(|i| rest[i])
+            .collect();
+
+        let poses = sequence.frames();
+        let load = |i: usize| sequence.load_frame(poses[i].index);
+        let origin = poses[bin.first].left_to_world;
+        let rig = sequence.rig();
+        let input_frames: Vec<StereoFrame> = inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
+        let views: Vec<StereoView> = input_frames
+            .iter()
+            .map(|f| StereoView {
+                left: &f.left,
+                right: &f.right,
+                left_camera: rig.local_camera(origin, f.left_to_world, Side::Left),
+                right_camera: rig.local_camera(origin, f.left_to_world, Side::Right),
+            })
+            .collect();
+        let (images, cameras) = crate::net::images_and_cameras(&views, device)?;
+        let mut depths = Vec::with_capacity(cameras.len());
+        for f in &input_frames {
+            for side in [Side::Left, Side::Right] {
+                depths.push(depth_tensor(&lidar_or_empty(sequence, f, side), device)?);
+            }
+        }
+        let input_depth = every_nth_pixel(&Tensor::stack(&depths, 0)?, cfg.gaussian_stride)?;
+
+        let mut targets = Vec::with_capacity(chosen.len());
+        for i in chosen {
+            let frame = load(i)?;
+            let side = if rng.random_bool(0.5) {
+                Side::Left
+            } else {
+                Side::Right
+            };
+            let image = match side {
+                Side::Left => &frame.left,
+                Side::Right => &frame.right,
+            };
+            targets.push(Target {
+                camera: rig.local_camera(origin, frame.left_to_world, side),
+                image: image_tensor(image, device)?,
+                depth: depth_tensor(&lidar_or_empty(sequence, &frame, side), device)?
+                    .squeeze(0)?,
+            });
+        }
+        Ok(Sample {
+            images,
+            cameras,
+            input_depth,
+            targets,
+        })
+    }
+}
+
+/// The frame's LiDAR depth, or an empty map when it has none (its depth losses vanish).
+fn lidar_or_empty(sequence: &Sequence, frame: &StereoFrame, side: Side) -> DepthMap {
+    sequence
+        .lidar_depth(frame.index, side)
+        .unwrap_or_else(|_| DepthMap::empty(frame.left.width, frame.left.height))
+}
+
+/// An image as `(3, H, W)`.
+pub fn image_tensor(image: &RgbImage, device: &Device) -> candle_core::Result<Tensor> {
+    Tensor::from_vec(
+        image.data.clone(),
+        (image.height as usize, image.width as usize, 3),
+        device,
+    )?
+    .permute((2, 0, 1))?
+    .contiguous()
+}
+
+/// A depth map as `(1, H, W)`, non-finite values as 0 (no measurement).
+pub fn depth_tensor(depth: &DepthMap, device: &Device) -> candle_core::Result<Tensor> {
+    let data = depth
+        .data
+        .iter()
+        .map(|&d| if d.is_finite() && d > 0.0 { d } else { 0.0 })
+        .collect();
+    Tensor::from_vec(data, (1, depth.height as usize, depth.width as usize), device)
+}

@@ -1,0 +1,140 @@
+//! The paper's training objective (section 3.2.5, eq. total loss) for the cost-volume branch:
+//! `lambda1 * L_rec + lambda2 * L_D-rend + lambda3 * L_conf` averaged over target views, plus
+//! `lambda4 * L_D-est`, with `L_rec = w_l2 * L2 + w_lpips * LPIPS`.
+
+use candle_core::{Result, Tensor};
+use serde::{Deserialize, Serialize};
+
+use super::data::Sample;
+use crate::lpips::Lpips;
+use crate::net::Prediction;
+use crate::ops::{render, CH_ALPHA, CH_CONFIDENCE, CH_DEPTH, CH_R};
+use renderer::RenderSettings;
+
+/// Loss weights; the defaults are the paper's.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct LossWeights {
+    /// Weight of the image reconstruction loss (lambda1).
+    pub reconstruction: f64,
+    /// Weight of the rendered-depth loss (lambda2).
+    pub rendered_depth: f64,
+    /// Weight of the confidence loss (lambda3).
+    pub confidence: f64,
+    /// Weight of the estimated-depth loss (lambda4).
+    pub estimated_depth: f64,
+    /// Weight of the L2 term inside the reconstruction loss.
+    pub l2: f64,
+    /// Weight of the LPIPS term inside the reconstruction loss.
+    pub lpips: f64,
+    /// Sharpness of the confidence target `exp(-beta * error)` (error: mean absolute RGB
+    /// error per pixel; the paper does not give beta).
+    pub beta: f64,
+    /// LiDAR depths beyond this are not supervised (metres; the evaluation's range).
+    pub max_depth: f32,
+}
+
+impl Default for LossWeights {
+    fn default() -> Self {
+        Self {
+            reconstruction: 1.0,
+            rendered_depth: 0.01,
+            confidence: 0.01,
+            estimated_depth: 0.05,
+            l2: 1.0,
+            lpips: 0.05,
+            beta: 10.0,
+            max_depth: 80.0,
+        }
+    }
+}
+
+/// The loss and its parts (the parts as plain numbers, for the log).
+pub struct Losses {
+    /// The total, differentiable.
+    pub total: Tensor,
+    /// Mean image L2 over targets.
+    pub l2: f32,
+    /// Mean LPIPS over targets.
+    pub lpips: f32,
+    /// Mean masked L1 of rendered depth, metres.
+    pub rendered_depth: f32,
+    /// Masked L1 of estimated depth, metres.
+    pub estimated_depth: f32,
+    /// Mean confidence regression error.
+    pub confidence: f32,
+}
+
+/// `sum(mask * |a - b|) / sum(mask)`, 0 when the mask is empty.
+pub fn masked_l1(a: &Tensor, b: &Tensor, mask: &Tensor) -> Result<Tensor> {
+    let count = mask.sum_all()?;
+    let sum = ((a - b)?.abs()? * mask)?.sum_all()?;
+    sum.broadcast_div(&count.maximum(1.0)?)
+}
+
+/// The mask of supervised LiDAR pixels: a measurement in `(0, max_depth]`.
+fn lidar_mask(depth: &Tensor, max_depth: f32) -> Result<Tensor> {
+    let valid = depth.gt(0.0)?.mul(&depth.le(max_depth)?)?;
+    valid.to_dtype(depth.dtype())
+}
+
+/// Renders every target of `sample` from `prediction` and scores the whole objective.
+pub fn losses(
+    prediction: &Prediction,
+    sample: &Sample,
+    lpips: &Lpips,
+    weights: &LossWeights,
+    settings: &RenderSettings,
+) -> Result<Losses> {
+    let splats = prediction.splats.pack()?;
+    let mut renders = Vec::with_capacity(sample.targets.len());
+    let mut per_view = Vec::new();
+    let (mut l2_sum, mut depth_sum, mut conf_sum) = (0f32, 0f32, 0f32);
+    for target in &sample.targets {
+        let out = render(&splats, &target.camera, settings)?;
+        let rgb = out.narrow(0, CH_R, 3)?;
+        let l2 = (&rgb - &target.image)?.sqr()?.mean_all()?;
+        let depth = out.get(CH_DEPTH)?;
+        let mask = lidar_mask(&target.depth, weights.max_depth)?;
+        let d_rend = masked_l1(&depth, &target.depth, &mask)?;
+        let error = (&rgb - &target.image)?.abs()?.mean(0)?.detach();
+        let conf_target = (error * -weights.beta)?.exp()?;
+        // Composited confidence over alpha is the confidence of what is drawn.
+        let alpha = out.get(CH_ALPHA)?;
+        let conf = (out.get(CH_CONFIDENCE)? - (conf_target * &alpha)?)?.abs()?.mean_all()?;
+        l2_sum += l2.to_scalar::<f32>()?;
+        depth_sum += d_rend.to_scalar::<f32>()?;
+        conf_sum += conf.to_scalar::<f32>()?;
+        per_view.push(
+            ((l2 * (weights.reconstruction * weights.l2))?
+                + (d_rend * weights.rendered_depth)?
+                + (conf * weights.confidence)?)?,
+        );
+        renders.push(rgb);
+    }
+    let n = sample.targets.len().max(1) as f64;
+    let truth: Vec<&Tensor> = sample.targets.iter().map(|t| &t.image).collect();
+    let perceptual = if renders.is_empty() {
+        Tensor::zeros((), splats.dtype(), splats.device())?
+    } else {
+        lpips
+            .forward(&Tensor::stack(&renders, 0)?, &Tensor::stack(&truth, 0)?)?
+            .mean_all()?
+    };
+    let mask = lidar_mask(&sample.input_depth, weights.max_depth)?;
+    let d_est = masked_l1(&prediction.depth, &sample.input_depth, &mask)?;
+    let views = if per_view.is_empty() {
+        Tensor::zeros((), splats.dtype(), splats.device())?
+    } else {
+        (Tensor::stack(&per_view, 0)?.sum_all()? / n)?
+    };
+    let total = ((views + (&perceptual * (weights.reconstruction * weights.lpips))?)?
+        + (&d_est * weights.estimated_depth)?)?;
+    Ok(Losses {
+        total,
+        l2: l2_sum / n as f32,
+        lpips: perceptual.to_scalar::<f32>()?,
+        rendered_depth: depth_sum / n as f32,
+        estimated_depth: d_est.to_scalar::<f32>()?,
+        confidence: conf_sum / n as f32,
+    })
+}

@@ -1,0 +1,342 @@
+//! Training of the StereoSplat network (paper section 3.2.4-3.2.5 and 4.2): samples from bins
+//! with stochastic view subsampling, renders of the predicted Gaussians through the
+//! differentiable rasterizer, the paper's losses, AdamW with betas (0.9, 0.99), linear
+//! warm-up then a constant rate, global gradient clipping, seeded everything, checkpoints
+//! with exact resume, a CSV log and the weights exported as safetensors.
+
+mod adamw;
+mod data;
+mod log;
+mod loss;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use candle_core::{DType, Device, Tensor};
+use candle_nn::{VarBuilder, VarMap};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+pub use adamw::{AdamW, AdamWConfig};
+pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
+pub use log::{TrainLog, LOG_COLUMNS};
+pub use loss::{losses, masked_l1, LossWeights, Losses};
+
+use crate::bins::BinConfig;
+use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
+use crate::net::{Config, StereoSplat};
+use renderer::RenderSettings;
+
+/// Why training stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// Training data could not be read.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// A tensor operation failed.
+    #[error(transparent)]
+    Tensor(#[from] candle_core::Error),
+    /// A file of the run could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The checkpoint belongs to another preset.
+    #[error("checkpoint is for preset `{found}`, not `{expected}`")]
+    PresetMismatch {
+        /// The preset asked for.
+        expected: String,
+        /// The checkpoint's.
+        found: String,
+    },
+    /// The checkpoint state file is not valid JSON.
+    #[error("checkpoint state {0}: {1}")]
+    State(PathBuf, serde_json::Error),
+}
+
+/// Settings of a training run.
+#[derive(Clone, Debug)]
+pub struct TrainConfig {
+    /// Optimizer steps in all (a resumed run stops at the same total).
+    pub steps: u64,
+    /// Learning rate after warm-up.
+    pub lr: f64,
+    /// Steps of linear warm-up.
+    pub warmup: u64,
+    /// Largest global gradient norm.
+    pub clip: f64,
+    /// Seed of the initial weights and of every sample.
+    pub seed: u64,
+    /// Steps between checkpoints.
+    pub checkpoint_every: u64,
+    /// How samples are drawn.
+    pub sample: SampleConfig,
+    /// Loss weights.
+    pub loss: LossWeights,
+    /// Bin cutting.
+    pub bins: BinConfig,
+    /// Optimizer settings.
+    pub adamw: AdamWConfig,
+}
+
+/// What one step did, for progress and the log.
+#[derive(Clone, Debug)]
+pub struct StepReport {
+    /// The step just taken (1-based).
+    pub step: u64,
+    /// Total loss.
+    pub loss: f32,
+    /// Image L2.
+    pub l2: f32,
+    /// LPIPS.
+    pub lpips: f32,
+    /// Rendered-depth L1, metres.
+    pub rendered_depth: f32,
+    /// Estimated-depth L1, metres.
+    pub estimated_depth: f32,
+    /// Confidence regression error.
+    pub confidence: f32,
+    /// Learning rate used.
+    pub lr: f64,
+    /// Gradient norm before clipping.
+    pub grad_norm: f64,
+    /// Input pairs of the sample.
+    pub pairs: usize,
+    /// Steps per second over this session's steps.
+    pub steps_per_s: f64,
+    /// Seconds of training in all sessions.
+    pub elapsed_s: f64,
+}
+
+/// The checkpoint's bookkeeping (`state.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct State {
+    preset: String,
+    step: u64,
+    seed: u64,
+    elapsed_s: f64,
+}
+
+/// Files of a run directory.
+fn checkpoint_dir(out: &Path) -> PathBuf {
+    out.join("checkpoint")
+}
+
+/// The exported weights of a run: `<out>/stereosplat_<preset>.safetensors`.
+pub fn exported_weights(out: &Path, preset: &str) -> PathBuf {
+    out.join(format!("stereosplat_{preset}.safetensors"))
+}
+
+/// A training run in progress.
+pub struct Trainer {
+    varmap: VarMap,
+    net: StereoSplat,
+    optimizer: AdamW,
+    lpips: Lpips,
+    data: TrainingSet,
+    cfg: TrainConfig,
+    out: PathBuf,
+    log: TrainLog,
+    elapsed_before: f64,
+}
+
+impl Trainer {
+    /// A run of preset `net_cfg` on the sequences under `data`, writing to `out`; with
+    /// `resume`, continues from `out`'s checkpoint (weights, optimizer moments, step, log).
+    pub fn new(
+        net_cfg: &Config,
+        cfg: TrainConfig,
+        data: &Path,
+        out: &Path,
+        resume: bool,
+    ) -> Result<Self, TrainError> {
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| TrainError::Io { path, source }
+        };
+        std::fs::create_dir_all(checkpoint_dir(out)).map_err(io(out))?;
+        let device = Device::Cpu;
+        let varmap = VarMap::new();
+        let net = StereoSplat::new(VarBuilder::from_varmap(&varmap, DType::F32, &device), net_cfg)?;
+        reseed(&varmap, cfg.seed)?;
+        let vars = varmap
+            .data()
+            .lock()
+            .expect("varmap lock")
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect();
+        let mut optimizer = AdamW::new(vars, cfg.adamw.clone())?;
+        let mut elapsed_before = 0.0;
+        let dir = checkpoint_dir(out);
+        let state_path = dir.join("state.json");
+        let step = if resume && state_path.exists() {
+            let text = std::fs::read_to_string(&state_path).map_err(io(&state_path))?;
+            let state: State =
+                serde_json::from_str(&text).map_err(|e| TrainError::State(state_path.clone(), e))?;
+            if state.preset != net_cfg.name {
+                return Err(TrainError::PresetMismatch {
+                    expected: net_cfg.name.clone(),
+                    found: state.preset,
+                });
+            }
+            let mut varmap = varmap.clone();
+            varmap.load(dir.join("weights.safetensors"))?;
+            optimizer.load(&dir.join("optimizer.safetensors"), state.step)?;
+            elapsed_before = state.elapsed_s;
+            state.step
+        } else {
+            0
+        };
+        let log = TrainLog::open(&out.join("log.csv"), step).map_err(io(out))?;
+        Ok(Self {
+            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
+            data: TrainingSet::open(data, &cfg.bins)?,
+            varmap,
+            net,
+            optimizer,
+            cfg,
+            out: out.to_path_buf(),
+            log,
+            elapsed_before,
+        })
+    }
+
+    /// Replaces the weights with those of a safetensors file of the same preset (the start
+    /// of a fine-tuning run).
+    pub fn load_weights(&mut self, path: &Path) -> Result<(), TrainError> {
+        self.varmap.load(path)?;
+        Ok(())
+    }
+
+    /// Steps already taken.
+    pub fn step(&self) -> u64 {
+        self.optimizer.step
+    }
+
+    /// Bins in the training set.
+    pub fn bins(&self) -> usize {
+        self.data.len()
+    }
+
+    /// Trains until the configured step count or until `stop` returns true, reporting
+    /// every step; checkpoints every `checkpoint_every` steps and at the end.
+    pub fn run(
+        &mut self,
+        stop: &dyn Fn() -> bool,
+        report: &mut dyn FnMut(&StepReport),
+    ) -> Result<(), TrainError> {
+        let start = Instant::now();
+        let first = self.optimizer.step;
+        let settings = RenderSettings::default();
+        while self.optimizer.step < self.cfg.steps && !stop() {
+            let step = self.optimizer.step + 1;
+            let mut rng = ChaCha8Rng::seed_from_u64(mix(self.cfg.seed, step));
+            let sample = self.data.sample(&mut rng, &self.cfg.sample, &Device::Cpu)?;
+            let prediction = self.net.forward(&sample.images, &sample.cameras)?;
+            let l = losses(&prediction, &sample, &self.lpips, &self.cfg.loss, &settings)?;
+            let mut grads = l.total.backward()?;
+            let grad_norm = self.optimizer.clip(&mut grads, self.cfg.clip)?;
+            let lr = self.lr(step);
+            if grad_norm.is_finite() {
+                self.optimizer.update(&grads, lr)?;
+            } else {
+                // A non-finite gradient would poison the weights: the step is skipped (and
+                // logged with its norm) but counted, so the sample stream stays the same.
+                self.optimizer.step += 1;
+            }
+            let session = start.elapsed().as_secs_f64();
+            let r = StepReport {
+                step,
+                loss: l.total.to_scalar::<f32>()?,
+                l2: l.l2,
+                lpips: l.lpips,
+                rendered_depth: l.rendered_depth,
+                estimated_depth: l.estimated_depth,
+                confidence: l.confidence,
+                lr,
+                grad_norm,
+                pairs: sample.cameras.len() / 2,
+                steps_per_s: (step - first) as f64 / session.max(1e-9),
+                elapsed_s: self.elapsed_before + session,
+            };
+            self.log.append(&r).map_err(|source| TrainError::Io {
+                path: self.out.join("log.csv"),
+                source,
+            })?;
+            report(&r);
+            if step % self.cfg.checkpoint_every == 0 {
+                self.checkpoint(r.elapsed_s)?;
+            }
+        }
+        self.checkpoint(self.elapsed_before + start.elapsed().as_secs_f64())
+    }
+
+    /// The learning rate at `step`: linear warm-up to `lr`, then constant.
+    fn lr(&self, step: u64) -> f64 {
+        let warm = self.cfg.warmup.max(1);
+        self.cfg.lr * (step.min(warm) as f64 / warm as f64)
+    }
+
+    /// Writes weights, optimizer moments and then the state (so a state file always
+    /// describes complete files), and exports the weights.
+    fn checkpoint(&self, elapsed_s: f64) -> Result<(), TrainError> {
+        let dir = checkpoint_dir(&self.out);
+        let io = |path: PathBuf| move |source| TrainError::Io { path, source };
+        let weights = dir.join("weights.safetensors");
+        let tmp = dir.join("weights.safetensors.tmp");
+        self.varmap.save(&tmp)?;
+        std::fs::rename(&tmp, &weights).map_err(io(weights.clone()))?;
+        let opt = dir.join("optimizer.safetensors");
+        let tmp = dir.join("optimizer.safetensors.tmp");
+        self.optimizer.save(&tmp)?;
+        std::fs::rename(&tmp, &opt).map_err(io(opt.clone()))?;
+        let state = State {
+            preset: self.net.config().name.clone(),
+            step: self.optimizer.step,
+            seed: self.cfg.seed,
+            elapsed_s,
+        };
+        let path = dir.join("state.json");
+        let text = serde_json::to_string_pretty(&state).expect("state serialises");
+        std::fs::write(&path, text).map_err(io(path.clone()))?;
+        let export = exported_weights(&self.out, &self.net.config().name);
+        std::fs::copy(&weights, &export).map_err(io(export.clone()))?;
+        Ok(())
+    }
+}
+
+/// A per-step seed from the run's seed, so a resumed run draws the samples it would have.
+fn mix(seed: u64, step: u64) -> u64 {
+    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ step.wrapping_mul(0xD1B5_4A32_D192_ED03)
+}
+
+/// Redraws every variable from a generator seeded with `seed` (candle's CPU initialisers
+/// cannot be seeded): each non-constant variable keeps its initialiser's variance (uniform
+/// with the same standard deviation); constants (norm weights, zero biases) stay.
+fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
+    let data = varmap.data().lock().expect("varmap lock");
+    let mut names: Vec<&String> = data.keys().collect();
+    names.sort();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    for name in names {
+        let var = &data[name];
+        let values: Vec<f32> = var.flatten_all()?.to_vec1()?;
+        let n = values.len() as f64;
+        let mean = values.iter().map(|&v| v as f64).sum::<f64>() / n;
+        let var_ = values.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / n;
+        if var_ <= 0.0 {
+            continue;
+        }
+        let bound = (3.0 * var_).sqrt();
+        let fresh: Vec<f32> = (0..values.len())
+            .map(|_| rng.random_range(-bound..bound) as f32)
+            .collect();
+        var.set(&Tensor::from_vec(fresh, var.shape(), var.device())?)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,135 @@
+//! `stereosplat train`: trains a preset on a KITTI-360-layout root (generated streets or the
+//! real data set), with checkpoints, resume, a CSV log and the weights as safetensors.
+//! Ctrl-C stops at the end of the current step after writing a checkpoint.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use model::bins::BinConfig;
+use model::net::Config;
+use model::train::{
+    exported_weights, AdamWConfig, LossWeights, SampleConfig, TrainConfig, Trainer,
+};
+
+use super::progress;
+
+/// Flags of `train`.
+#[derive(Args, Clone, Debug)]
+pub struct TrainArgs {
+    /// KITTI-360-layout root to train on (every sequence under it).
+    #[arg(long)]
+    data: PathBuf,
+    /// Network preset (tiny, small, paper).
+    #[arg(long, default_value = "tiny")]
+    preset: String,
+    /// Run directory: checkpoint/, log.csv, the exported weights.
+    #[arg(long)]
+    out: PathBuf,
+    /// Continue from the run directory's checkpoint.
+    #[arg(long)]
+    resume: bool,
+    /// Start from these weights instead of a seeded initialisation (fine-tuning, e.g. the
+    /// shipped synthetic weights on real KITTI-360).
+    #[arg(long, conflicts_with = "resume")]
+    init: Option<PathBuf>,
+    /// Optimizer steps in all.
+    #[arg(long, default_value_t = 6000)]
+    steps: u64,
+    /// Learning rate after warm-up (the paper's is 8e-5 for 1.45M steps; short runs here
+    /// need more).
+    #[arg(long, default_value_t = 1e-3)]
+    lr: f64,
+    /// Linear warm-up steps.
+    #[arg(long, default_value_t = 200)]
+    warmup: u64,
+    /// Largest global gradient norm.
+    #[arg(long, default_value_t = 1.0)]
+    clip: f64,
+    /// Seed of the weights and samples.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Steps between checkpoints.
+    #[arg(long, default_value_t = 100)]
+    checkpoint_every: u64,
+    /// Most input stereo pairs per sample (the paper's K).
+    #[arg(long, default_value_t = 3)]
+    max_pairs: usize,
+    /// Always use the bin's first pair as input (switches stochastic view subsampling off).
+    #[arg(long)]
+    no_subsample: bool,
+    /// Target frames rendered per step.
+    #[arg(long, default_value_t = 2)]
+    targets: usize,
+}
+
+/// Runs `train`.
+pub fn run(args: &TrainArgs) -> Result<()> {
+    let net = Config::preset(&args.preset)?;
+    let cfg = TrainConfig {
+        steps: args.steps,
+        lr: args.lr,
+        warmup: args.warmup,
+        clip: args.clip,
+        seed: args.seed,
+        checkpoint_every: args.checkpoint_every.max(1),
+        sample: SampleConfig {
+            max_pairs: args.max_pairs.max(1),
+            subsample_views: !args.no_subsample,
+            targets: args.targets,
+            gaussian_stride: net.gaussian_stride,
+        },
+        loss: LossWeights::default(),
+        bins: BinConfig::default(),
+        adamw: AdamWConfig::default(),
+    };
+    let mut trainer = Trainer::new(&net, cfg, &args.data, &args.out, args.resume)
+        .with_context(|| format!("starting training in {}", args.out.display()))?;
+    if let Some(init) = &args.init {
+        trainer
+            .load_weights(init)
+            .with_context(|| format!("loading {}", init.display()))?;
+    }
+    eprintln!(
+        "training {} on {} bins from step {} to {}",
+        args.preset,
+        trainer.bins(),
+        trainer.step(),
+        args.steps
+    );
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc_hook(move || flag.store(true, Ordering::SeqCst));
+    let bar = progress::bar(args.steps as usize, "train");
+    bar.set_position(trainer.step());
+    trainer.run(&|| stop.load(Ordering::SeqCst), &mut |r| {
+        bar.set_position(r.step);
+        bar.set_message(format!(
+            "loss {:.4} l2 {:.4} lpips {:.3} depth {:.2} m {:.2} it/s",
+            r.loss, r.l2, r.lpips, r.estimated_depth, r.steps_per_s
+        ));
+    })?;
+    bar.finish();
+    println!(
+        "step {}: weights {}",
+        trainer.step(),
+        exported_weights(&args.out, &args.preset).display()
+    );
+    Ok(())
+}
+
+/// Calls `f` on the first SIGINT or SIGTERM, from a thread of its own.
+fn ctrlc_hook(f: impl FnOnce() + Send + 'static) {
+    std::thread::spawn(move || {
+        let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+        else {
+            return;
+        };
+        rt.block_on(super::shutdown::shutdown_signal());
+        f();
+    });
+}

@@ -2,13 +2,15 @@
 //! reader, the synthetic street generator, bins, metrics), the reconstructors that turn
 //! stereo frames into Gaussian sets (the classical baseline now, the candle network later),
 //! the differentiable candle ops the network trains through ([`ops`]), the LPIPS loss and
-//! metric ([`lpips`]), and the evaluation protocol of the paper's section 4.
+//! metric ([`lpips`]), the evaluation protocol of the paper's section 4, and loss-curve
+//! charts ([`curve`]).
 //!
 //! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
 //! about transport (`node`).
 
 pub mod baseline;
 pub mod bins;
+pub mod curve;
 pub mod eval;
 pub mod frame;
 pub mod generate;

@@ -167,6 +167,22 @@ impl Lpips {
         )
     }
 
+    /// The shipped weights ([`DEFAULT_WEIGHTS`]) in f32 on the CPU: the network `eval`
+    /// scores with, loadable without naming candle types.
+    pub fn load_default() -> Result<Self> {
+        Self::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu)
+    }
+
+    /// The device the network lives on (inputs must be there too).
+    pub fn device(&self) -> &Device {
+        self.shift.device()
+    }
+
+    /// The network's dtype (inputs must have it too).
+    pub fn dtype(&self) -> DType {
+        self.shift.dtype()
+    }
+
     /// The five layers' unit-normalised features of images in `[0, 1]`, `(N, 3, H, W)`.
     fn features(&self, x: &Tensor) -> Result<Vec<Tensor>> {
         let mut x = x

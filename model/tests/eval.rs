@@ -9,6 +9,7 @@ use model::eval::{evaluate, BinReport, EvalConfig, Raster, SkippedBin};
 use model::frame::Side;
 use model::generate::{sequence_name, write_synthetic};
 use model::kitti360::{layout, Sequence};
+use model::lpips::Lpips;
 use model::synth::SynthConfig;
 
 const SEED: u64 = 7;
@@ -29,7 +30,12 @@ fn drive(case: &str) -> (PathBuf, String) {
     (root, name)
 }
 
-fn run(root: &Path, name: &str) -> (Sequence, Vec<BinReport>, Vec<SkippedBin>) {
+/// Evaluates the baseline on the drive, with LPIPS when `lpips` is given.
+fn run(
+    root: &Path,
+    name: &str,
+    lpips: Option<Lpips>,
+) -> (Sequence, Vec<BinReport>, Vec<SkippedBin>) {
     let sequence = Sequence::open(root, name).unwrap();
     let mut sgm = SgmReconstructor::new(SgmConfig::default());
     let config = EvalConfig {
@@ -37,6 +43,7 @@ fn run(root: &Path, name: &str) -> (Sequence, Vec<BinReport>, Vec<SkippedBin>) {
             layout: model::bins::BinLayout::Sliding { stride: 3 },
             ..Default::default()
         },
+        lpips,
         ..EvalConfig::default()
     };
     let mut calls = 0;
@@ -59,7 +66,7 @@ fn contains(report: &BinReport, frame: u32) -> bool {
 #[test]
 fn a_clean_drive_scores_every_bin_with_finite_numbers() {
     let (root, name) = drive("clean");
-    let (_, bins, skipped) = run(&root, &name);
+    let (_, bins, skipped) = run(&root, &name, Some(Lpips::load_default().unwrap()));
     assert!(skipped.is_empty(), "{skipped:?}");
     assert!(bins.len() >= 3, "{} bins", bins.len());
     for bin in &bins {
@@ -69,10 +76,15 @@ fn a_clean_drive_scores_every_bin_with_finite_numbers() {
         for f in &bin.frames {
             assert!(f.psnr.is_finite() && f.psnr > 8.0, "{f:?}");
             assert!((0.0..=1.0).contains(&f.ssim), "{f:?}");
+            assert!(f.lpips.is_some_and(|d| d > 0.0 && d < 1.0), "{f:?}");
             assert!(f.abs_rel.is_some_and(|a| a.is_finite()), "{f:?}");
             assert!(f.lidar_pixels > 50, "{f:?}");
         }
     }
+    // The input view re-rendered is perceptually closest; the last frame, 8 m on, farthest.
+    let summary = model::eval::Summary::of(&bins);
+    let (first, last) = (summary.first.lpips.unwrap(), summary.last.lpips.unwrap());
+    assert!(first < last, "first {first} last {last}");
     let _ = std::fs::remove_dir_all(&root);
 }
 
@@ -81,7 +93,7 @@ fn a_missing_image_skips_only_the_bins_that_need_it() {
     let (root, name) = drive("missing");
     let gone = layout::image(&root, &name, Side::Right, 12);
     std::fs::remove_file(&gone).unwrap();
-    let (_, bins, skipped) = run(&root, &name);
+    let (_, bins, skipped) = run(&root, &name, None);
     assert!(!skipped.is_empty());
     for s in &skipped {
         assert!(
@@ -102,7 +114,7 @@ fn a_corrupt_png_and_a_size_mismatch_skip_their_bins_with_the_file_named() {
     std::fs::write(&corrupt, b"\x89PNG\r\n\x1a\nnot really").unwrap();
     let small = layout::image(&root, &name, Side::Right, 20);
     image::RgbImage::new(50, 20).save(&small).unwrap();
-    let (_, bins, skipped) = run(&root, &name);
+    let (_, bins, skipped) = run(&root, &name, None);
     let named = |p: &Path| {
         skipped
             .iter()
@@ -117,7 +129,7 @@ fn a_corrupt_png_and_a_size_mismatch_skip_their_bins_with_the_file_named() {
 fn an_empty_lidar_scan_leaves_only_that_frames_depth_unscored() {
     let (root, name) = drive("lidar");
     std::fs::write(layout::velodyne(&root, &name, 6), b"").unwrap();
-    let (_, bins, skipped) = run(&root, &name);
+    let (_, bins, skipped) = run(&root, &name, None);
     assert!(skipped.is_empty(), "{skipped:?}");
     let frame6: Vec<_> = bins
         .iter()
@@ -127,6 +139,7 @@ fn an_empty_lidar_scan_leaves_only_that_frames_depth_unscored() {
     assert!(!frame6.is_empty());
     for f in frame6 {
         assert_eq!((f.abs_rel, f.lidar_pixels), (None, 0));
+        assert_eq!(f.lpips, None, "LPIPS was off");
         assert!(f.psnr.is_finite(), "the image is still scored");
     }
     let _ = std::fs::remove_dir_all(&root);
@@ -149,7 +162,7 @@ fn a_non_finite_pose_drops_its_frame_and_is_counted() {
         })
         .collect();
     std::fs::write(&path, broken.join("\n") + "\n").unwrap();
-    let (sequence, bins, skipped) = run(&root, &name);
+    let (sequence, bins, skipped) = run(&root, &name, None);
     assert_eq!(sequence.skipped().len(), 1);
     assert_eq!(sequence.skipped()[0].index, 15);
     assert!(skipped.is_empty());

@@ -1,6 +1,7 @@
 //! The data and evaluation commands end to end, as a user runs them: a held-out synthetic
 //! drive is written in the KITTI-360 layout, then the classical baseline is evaluated on it
-//! with the paper's protocol, and the table, JSON and pictures are checked.
+//! with the paper's protocol (LPIPS on by default, then off), and the table, JSON and
+//! pictures are checked.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -51,6 +52,7 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
         &[&data, Path::new("--out"), &out],
     );
     assert!(table.contains("| sgm |"), "{table}");
+    assert!(table.contains("| first LPIPS |"), "{table}");
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("eval.json")).unwrap()).unwrap();
     assert_eq!(json["bins"].as_array().unwrap().len(), 4);
@@ -62,8 +64,22 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
     assert!(num(&first["psnr"]) > num(&last["psnr"]), "{json}");
     assert!(num(&first["psnr"]) > 15.0, "{json}");
     assert!(num(&first["abs_rel"]) < 0.2, "{json}");
+    assert!(num(&first["lpips"]) < num(&last["lpips"]), "{json}");
+    assert!(num(&last["lpips"]) < 1.0, "{json}");
     let pictures = std::fs::read_dir(out.join("pictures")).unwrap().count();
     assert_eq!(pictures, 3, "first, centre and last of one bin");
+
+    let table = stereosplat(
+        &["eval", "--no-lpips", "--max-bins", "1", "--data"],
+        &[&data, Path::new("--out"), &out],
+    );
+    assert!(
+        table.contains("| sgm |") && !table.contains("LPIPS"),
+        "{table}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("eval.json")).unwrap()).unwrap();
+    assert!(json["summary"]["first"]["lpips"].is_null(), "{json}");
     let _ = std::fs::remove_dir_all(&data);
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -1,7 +1,7 @@
 //! The evaluation protocol of the paper's section 4: for every bin of a sequence, a
 //! reconstructor sees only the bin's first stereo pair; every frame of the bin is rendered
 //! from the reconstruction (left and right) and scored against the recorded images (PSNR,
-//! SSIM) and the LiDAR depth (AbsRel, SqRel). [`report`] turns the scores into the paper's
+//! SSIM, optionally LPIPS) and the LiDAR depth (AbsRel, SqRel). [`report`] turns the scores into the paper's
 //! table, [`pictures`] draws a few bins.
 
 pub mod pictures;

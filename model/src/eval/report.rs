@@ -1,5 +1,6 @@
 //! Scores of an evaluation and the paper's table made from them (first / centre / last
-//! frame and bin average, PSNR, SSIM, AbsRel, SqRel), as markdown and JSON.
+//! frame and bin average, PSNR, SSIM, LPIPS when scored, AbsRel, SqRel), as markdown and
+//! JSON.
 
 use serde::Serialize;
 
@@ -20,6 +21,9 @@ pub struct FrameScore {
     pub psnr: f64,
     /// SSIM against the recorded image (scikit-image's settings).
     pub ssim: f64,
+    /// LPIPS (AlexNet) against the recorded image, lower is better; `None` when the
+    /// evaluation ran without LPIPS.
+    pub lpips: Option<f64>,
     /// Mean |d - d_lidar| / d_lidar over valid LiDAR pixels; `None` without LiDAR there.
     pub abs_rel: Option<f64>,
     /// Mean (d - d_lidar)^2 / d_lidar over valid LiDAR pixels; `None` without LiDAR there.
@@ -66,13 +70,15 @@ pub struct SkippedBin {
     pub reason: String,
 }
 
-/// Means of the four metrics over a set of frames.
+/// Means of the metrics over a set of frames.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct MeanScores {
     /// Mean PSNR, dB.
     pub psnr: f64,
     /// Mean SSIM.
     pub ssim: f64,
+    /// Mean LPIPS over the frames that were scored with it (`None` if none were).
+    pub lpips: Option<f64>,
     /// Mean AbsRel over the frames that had LiDAR (`None` if none had).
     pub abs_rel: Option<f64>,
     /// Mean SqRel over the frames that had LiDAR.
@@ -89,6 +95,7 @@ impl MeanScores {
         Self {
             psnr: mean(scores.iter().map(|s| s.psnr).collect()).unwrap_or(f64::NAN),
             ssim: mean(scores.iter().map(|s| s.ssim).collect()).unwrap_or(f64::NAN),
+            lpips: mean(scores.iter().filter_map(|s| s.lpips).collect()),
             abs_rel: mean(scores.iter().filter_map(|s| s.abs_rel).collect()),
             sq_rel: mean(scores.iter().filter_map(|s| s.sq_rel).collect()),
             count: scores.len(),
@@ -101,6 +108,7 @@ impl MeanScores {
             .map(|f| MeanScores {
                 psnr: f.psnr,
                 ssim: f.ssim,
+                lpips: f.lpips,
                 abs_rel: f.abs_rel,
                 sq_rel: f.sq_rel,
                 count: 1,
@@ -209,7 +217,7 @@ impl EvalReport {
             self.mean_gaussians,
             self.mean_reconstruct_ms,
         );
-        s.push_str(&table_header());
+        s.push_str(&table_header(self.has_lpips()));
         s.push_str(&self.table_row());
         if !self.skipped.is_empty() {
             s.push_str("\nSkipped bins:\n\n");
@@ -223,18 +231,24 @@ impl EvalReport {
         s
     }
 
-    /// This method's line of the table (see [`table_header`]).
+    /// Whether any frame was scored with LPIPS, i.e. whether the table has LPIPS columns.
+    pub fn has_lpips(&self) -> bool {
+        self.summary.average.lpips.is_some()
+    }
+
+    /// This method's line of the table (see [`table_header`], called with
+    /// [`EvalReport::has_lpips`]).
     pub fn table_row(&self) -> String {
         let t = &self.summary;
+        let with_lpips = self.has_lpips();
         let cells: Vec<String> = [t.first, t.centre, t.last, t.average]
             .iter()
             .flat_map(|m| {
-                [
-                    format!("{:.2}", m.psnr),
-                    format!("{:.3}", m.ssim),
-                    opt(m.abs_rel),
-                    opt(m.sq_rel),
-                ]
+                let lpips = with_lpips.then(|| opt(m.lpips));
+                [format!("{:.2}", m.psnr), format!("{:.3}", m.ssim)]
+                    .into_iter()
+                    .chain(lpips)
+                    .chain([opt(m.abs_rel), opt(m.sq_rel)])
             })
             .collect();
         format!("| {} | {} |\n", self.method, cells.join(" | "))
@@ -246,16 +260,17 @@ fn opt(v: Option<f64>) -> String {
 }
 
 /// The header of the paper-style table: for each of first, centre, last frame and the bin
-/// average, PSNR, SSIM, AbsRel and SqRel.
-pub fn table_header() -> String {
+/// average, PSNR, SSIM, LPIPS (only `with_lpips`, so runs without it keep the narrower
+/// table), AbsRel and SqRel. Rows of one table must agree on `with_lpips`.
+pub fn table_header(with_lpips: bool) -> String {
     let groups = ["first", "centre", "last", "bin avg"];
+    let metrics: Vec<&str> = ["PSNR", "SSIM", "LPIPS", "AbsRel", "SqRel"]
+        .into_iter()
+        .filter(|&m| with_lpips || m != "LPIPS")
+        .collect();
     let names: Vec<String> = groups
         .iter()
-        .flat_map(|g| {
-            ["PSNR", "SSIM", "AbsRel", "SqRel"]
-                .iter()
-                .map(move |m| format!("{g} {m}"))
-        })
+        .flat_map(|g| metrics.iter().map(move |m| format!("{g} {m}")))
         .collect();
     format!(
         "| method | {} |\n|---|{}\n",
@@ -275,6 +290,7 @@ mod tests {
             role,
             psnr,
             ssim: psnr / 100.0,
+            lpips: None,
             abs_rel,
             sq_rel: abs_rel.map(|a| a * 2.0),
             lidar_pixels: 10,
@@ -316,22 +332,74 @@ mod tests {
         assert_eq!(t.average.count, 2);
     }
 
+    fn report(bins: Vec<BinReport>) -> EvalReport {
+        EvalReport::new("sgm".into(), "cpu".into(), 8.0, (1e-3, 80.0), bins, vec![])
+    }
+
+    /// The markdown's header and `sgm` row, each split into its cells.
+    fn table(report: &EvalReport) -> (Vec<String>, Vec<String>) {
+        let md = report.markdown();
+        let cells = |prefix: &str| -> Vec<String> {
+            let line = md.lines().find(|l| l.starts_with(prefix)).unwrap();
+            line.trim_matches('|')
+                .split('|')
+                .map(|c| c.trim().to_string())
+                .collect()
+        };
+        (cells("| method"), cells("| sgm"))
+    }
+
     #[test]
     fn markdown_has_one_cell_per_metric_and_group() {
-        let report = EvalReport::new(
-            "sgm".into(),
-            "cpu".into(),
-            8.0,
-            (1e-3, 80.0),
-            vec![bin(vec![score(0, Some(Role::First), 30.0, None)])],
-            vec![],
-        );
-        let md = report.markdown();
-        let row = md.lines().find(|l| l.starts_with("| sgm")).unwrap();
-        assert_eq!(row.matches('|').count(), 18);
-        assert!(row.contains("30.00") && row.contains("n/a"));
+        let report = report(vec![bin(vec![score(0, Some(Role::First), 30.0, None)])]);
+        let (header, row) = table(&report);
+        assert_eq!(row.len(), 17);
+        assert_eq!(header.len(), row.len());
+        assert!(!report.has_lpips());
+        assert!(header.iter().all(|h| !h.contains("LPIPS")), "{header:?}");
+        assert!(row.contains(&"30.00".to_string()) && row.contains(&"n/a".to_string()));
         let json = serde_json::to_value(&report).unwrap();
         assert_eq!(json["bins"][0]["frames"][0]["side"], "left");
+        assert_eq!(
+            json["bins"][0]["frames"][0]["lpips"],
+            serde_json::Value::Null
+        );
         assert_eq!(json["summary"]["first"]["psnr"], 30.0);
+    }
+
+    #[test]
+    fn lpips_is_averaged_per_bin_then_over_bins_and_gets_a_column_per_group() {
+        let lpips = |mut s: FrameScore, v: f64| {
+            s.lpips = Some(v);
+            s
+        };
+        let a = bin(vec![
+            lpips(score(0, Some(Role::First), 30.0, None), 0.1),
+            lpips(score(1, Some(Role::Last), 20.0, None), 0.3),
+        ]);
+        let b = bin(vec![
+            lpips(score(5, Some(Role::First), 30.0, None), 0.3),
+            lpips(score(6, None, 20.0, None), 0.4),
+            lpips(score(7, Some(Role::Last), 20.0, None), 0.5),
+        ]);
+        let report = report(vec![a, b]);
+        let t = report.summary;
+        assert!((t.first.lpips.unwrap() - 0.2).abs() < 1e-12);
+        assert!((t.last.lpips.unwrap() - 0.4).abs() < 1e-12);
+        // Bin a averages 0.2, bin b 0.4: the bin average is 0.3, not the frame mean 0.32.
+        assert!((t.average.lpips.unwrap() - 0.3).abs() < 1e-12);
+        assert_eq!(t.centre.lpips, None, "no centre frame scored");
+
+        let (header, row) = table(&report);
+        assert_eq!(row.len(), 21);
+        assert_eq!(header.len(), row.len());
+        let at = |name: &str| header.iter().position(|h| h == name).unwrap();
+        assert_eq!(at("first LPIPS"), at("first SSIM") + 1);
+        assert_eq!(row[at("first LPIPS")], "0.200");
+        assert_eq!(row[at("centre LPIPS")], "n/a");
+        assert_eq!(row[at("bin avg LPIPS")], "0.300");
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(json["bins"][1]["frames"][2]["lpips"], 0.5);
+        assert!((json["summary"]["average"]["lpips"].as_f64().unwrap() - 0.3).abs() < 1e-12);
     }
 }

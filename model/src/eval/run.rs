@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use candle_core::Tensor;
 use renderer::{RenderOutput, RenderSettings};
 
 use super::pictures;
@@ -11,6 +12,7 @@ use super::report::{BinReport, FrameScore, SkippedBin};
 use crate::bins::{make_bins, Bin, BinConfig};
 use crate::frame::{DepthMap, RgbImage, Side, StereoFrame};
 use crate::kitti360::{Kitti360Error, Sequence};
+use crate::lpips::Lpips;
 use crate::metrics::{self, DepthFilter, MetricError};
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
 
@@ -29,6 +31,9 @@ pub struct EvalConfig {
     pub picture_dir: Option<PathBuf>,
     /// Background and clipping of the renders.
     pub render: RenderSettings,
+    /// The LPIPS network every frame is also scored with, loaded once per evaluation
+    /// (e.g. [`Lpips::load_default`]); `None` skips LPIPS, which is the slowest metric.
+    pub lpips: Option<Lpips>,
 }
 
 impl Default for EvalConfig {
@@ -40,6 +45,7 @@ impl Default for EvalConfig {
             picture_bins: 3,
             picture_dir: None,
             render: RenderSettings::default(),
+            lpips: None,
         }
     }
 }
@@ -59,6 +65,9 @@ pub enum EvalError {
     /// A metric refused its inputs (sizes, non-finite values).
     #[error(transparent)]
     Metric(#[from] MetricError),
+    /// LPIPS failed (an image too small for AlexNet, under about 31 pixels a side).
+    #[error("LPIPS failed: {0}")]
+    Lpips(#[from] candle_core::Error),
     /// Writing a picture failed.
     #[error("writing a picture failed: {0}")]
     Picture(String),
@@ -222,6 +231,10 @@ fn score_frame(
     };
     let psnr = metrics::psnr(&image, truth)?;
     let ssim = metrics::ssim(&image, truth)?;
+    let lpips = match &config.lpips {
+        Some(net) => Some(lpips_distance(net, &image, truth)?),
+        None => None,
+    };
     let depth = rendered_depth(render);
     let errors = match lidar {
         Ok(gt) => match metrics::depth_errors(&depth, &gt, &config.depth) {
@@ -237,10 +250,26 @@ fn score_frame(
         role,
         psnr,
         ssim,
+        lpips,
         abs_rel: errors.as_ref().map(|e| e.abs_rel),
         sq_rel: errors.as_ref().map(|e| e.sq_rel),
         lidar_pixels: errors.as_ref().map_or(0, |e| e.valid),
     })
+}
+
+/// LPIPS between two images of the same size (checked by the metrics before).
+fn lpips_distance(net: &Lpips, a: &RgbImage, b: &RgbImage) -> candle_core::Result<f64> {
+    let d = net.forward(&to_tensor(net, a)?, &to_tensor(net, b)?)?;
+    Ok(d.to_dtype(candle_core::DType::F64)?.to_vec1::<f64>()?[0])
+}
+
+/// An image as the `(1, 3, H, W)` tensor LPIPS takes, on the network's device.
+fn to_tensor(net: &Lpips, image: &RgbImage) -> candle_core::Result<Tensor> {
+    let (w, h) = (image.width as usize, image.height as usize);
+    Tensor::from_slice(&image.data, (h, w, 3), net.device())?
+        .permute((2, 0, 1))?
+        .unsqueeze(0)?
+        .to_dtype(net.dtype())
 }
 
 /// The render's alpha-normalised depth as a depth map (0 where nothing was drawn).
@@ -249,5 +278,41 @@ pub fn rendered_depth(render: &RenderOutput) -> DepthMap {
         width: render.width,
         height: render.height,
         data: render.depth.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 64x48 image with a horizontal ramp in red and `blue` everywhere.
+    fn ramp(blue: f32) -> RgbImage {
+        let (w, h) = (64, 48);
+        let data = (0..w * h)
+            .flat_map(|i| [(i % w) as f32 / w as f32, 0.5, blue])
+            .collect();
+        RgbImage {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
+    #[test]
+    fn lpips_is_zero_for_equal_images_and_matches_the_network_on_a_pair() {
+        let net = Lpips::load_default().unwrap();
+        let (a, b) = (ramp(0.2), ramp(0.8));
+        assert_eq!(lpips_distance(&net, &a, &a).unwrap(), 0.0);
+        let d = lpips_distance(&net, &a, &b).unwrap();
+        // The same pair laid out by hand as (1, 3, H, W): channel planes, not interleaved.
+        let planes = |img: &RgbImage| {
+            let v: Vec<f32> = (0..3)
+                .flat_map(|c| img.data.iter().skip(c).step_by(3).copied())
+                .collect();
+            Tensor::from_vec(v, (1, 3, 48, 64), &candle_core::Device::Cpu).unwrap()
+        };
+        let want = net.forward(&planes(&a), &planes(&b)).unwrap();
+        let want = want.to_vec1::<f32>().unwrap()[0] as f64;
+        assert!(d > 0.0 && (d - want).abs() < 1e-7, "{d} vs {want}");
     }
 }

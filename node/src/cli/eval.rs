@@ -1,6 +1,7 @@
 //! `stereosplat eval`: the paper's protocol on a data root in the KITTI-360 layout (real or
 //! synthetic). Writes `eval.md` (the table), `eval.json` (every score) and pictures of a few
-//! bins into the output folder, and prints the table.
+//! bins into the output folder, and prints the table. Frames are scored with PSNR, SSIM,
+//! LPIPS (unless `--no-lpips`) and, where there is LiDAR, AbsRel and SqRel.
 
 use std::path::PathBuf;
 
@@ -9,6 +10,7 @@ use clap::Args;
 use model::bins::{BinConfig, BinLayout};
 use model::eval::{evaluate, EvalConfig, EvalReport, Raster};
 use model::kitti360::Sequence;
+use model::lpips::Lpips;
 use model::metrics::DepthFilter;
 use renderer::gpu::GpuRasterizer;
 
@@ -50,6 +52,9 @@ pub struct EvalArgs {
     /// Render on wgpu instead of the CPU reference rasterizer.
     #[arg(long)]
     gpu: bool,
+    /// Skip LPIPS (AlexNet on the CPU, the slowest metric); the table loses its LPIPS columns.
+    #[arg(long)]
+    no_lpips: bool,
 }
 
 /// Runs the evaluation and writes the report.
@@ -66,6 +71,10 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    let lpips = match args.no_lpips {
+        true => None,
+        false => Some(Lpips::load_default().context("loading the LPIPS weights")?),
+    };
     let config = EvalConfig {
         bins: BinConfig {
             length_m: args.bin_length,
@@ -80,6 +89,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         max_bins: args.max_bins,
         picture_bins: args.pictures,
         picture_dir: Some(args.out.join("pictures")),
+        lpips,
         ..EvalConfig::default()
     };
     let (mut bins, mut skipped) = (Vec::new(), Vec::new());

@@ -1,21 +1,56 @@
 //! Reconstructors by name, so every command (`eval`, the node) picks one the same way and a
 //! new method is added in one place.
+//!
+//! - `sgm`: the classical baseline (semi-global matching).
+//! - `stereosplat`: the learned network, preset `tiny` unless another is given, with the
+//!   preset's shipped weights (`model/weights/stereosplat_<preset>.safetensors`) unless a
+//!   weight file is given.
+
+use std::path::Path;
 
 use crate::baseline::{SgmConfig, SgmReconstructor};
+use crate::net::{default_weights, Config, LearnedReconstructor, LoadError, UnknownPreset};
 use crate::reconstruct::Reconstructor;
 
 /// The names [`by_name`] knows.
-pub const NAMES: &[&str] = &["sgm"];
+pub const NAMES: &[&str] = &["sgm", "stereosplat"];
 
-/// A name [`by_name`] does not know.
+/// The preset of `stereosplat` when none is given.
+pub const DEFAULT_PRESET: &str = "tiny";
+
+/// Why a reconstructor could not be made.
 #[derive(Debug, thiserror::Error)]
-#[error("unknown method `{0}` (known: {known})", known = NAMES.join(", "))]
-pub struct UnknownMethod(pub String);
+pub enum MethodError {
+    /// A name [`by_name`] does not know.
+    #[error("unknown method `{0}` (known: {known})", known = NAMES.join(", "))]
+    Unknown(String),
+    /// A preset name that does not exist.
+    #[error(transparent)]
+    Preset(#[from] UnknownPreset),
+    /// The learned model's weights could not be loaded.
+    #[error(transparent)]
+    Weights(#[from] LoadError),
+}
 
 /// The reconstructor called `name`, with its default settings.
-pub fn by_name(name: &str) -> Result<Box<dyn Reconstructor + Send>, UnknownMethod> {
+pub fn by_name(name: &str) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
+    build(name, None, None)
+}
+
+/// The reconstructor called `name`; for `stereosplat`, of `preset` (default `tiny`) with the
+/// weights at `weights` (default: the preset's shipped file).
+pub fn build(
+    name: &str,
+    preset: Option<&str>,
+    weights: Option<&Path>,
+) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
     match name {
         "sgm" => Ok(Box::new(SgmReconstructor::new(SgmConfig::default()))),
-        other => Err(UnknownMethod(other.to_string())),
+        "stereosplat" => {
+            let cfg = Config::preset(preset.unwrap_or(DEFAULT_PRESET))?;
+            let path = weights.map_or_else(|| default_weights(&cfg.name), Path::to_path_buf);
+            Ok(Box::new(LearnedReconstructor::load(&cfg, &path)?))
+        }
+        other => Err(MethodError::Unknown(other.to_string())),
     }
 }

@@ -3,7 +3,9 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use node::cli::{bench, bench_node, demo, eval, launch, logs, render, stream, synth, train};
+use node::cli::{
+    bench, bench_model, bench_node, demo, eval, launch, logs, render, stream, synth, train,
+};
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
 #[derive(Parser)]
@@ -50,6 +52,8 @@ enum BenchCommand {
     Render(bench::BenchRenderArgs),
     /// A drive through the node on loopback: bins per second, stage latencies, memory.
     Node(bench_node::BenchNodeArgs),
+    /// The learned reconstructor per preset: ms per stereo pair, memory, parameters.
+    Model(bench_model::BenchModelArgs),
 }
 
 fn main() -> Result<()> {
@@ -67,5 +71,6 @@ fn main() -> Result<()> {
         Command::Monitor(args) => logs::monitor(&args),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
+        Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
     }
 }

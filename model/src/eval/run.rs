@@ -34,6 +34,10 @@ pub struct EvalConfig {
     /// The LPIPS network every frame is also scored with, loaded once per evaluation
     /// (e.g. [`Lpips::load_default`]); `None` skips LPIPS, which is the slowest metric.
     pub lpips: Option<Lpips>,
+    /// Input stereo pairs per bin: its first `input_pairs` frames (the paper's protocol is
+    /// 1; more checks that quality does not fall as pairs are added). Capped at the bin's
+    /// frame count.
+    pub input_pairs: usize,
 }
 
 impl Default for EvalConfig {
@@ -46,6 +50,7 @@ impl Default for EvalConfig {
             picture_dir: None,
             render: RenderSettings::default(),
             lpips: None,
+            input_pairs: 1,
         }
     }
 }
@@ -161,14 +166,18 @@ fn evaluate_bin(
         .collect::<Result<_, _>>()?;
     let origin = frames[0].left_to_world;
     let camera = |f: &StereoFrame, side| rig.local_camera(origin, f.left_to_world, side);
-    let input = StereoView {
-        left: &frames[0].left,
-        right: &frames[0].right,
-        left_camera: camera(&frames[0], Side::Left),
-        right_camera: camera(&frames[0], Side::Right),
-    };
+    let inputs: Vec<StereoView> = frames
+        .iter()
+        .take(config.input_pairs.max(1))
+        .map(|f| StereoView {
+            left: &f.left,
+            right: &f.right,
+            left_camera: camera(f, Side::Left),
+            right_camera: camera(f, Side::Right),
+        })
+        .collect();
     let start = Instant::now();
-    let set = reconstructor.reconstruct(&[input])?;
+    let set = reconstructor.reconstruct(&inputs)?;
     let reconstruct_ms = start.elapsed().as_secs_f64() * 1e3;
 
     let mut scores = Vec::new();

@@ -71,7 +71,7 @@ impl Config {
             far: 100.0,
             match_views: 2,
             unet_channels: 32,
-            head_channels: 32,
+            head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,
             max_gaussians: 200_000,

@@ -1,6 +1,6 @@
 //! The light 2D U-Net depth head: cost volume and view features in, a softmax over the depth
 //! candidates out (its expectation in inverse depth is the depth, its peak the matching
-//! confidence), then a refinement of that depth at the Gaussians' resolution.
+//! confidence). The Gaussian heads refine it at the Gaussians' resolution.
 
 use candle_core::{Module, Result, Tensor, D};
 use candle_nn::VarBuilder;
@@ -66,33 +66,6 @@ impl DepthHead {
             probabilities,
             inverse,
         })
-    }
-}
-
-/// Refines the normalised inverse depth at the Gaussians' resolution from the upsampled
-/// estimate, features and the image: a bounded residual, clamped to the candidate range.
-#[derive(Clone, Debug)]
-pub struct DepthRefiner {
-    hidden: ConvRelu,
-    out: Conv,
-}
-
-impl DepthRefiner {
-    /// `context` channels of per-pixel context besides the depth itself.
-    pub fn new(vb: VarBuilder, cfg: &Config, context: usize) -> Result<Self> {
-        Ok(Self {
-            hidden: ConvRelu::new(vb.pp("hidden"), context + 1, cfg.head_channels, 1)?,
-            out: conv(vb.pp("out"), cfg.head_channels, 1, 3, 1)?,
-        })
-    }
-
-    /// `inverse` `(V, 1, Hg, Wg)` and `context` `(V, k, Hg, Wg)` to the refined inverse depth.
-    pub fn forward(&self, inverse: &Tensor, context: &Tensor) -> Result<Tensor> {
-        let x = self
-            .hidden
-            .forward(&Tensor::cat(&[inverse, context], 1)?)?;
-        let delta = (self.out.forward(&x)?.tanh()? * 0.1)?;
-        (inverse + delta)?.clamp(0f32, 1f32)
     }
 }
 

@@ -2,7 +2,10 @@
 //! centre is the back-projected depth plus a learned 3D offset, carried into the bin's frame
 //! by the view's pose; opacity comes from the softmax matching confidence through two
 //! convolutions (the sigmoid is the renderer's, on the logit); scale, rotation, SH degree-0
-//! colour and a sigmoid confidence come from a shared convolutional trunk.
+//! colour and a sigmoid confidence come from a shared convolutional trunk, which also
+//! refines the depth head's estimate (a bounded residual in normalised inverse depth): one
+//! 3x3 convolution at the Gaussians' resolution, then 1x1 layers, since that resolution is
+//! where the network spends most of its time.
 
 use candle_core::{Device, Module, Result, Tensor};
 use candle_nn::VarBuilder;
@@ -11,12 +14,16 @@ use crate::ops::Conv;
 use renderer::Camera;
 
 use super::blocks::{conv, ConvRelu};
+use super::depth_head::metric_depth;
 use super::geometry::{camera_to_world, orientation_matrix, rays};
 use super::Config;
 use crate::ops::{upsample_bilinear, SplatTensors};
 
-/// Output channels of the trunk: offset 3, log-scale 3, rotation 4, colour 3, confidence 1.
-const TRUNK_OUT: usize = 14;
+/// Output channels of the trunk: depth residual 1, offset 3, log-scale 3, rotation 4,
+/// colour 3, confidence 1.
+const TRUNK_OUT: usize = 15;
+/// Largest change of normalised inverse depth the refinement makes.
+const MAX_REFINE: f64 = 0.1;
 /// Largest offset from the depth ray, in pixel footprints at the Gaussian's depth.
 const MAX_OFFSET: f64 = 2.0;
 /// Largest change of log-scale from one pixel footprint.
@@ -30,24 +37,32 @@ pub struct HeadInputs<'a> {
     pub context: &'a Tensor,
     /// Image at the Gaussians' pixels, `(V, 3, Hg, Wg)`, in `[0, 1]`.
     pub image: &'a Tensor,
-    /// Refined normalised inverse depth, `(V, 1, Hg, Wg)`.
-    pub inverse: &'a Tensor,
-    /// Metric depth, `(V, 1, Hg, Wg)`.
-    pub depth: &'a Tensor,
+    /// The depth head's normalised inverse depth, upsampled, `(V, 1, Hg, Wg)`.
+    pub coarse: &'a Tensor,
     /// The cost volume's softmax at 1/4 resolution, `(V, D, h, w)`.
     pub probabilities: &'a Tensor,
     /// The views' cameras (bin frame).
     pub cameras: &'a [Camera],
 }
 
+/// What the heads predict.
+pub struct HeadOutput {
+    /// One Gaussian per pixel of every view, `V Hg Wg` rows, view-major.
+    pub splats: SplatTensors,
+    /// Refined metric depth, `(V, 1, Hg, Wg)`.
+    pub depth: Tensor,
+}
+
 /// The Gaussian heads.
 #[derive(Clone, Debug)]
 pub struct GaussianHead {
-    trunk: Vec<ConvRelu>,
+    spatial: ConvRelu,
+    pointwise: Conv,
     out: Conv,
     opacity_hidden: ConvRelu,
     opacity_out: Conv,
     stride: usize,
+    cfg: Config,
 }
 
 impl GaussianHead {
@@ -55,31 +70,33 @@ impl GaussianHead {
     pub fn new(vb: VarBuilder, cfg: &Config, context: usize) -> Result<Self> {
         let c = cfg.head_channels;
         Ok(Self {
-            trunk: vec![
-                ConvRelu::new(vb.pp("trunk0"), context + 1, c, 1)?,
-                ConvRelu::new(vb.pp("trunk1"), c, c, 1)?,
-            ],
-            out: conv(vb.pp("out"), c, TRUNK_OUT, 3, 1)?,
+            spatial: ConvRelu::new(vb.pp("trunk0"), context + 1, c, 1)?,
+            pointwise: conv(vb.pp("trunk1"), c, c, 1, 1)?,
+            out: conv(vb.pp("out"), c, TRUNK_OUT, 1, 1)?,
             opacity_hidden: ConvRelu::new(vb.pp("opacity0"), cfg.candidates, 16, 1)?,
             opacity_out: conv(vb.pp("opacity1"), 16, 1, 3, 1)?,
             stride: cfg.gaussian_stride,
+            cfg: cfg.clone(),
         })
     }
 
-    /// One Gaussian per pixel of every view, `V Hg Wg` rows, view-major.
-    pub fn forward(&self, x: &HeadInputs) -> Result<SplatTensors> {
-        let (v, _, hg, wg) = x.depth.dims4()?;
+    /// The Gaussians and the refined depth.
+    pub fn forward(&self, x: &HeadInputs) -> Result<HeadOutput> {
+        let (v, _, hg, wg) = x.coarse.dims4()?;
         let p = hg * wg;
-        let device = x.depth.device();
-        let trunk_in = Tensor::cat(&[x.context, x.inverse], 1)?;
-        let t = super::blocks::chain(&self.trunk, &trunk_in)?;
-        let t = self.out.forward(&t)?.reshape((v, TRUNK_OUT, p))?;
-        let part = |from: usize, n: usize| t.narrow(1, from, n);
+        let device = x.coarse.device();
+        let t = self
+            .spatial
+            .forward(&Tensor::cat(&[x.context, x.coarse], 1)?)?;
+        let t = self.out.forward(&self.pointwise.forward(&t)?.relu()?)?;
+        let refine = (t.narrow(1, 0, 1)?.tanh()? * MAX_REFINE)?;
+        let inverse = (x.coarse + refine)?.clamp(0f32, 1f32)?;
+        let depth_map = metric_depth(&inverse, &self.cfg)?;
+        let t = t.reshape((v, TRUNK_OUT, p))?;
+        let part = |from: usize, n: usize| t.narrow(1, from + 1, n);
 
-        let depth = x.depth.reshape((v, 1, p))?;
-        let inv_fx = per_view(x.cameras, device, |c| {
-            self.stride as f32 / c.intrinsics.fx
-        })?;
+        let depth = depth_map.reshape((v, 1, p))?;
+        let inv_fx = per_view(x.cameras, device, |c| self.stride as f32 / c.intrinsics.fx)?;
         let footprint = depth.broadcast_mul(&inv_fx)?; // (V, 1, P) metres per Gaussian pixel
         let ray_grid: Vec<Tensor> = x
             .cameras
@@ -110,13 +127,16 @@ impl GaussianHead {
             let k = t.dim(1)?;
             t.transpose(1, 2)?.reshape((v * p, k))
         };
-        Ok(SplatTensors {
-            means: rows(means)?,
-            log_scales: rows(log_scales)?,
-            rotations: rows(rotations)?,
-            opacity_logits: rows(opacity_logits)?,
-            colors: rows(colors)?,
-            confidences: rows(confidences)?,
+        Ok(HeadOutput {
+            splats: SplatTensors {
+                means: rows(means)?,
+                log_scales: rows(log_scales)?,
+                rotations: rows(rotations)?,
+                opacity_logits: rows(opacity_logits)?,
+                colors: rows(colors)?,
+                confidences: rows(confidences)?,
+            },
+            depth: depth_map,
         })
     }
 }

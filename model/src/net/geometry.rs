@@ -43,12 +43,7 @@ pub fn camera_to_world(camera: &Camera) -> DMat3 {
 pub fn orientation_matrix(camera: &Camera) -> [[f32; 4]; 4] {
     let q = DQuat::from_mat3(&camera_to_world(camera)).normalize();
     let (w, x, y, z) = (q.w as f32, q.x as f32, q.y as f32, q.z as f32);
-    [
-        [w, -x, -y, -z],
-        [x, w, -z, y],
-        [y, z, w, -x],
-        [z, -y, x, w],
-    ]
+    [[w, -x, -y, -z], [x, w, -z, y], [y, z, w, -x], [z, -y, x, w]]
 }
 
 /// The plane-sweep grid from reference camera `reference` into `source`: for each depth in
@@ -65,8 +60,8 @@ pub fn sweep_grid(
     device: &Device,
 ) -> Result<Tensor> {
     let to_source = source.rotation.as_dmat3() * camera_to_world(reference);
-    let offset = source.rotation.as_dmat3()
-        * (reference.position.as_dvec3() - source.position.as_dvec3());
+    let offset =
+        source.rotation.as_dmat3() * (reference.position.as_dvec3() - source.position.as_dvec3());
     let k = source.intrinsics;
     let s = stride as f64;
     let mut data = Vec::with_capacity(depths.len() * h * w * 2);

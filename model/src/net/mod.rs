@@ -20,5 +20,7 @@ mod transformer;
 
 pub use config::{Config, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;
-pub use reconstructor::{default_weights, images_and_cameras, LearnedReconstructor, LoadError};
+pub use reconstructor::{
+    default_weights, images_and_cameras, to_set, LearnedReconstructor, LoadError,
+};
 pub use stereosplat::{every_nth_pixel, Prediction, StereoSplat, COST_STRIDE};

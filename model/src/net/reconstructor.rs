@@ -40,6 +40,7 @@ pub enum LoadError {
 pub struct LearnedReconstructor {
     net: StereoSplat,
     name: String,
+    parameters: usize,
 }
 
 impl LearnedReconstructor {
@@ -53,14 +54,35 @@ impl LearnedReconstructor {
             source,
         };
         let tensors = candle_core::safetensors::load(path, &Device::Cpu).map_err(mismatch)?;
+        let parameters = tensors.values().map(Tensor::elem_count).sum();
         let vb = VarBuilder::from_tensors(tensors, DType::F32, &Device::Cpu);
-        Ok(Self::from_net(StereoSplat::new(vb, cfg).map_err(mismatch)?))
+        let net = StereoSplat::new(vb, cfg).map_err(mismatch)?;
+        Ok(Self::from_net(net, parameters))
     }
 
-    /// Wraps a network (trained or not).
-    pub fn from_net(net: StereoSplat) -> Self {
+    /// The network of `cfg` with random weights (candle's initialisers): for timing presets
+    /// that have no trained weights, and for tests of shapes and numerical stability.
+    pub fn untrained(cfg: &Config) -> candle_core::Result<Self> {
+        let varmap = candle_nn::VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+        let net = StereoSplat::new(vb, cfg)?;
+        let parameters = varmap.all_vars().iter().map(|v| v.elem_count()).sum();
+        Ok(Self::from_net(net, parameters))
+    }
+
+    /// Wraps a network with `parameters` weights in all.
+    pub fn from_net(net: StereoSplat, parameters: usize) -> Self {
         let name = format!("stereosplat-{}", net.config().name);
-        Self { net, name }
+        Self {
+            net,
+            name,
+            parameters,
+        }
+    }
+
+    /// Number of weights.
+    pub fn parameters(&self) -> usize {
+        self.parameters
     }
 
     /// The network.
@@ -124,7 +146,11 @@ impl Reconstructor for LearnedReconstructor {
 
 /// The Gaussians whose opacity reaches `floor`, the `budget` most opaque if more, as a set.
 /// Non-finite Gaussians are dropped.
-pub fn to_set(splats: &SplatTensors, floor: f32, budget: usize) -> candle_core::Result<GaussianSet> {
+pub fn to_set(
+    splats: &SplatTensors,
+    floor: f32,
+    budget: usize,
+) -> candle_core::Result<GaussianSet> {
     let rows = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
     let (means, scales, rots) = (
         rows(&splats.means)?,
@@ -157,7 +183,12 @@ pub fn to_set(splats: &SplatTensors, floor: f32, budget: usize) -> candle_core::
     let mut set = GaussianSet::with_capacity(keep.len());
     let v3 = |v: &[f32], i: usize| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
     for i in keep {
-        let q = Quat::from_xyzw(rots[4 * i + 1], rots[4 * i + 2], rots[4 * i + 3], rots[4 * i]);
+        let q = Quat::from_xyzw(
+            rots[4 * i + 1],
+            rots[4 * i + 2],
+            rots[4 * i + 3],
+            rots[4 * i],
+        );
         let q = if q.length_squared() > 1e-12 {
             q.normalize()
         } else {

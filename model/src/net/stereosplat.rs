@@ -8,7 +8,7 @@ use renderer::Camera;
 
 use super::blocks::conv;
 use super::cost_volume::{candidate_depths, cost_volume};
-use super::depth_head::{metric_depth, peak, DepthHead, DepthRefiner};
+use super::depth_head::{peak, DepthHead};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
 use super::transformer::MultiViewTransformer;
@@ -37,7 +37,6 @@ pub struct StereoSplat {
     transformer: MultiViewTransformer,
     project: Conv,
     depth_head: DepthHead,
-    refiner: DepthRefiner,
     gaussians: GaussianHead,
     depths: Vec<f64>,
     cfg: Config,
@@ -51,9 +50,14 @@ impl StereoSplat {
             backbone: Backbone::new(vb.pp("backbone"), cfg)?,
             geometry: GeometryEncoder::new(vb.pp("geometry"), cfg)?,
             transformer: MultiViewTransformer::new(vb.pp("transformer"), cfg)?,
-            project: conv(vb.pp("project"), cfg.view_channels(), cfg.cost_channels, 1, 1)?,
+            project: conv(
+                vb.pp("project"),
+                cfg.view_channels(),
+                cfg.cost_channels,
+                1,
+                1,
+            )?,
             depth_head: DepthHead::new(vb.pp("depth_head"), cfg)?,
-            refiner: DepthRefiner::new(vb.pp("refiner"), cfg, context)?,
             gaussians: GaussianHead::new(vb.pp("gaussians"), cfg, context)?,
             depths: candidate_depths(cfg),
             cfg: cfg.clone(),
@@ -96,19 +100,16 @@ impl StereoSplat {
         let image = every_nth_pixel(images, g)?;
         let confidence = up(&peak(&coarse.probabilities)?)?;
         let context = Tensor::cat(&[&image, &up(&features)?, &up(&bb.half)?, &confidence], 1)?;
-        let inverse = self.refiner.forward(&up(&coarse.inverse)?, &context)?;
-        let depth = metric_depth(&inverse, &self.cfg)?;
-        let splats = self.gaussians.forward(&HeadInputs {
+        let heads = self.gaussians.forward(&HeadInputs {
             context: &context,
             image: &image,
-            inverse: &inverse,
-            depth: &depth,
+            coarse: &up(&coarse.inverse)?,
             probabilities: &coarse.probabilities,
             cameras,
         })?;
         Ok(Prediction {
-            splats,
-            depth,
+            splats: heads.splats,
+            depth: heads.depth,
             features: context,
         })
     }

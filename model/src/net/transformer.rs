@@ -110,10 +110,10 @@ impl Layer {
                 let others: Vec<u32> = (0..v as u32).filter(|&j| j as usize != i).collect();
                 let idx = Tensor::new(others.as_slice(), t.device())?;
                 // (V-1, nW, T, C) -> (nW, (V-1) T, C): the window's tokens in every other view.
-                let context = x
-                    .index_select(&idx, 0)?
-                    .transpose(0, 1)?
-                    .reshape((nw, (v - 1) * tt, c))?;
+                let context =
+                    x.index_select(&idx, 0)?
+                        .transpose(0, 1)?
+                        .reshape((nw, (v - 1) * tt, c))?;
                 out.push(self.cross_attn.forward(&x.get(i)?, &context)?);
             }
             (&t + Tensor::stack(&out, 0)?)?

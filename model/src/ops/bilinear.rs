@@ -119,6 +119,14 @@ impl<T: Float> Taps<T> {
     fn at(grid: &[T], p: usize, w: usize, h: usize) -> Self {
         Self::new(grid[2 * p], grid[2 * p + 1], w, h)
     }
+
+    /// The taps of every point of the grid, computed once and shared by all channels.
+    fn all(grid: &[T], d: Dims) -> Vec<Self> {
+        (0..grid.len() / 2)
+            .into_par_iter()
+            .map(|p| Self::at(grid, p, d.w, d.h))
+            .collect()
+    }
 }
 
 /// Sizes the three kernels share: channels, input plane, output pixels per plane.
@@ -159,14 +167,14 @@ impl GridSample {
     const NAME: &'static str = "grid-sample";
 
     fn run<T: Float>(input: &[T], grid: &[T], d: Dims) -> Vec<T> {
+        let taps = Taps::all(grid, d);
         let mut out = vec![T::zero(); input.len() / d.hw() * d.p];
         out.par_chunks_mut(d.p)
             .enumerate()
             .for_each(|(plane, out)| {
                 let src = &input[plane * d.hw()..(plane + 1) * d.hw()];
-                let grid = &grid[plane / d.c * 2 * d.p..];
-                for (p, o) in out.iter_mut().enumerate() {
-                    let t = Taps::at(grid, p, d.w, d.h);
+                let taps = &taps[plane / d.c * d.p..];
+                for (o, t) in out.iter_mut().zip(taps) {
                     *o = (0..4).fold(T::zero(), |s, k| s + t.w[k] * src[t.idx[k]]);
                 }
             });
@@ -230,14 +238,14 @@ impl InputGrad {
     const NAME: &'static str = "grid-sample-input-grad";
 
     fn run<T: Float>(grid: &[T], grad: &[T], d: Dims) -> Vec<T> {
+        let taps = Taps::all(grid, d);
         let mut out = vec![T::zero(); grad.len() / d.p * d.hw()];
         out.par_chunks_mut(d.hw())
             .enumerate()
             .for_each(|(plane, dst)| {
                 let g = &grad[plane * d.p..(plane + 1) * d.p];
-                let grid = &grid[plane / d.c * 2 * d.p..];
-                for (p, &gp) in g.iter().enumerate() {
-                    let t = Taps::at(grid, p, d.w, d.h);
+                let taps = &taps[plane / d.c * d.p..];
+                for (&gp, t) in g.iter().zip(taps) {
                     for k in 0..4 {
                         dst[t.idx[k]] += t.w[k] * gp;
                     }

@@ -2,7 +2,8 @@
 //! direct transposed convolution for the input and a whole-image-kernel convolution for the
 //! weights, both slow on the CPU, while here both gradients are matrix products. Weights are
 //! named and shaped as candle-nn's `Conv2d` (`weight` `(out, in, k, k)`, `bias` `(out,)`),
-//! so files are interchangeable.
+//! so files are interchangeable. Where no gradient is tracked (inference) candle's own
+//! forward kernel runs instead, the faster of the two there.
 
 use candle_core::{Module, Result, Tensor};
 use candle_nn::{Init, VarBuilder};
@@ -89,6 +90,14 @@ impl Conv {
 
 impl Module for Conv {
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        if !x.track_op() && !self.weight.track_op() {
+            // No gradient wanted (inference, fixed inputs to LPIPS): candle's own kernel.
+            let y = x.conv2d(&self.weight, self.padding, self.stride, 1, 1)?;
+            return match &self.bias {
+                Some(b) => y.broadcast_add(&b.reshape((1, b.dim(0)?, 1, 1))?),
+                None => Ok(y),
+            };
+        }
         let n = x.dim(0)?;
         let (cols, ho, wo) = self.columns(x)?;
         let (cout, cin, k, _) = self.weight.dims4()?;

@@ -87,7 +87,11 @@ impl TrainingSet {
         for name in Sequence::list(root)? {
             let sequence = Sequence::open(root, &name)?;
             let poses: Vec<_> = sequence.frames().iter().map(|f| f.left_to_world).collect();
-            all.extend(make_bins(&poses, bins).into_iter().map(|b| (sequences.len(), b)));
+            all.extend(
+                make_bins(&poses, bins)
+                    .into_iter()
+                    .map(|b| (sequences.len(), b)),
+            );
             sequences.push(sequence);
         }
         if all.is_empty() {
@@ -148,7 +152,8 @@ impl TrainingSet {
         let load = |i: usize| sequence.load_frame(poses[i].index);
         let origin = poses[bin.first].left_to_world;
         let rig = sequence.rig();
-        let input_frames: Vec<StereoFrame> = inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
+        let input_frames: Vec<StereoFrame> =
+            inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
         let views: Vec<StereoView> = input_frames
             .iter()
             .map(|f| StereoView {
@@ -182,8 +187,7 @@ impl TrainingSet {
             targets.push(Target {
                 camera: rig.local_camera(origin, frame.left_to_world, side),
                 image: image_tensor(image, device)?,
-                depth: depth_tensor(&lidar_or_empty(sequence, &frame, side), device)?
-                    .squeeze(0)?,
+                depth: depth_tensor(&lidar_or_empty(sequence, &frame, side), device)?.squeeze(0)?,
             });
         }
         Ok(Sample {
@@ -220,5 +224,9 @@ pub fn depth_tensor(depth: &DepthMap, device: &Device) -> candle_core::Result<Te
         .iter()
         .map(|&d| if d.is_finite() && d > 0.0 { d } else { 0.0 })
         .collect();
-    Tensor::from_vec(data, (1, depth.height as usize, depth.width as usize), device)
+    Tensor::from_vec(
+        data,
+        (1, depth.height as usize, depth.width as usize),
+        device,
+    )
 }

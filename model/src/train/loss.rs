@@ -100,7 +100,9 @@ pub fn losses(
         let conf_target = (error * -weights.beta)?.exp()?;
         // Composited confidence over alpha is the confidence of what is drawn.
         let alpha = out.get(CH_ALPHA)?;
-        let conf = (out.get(CH_CONFIDENCE)? - (conf_target * &alpha)?)?.abs()?.mean_all()?;
+        let conf = (out.get(CH_CONFIDENCE)? - (conf_target * &alpha)?)?
+            .abs()?
+            .mean_all()?;
         l2_sum += l2.to_scalar::<f32>()?;
         depth_sum += d_rend.to_scalar::<f32>()?;
         conf_sum += conf.to_scalar::<f32>()?;

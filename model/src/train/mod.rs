@@ -28,6 +28,9 @@ use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
 use crate::net::{Config, StereoSplat};
 use renderer::RenderSettings;
 
+/// The log columns drawn in `loss_curve.png`.
+pub const CURVE_COLUMNS: &[&str] = &["loss", "l2", "lpips", "estimated_depth", "rendered_depth"];
+
 /// Why training stopped with an error.
 #[derive(Debug, thiserror::Error)]
 pub enum TrainError {
@@ -53,6 +56,9 @@ pub enum TrainError {
         /// The checkpoint's.
         found: String,
     },
+    /// The loss curve could not be drawn.
+    #[error(transparent)]
+    Curve(#[from] crate::curve::CurveError),
     /// The checkpoint state file is not valid JSON.
     #[error("checkpoint state {0}: {1}")]
     State(PathBuf, serde_json::Error),
@@ -161,7 +167,10 @@ impl Trainer {
         std::fs::create_dir_all(checkpoint_dir(out)).map_err(io(out))?;
         let device = Device::Cpu;
         let varmap = VarMap::new();
-        let net = StereoSplat::new(VarBuilder::from_varmap(&varmap, DType::F32, &device), net_cfg)?;
+        let net = StereoSplat::new(
+            VarBuilder::from_varmap(&varmap, DType::F32, &device),
+            net_cfg,
+        )?;
         reseed(&varmap, cfg.seed)?;
         let vars = varmap
             .data()
@@ -176,8 +185,8 @@ impl Trainer {
         let state_path = dir.join("state.json");
         let step = if resume && state_path.exists() {
             let text = std::fs::read_to_string(&state_path).map_err(io(&state_path))?;
-            let state: State =
-                serde_json::from_str(&text).map_err(|e| TrainError::State(state_path.clone(), e))?;
+            let state: State = serde_json::from_str(&text)
+                .map_err(|e| TrainError::State(state_path.clone(), e))?;
             if state.preset != net_cfg.name {
                 return Err(TrainError::PresetMismatch {
                     expected: net_cfg.name.clone(),
@@ -306,6 +315,8 @@ impl Trainer {
         std::fs::write(&path, text).map_err(io(path.clone()))?;
         let export = exported_weights(&self.out, &self.net.config().name);
         std::fs::copy(&weights, &export).map_err(io(export.clone()))?;
+        let png = self.out.join("loss_curve.png");
+        crate::curve::plot_csv(&self.out.join("log.csv"), CURVE_COLUMNS, &png, 800, 480)?;
         Ok(())
     }
 }
@@ -316,24 +327,36 @@ fn mix(seed: u64, step: u64) -> u64 {
 }
 
 /// Redraws every variable from a generator seeded with `seed` (candle's CPU initialisers
-/// cannot be seeded): each non-constant variable keeps its initialiser's variance (uniform
-/// with the same standard deviation); constants (norm weights, zero biases) stay.
+/// cannot be seeded), uniform with the spread of candle-nn's initialisers, which depends only
+/// on names and shapes: weights of rank 2 and up with the standard deviation of Kaiming
+/// normal (`sqrt(2 / fan_in)`), their biases within `1 / sqrt(fan_in)`, the transformer's
+/// position embedding with standard deviation 0.02. Constants (norm weights and biases)
+/// stay as they are.
 fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
     let data = varmap.data().lock().expect("varmap lock");
+    let fan_in = |name: &str| {
+        data.get(name)
+            .filter(|v| v.rank() >= 2)
+            .map(|v| v.dims()[1..].iter().product::<usize>() as f64)
+    };
     let mut names: Vec<&String> = data.keys().collect();
     names.sort();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for name in names {
         let var = &data[name];
-        let values: Vec<f32> = var.flatten_all()?.to_vec1()?;
-        let n = values.len() as f64;
-        let mean = values.iter().map(|&v| v as f64).sum::<f64>() / n;
-        let var_ = values.iter().map(|&v| (v as f64 - mean).powi(2)).sum::<f64>() / n;
-        if var_ <= 0.0 {
+        let bound = if name.ends_with("position") {
+            0.02 * 3f64.sqrt()
+        } else if var.rank() >= 2 {
+            (3.0 * 2.0 / fan_in(name).unwrap_or(1.0)).sqrt()
+        } else if let Some(f) = name
+            .strip_suffix("bias")
+            .and_then(|prefix| fan_in(&format!("{prefix}weight")))
+        {
+            1.0 / f.sqrt()
+        } else {
             continue;
-        }
-        let bound = (3.0 * var_).sqrt();
-        let fresh: Vec<f32> = (0..values.len())
+        };
+        let fresh: Vec<f32> = (0..var.elem_count())
             .map(|_| rng.random_range(-bound..bound) as f32)
             .collect();
         var.set(&Tensor::from_vec(fresh, var.shape(), var.device())?)?;

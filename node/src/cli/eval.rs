@@ -28,6 +28,12 @@ pub struct EvalArgs {
     /// The reconstructor (see `model::methods`).
     #[arg(long, default_value = "sgm")]
     method: String,
+    /// Network preset of a learned method (tiny, small, paper; default tiny).
+    #[arg(long)]
+    preset: Option<String>,
+    /// Weights of a learned method (default: the preset's shipped file).
+    #[arg(long)]
+    weights: Option<PathBuf>,
     /// Output folder.
     #[arg(long, default_value = "out/eval")]
     out: PathBuf,
@@ -52,6 +58,9 @@ pub struct EvalArgs {
     /// Render on wgpu instead of the CPU reference rasterizer.
     #[arg(long)]
     gpu: bool,
+    /// Input stereo pairs per bin, its first frames (the paper's protocol: 1).
+    #[arg(long, default_value_t = 1)]
+    pairs: usize,
     /// Skip LPIPS (AlexNet on the CPU, the slowest metric); the table loses its LPIPS columns.
     #[arg(long)]
     no_lpips: bool,
@@ -64,7 +73,11 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         None => Sequence::list(&args.data)
             .with_context(|| format!("listing sequences in {}", args.data.display()))?,
     };
-    let mut reconstructor = model::methods::by_name(&args.method)?;
+    let mut reconstructor = model::methods::build(
+        &args.method,
+        args.preset.as_deref(),
+        args.weights.as_deref(),
+    )?;
     let mut raster = match args.gpu {
         true => Raster::Gpu(Box::new(GpuRasterizer::new().context("no wgpu adapter")?)),
         false => Raster::Cpu,
@@ -90,6 +103,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         picture_bins: args.pictures,
         picture_dir: Some(args.out.join("pictures")),
         lpips,
+        input_pairs: args.pairs,
         ..EvalConfig::default()
     };
     let (mut bins, mut skipped) = (Vec::new(), Vec::new());

@@ -87,7 +87,7 @@ pub enum ServiceError {
     Transport(#[from] TransportError),
     /// The method name.
     #[error(transparent)]
-    Method(#[from] model::methods::UnknownMethod),
+    Method(#[from] model::methods::MethodError),
     /// The fusion settings.
     #[error(transparent)]
     Fusion(#[from] crate::fusion::FusionError),

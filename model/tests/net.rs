@@ -1,0 +1,188 @@
+//! The StereoSplat network (untrained weights): shapes for 1 to 3 pairs, pruning to the
+//! opacity floor and budget, and numerical stability at the extremes the issue names:
+//! uniform grey, black and saturated images, identical left and right images (zero
+//! disparity), a scene at 1 m and at 80 m, cameras far from the origin. Every output and
+//! every gradient (through the differentiable rasterizer) must be finite.
+
+use candle_core::{DType, Device, Tensor};
+use candle_nn::{VarBuilder, VarMap};
+use glam::{Quat, Vec3};
+use model::net::{to_set, Config, StereoSplat};
+use model::ops::render;
+use renderer::{Camera, Intrinsics, RenderSettings};
+
+const W: u32 = 96;
+const H: u32 = 40;
+const BASELINE: f32 = 0.6;
+
+fn intrinsics() -> Intrinsics {
+    Intrinsics::from_hfov(W, H, 80.0)
+}
+
+/// A rectified pair at `origin` (left camera), looking down +z, and the frame `ahead` metres on.
+fn pair(origin: Vec3, ahead: f32) -> Vec<Camera> {
+    [0.0, BASELINE]
+        .iter()
+        .map(|&x| {
+            Camera::from_camera_to_world(
+                intrinsics(),
+                Quat::IDENTITY,
+                origin + Vec3::new(x, 0.0, ahead),
+            )
+        })
+        .collect()
+}
+
+fn network() -> (VarMap, StereoSplat) {
+    let varmap = VarMap::new();
+    let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+    let net = StereoSplat::new(vb, &Config::tiny()).unwrap();
+    (varmap, net)
+}
+
+/// A textured image: stripes whose phase is shifted by `shift` pixels.
+fn stripes(shift: f32) -> Vec<f32> {
+    let mut v = Vec::with_capacity((3 * W * H) as usize);
+    for c in 0..3 {
+        for y in 0..H {
+            for x in 0..W {
+                let t = (x as f32 + shift) * 0.7 + y as f32 * 0.3 + c as f32;
+                v.push(0.5 + 0.4 * t.sin());
+            }
+        }
+    }
+    v
+}
+
+fn images(views: &[Vec<f32>]) -> Tensor {
+    let data: Vec<f32> = views.iter().flatten().copied().collect();
+    Tensor::from_vec(data, (views.len(), 3, H as usize, W as usize), &Device::Cpu).unwrap()
+}
+
+fn assert_finite(t: &Tensor, what: &str) {
+    let v: Vec<f32> = t.flatten_all().unwrap().to_vec1().unwrap();
+    let bad = v.iter().filter(|x| !x.is_finite()).count();
+    assert_eq!(bad, 0, "{what}: {bad} of {} values not finite", v.len());
+}
+
+/// Forward, render a target view, backward: every output and gradient finite.
+fn check_stable(views: &[Vec<f32>], cameras: &[Camera], what: &str) {
+    let (varmap, net) = network();
+    let p = net.forward(&images(views), cameras).unwrap();
+    let s = &p.splats;
+    for (t, name) in [
+        (&s.means, "means"),
+        (&s.log_scales, "log_scales"),
+        (&s.rotations, "rotations"),
+        (&s.opacity_logits, "opacity"),
+        (&s.colors, "colors"),
+        (&s.confidences, "confidences"),
+        (&p.depth, "depth"),
+    ] {
+        assert_finite(t, &format!("{what}: {name}"));
+    }
+    let target = Camera {
+        position: cameras[0].position + Vec3::new(0.0, 0.0, 2.0),
+        ..cameras[0]
+    };
+    let out = render(&s.pack().unwrap(), &target, &RenderSettings::default()).unwrap();
+    assert_finite(&out, &format!("{what}: render"));
+    let loss = (out.sqr().unwrap().mean_all().unwrap() + p.depth.mean_all().unwrap()).unwrap();
+    let grads = loss.backward().unwrap();
+    let mut with_grad = 0;
+    for var in varmap.all_vars() {
+        if let Some(g) = grads.get(var.as_tensor()) {
+            assert_finite(g, &format!("{what}: gradient"));
+            with_grad += 1;
+        }
+    }
+    assert!(
+        with_grad > 10,
+        "{what}: only {with_grad} variables got a gradient"
+    );
+}
+
+#[test]
+fn gaussians_per_view_and_pair_counts() {
+    let (_, net) = network();
+    for pairs in 1..=3 {
+        let mut cams = Vec::new();
+        let mut views = Vec::new();
+        for k in 0..pairs {
+            cams.extend(pair(Vec3::ZERO, 1.5 * k as f32));
+            views.push(stripes(0.0));
+            views.push(stripes(3.0));
+        }
+        let p = net.forward(&images(&views), &cams).unwrap();
+        // One Gaussian per 2x2 pixels of every view.
+        let per_view = (W as usize / 2) * (H as usize / 2);
+        assert_eq!(p.splats.means.dims(), &[2 * pairs * per_view, 3]);
+        assert_eq!(
+            p.depth.dims(),
+            &[2 * pairs, 1, H as usize / 2, W as usize / 2]
+        );
+        let cfg = Config::tiny();
+        let d: Vec<f32> = p.depth.flatten_all().unwrap().to_vec1().unwrap();
+        assert!(d
+            .iter()
+            .all(|&z| z >= cfg.near * 0.999 && z <= cfg.far * 1.001));
+    }
+}
+
+#[test]
+fn pruning_keeps_the_floor_and_the_budget() {
+    let (_, net) = network();
+    let p = net
+        .forward(
+            &images(&[stripes(0.0), stripes(3.0)]),
+            &pair(Vec3::ZERO, 0.0),
+        )
+        .unwrap();
+    let all = to_set(&p.splats, 0.0, usize::MAX).unwrap();
+    assert_eq!(all.len(), p.splats.means.dim(0).unwrap());
+    let floor = 0.5;
+    let above = to_set(&p.splats, floor, usize::MAX).unwrap();
+    assert!(above.opacities.iter().all(|&o| o >= floor));
+    let budget = above.len() / 3;
+    let capped = to_set(&p.splats, floor, budget).unwrap();
+    assert_eq!(capped.len(), budget);
+    // The budget keeps the most opaque.
+    let least_kept = capped.opacities.iter().copied().fold(1.0, f32::min);
+    let mut sorted = above.opacities.clone();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    assert!(least_kept >= sorted[budget]);
+}
+
+#[test]
+fn uniform_grey_black_and_saturated_images_stay_finite() {
+    let n = (3 * W * H) as usize;
+    for (value, what) in [(0.5, "grey"), (0.0, "black"), (1.0, "saturated")] {
+        let v = vec![value; n];
+        check_stable(&[v.clone(), v], &pair(Vec3::ZERO, 0.0), what);
+    }
+}
+
+#[test]
+fn identical_left_and_right_images_stay_finite() {
+    let v = stripes(0.0);
+    check_stable(&[v.clone(), v], &pair(Vec3::ZERO, 0.0), "zero disparity");
+}
+
+#[test]
+fn scenes_at_1_m_and_80_m_stay_finite() {
+    let fx = intrinsics().fx;
+    for depth in [1.0f32, 80.0] {
+        let disparity = fx * BASELINE / depth;
+        check_stable(
+            &[stripes(0.0), stripes(disparity)],
+            &pair(Vec3::ZERO, 0.0),
+            &format!("{depth} m"),
+        );
+    }
+}
+
+#[test]
+fn cameras_far_from_the_origin_stay_finite() {
+    let far = Vec3::new(1.0e5, -1.0e5, 50.0);
+    check_stable(&[stripes(0.0), stripes(3.0)], &pair(far, 0.0), "far pose");
+}

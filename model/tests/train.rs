@@ -1,0 +1,117 @@
+//! Training end to end on a small generated drive: steps run and are logged, checkpoints
+//! resume exactly (a run stopped at step 4 and resumed to 6 ends with the weights of a run
+//! that went straight to 6), the loss curve is drawn, and a checkpoint of another preset is
+//! refused.
+
+use std::path::{Path, PathBuf};
+
+use candle_core::{DType, Device, Tensor};
+use model::bins::BinConfig;
+use model::generate::write_synthetic;
+use model::net::Config;
+use model::synth::SynthConfig;
+use model::train::{
+    exported_weights, AdamWConfig, LossWeights, SampleConfig, TrainConfig, TrainError, Trainer,
+};
+
+fn temp(case: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("stereosplat-train-{case}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn train_config(steps: u64) -> TrainConfig {
+    TrainConfig {
+        steps,
+        lr: 1e-3,
+        warmup: 2,
+        clip: 1.0,
+        seed: 3,
+        checkpoint_every: 2,
+        sample: SampleConfig {
+            max_pairs: 2,
+            subsample_views: true,
+            targets: 1,
+            gaussian_stride: Config::tiny().gaussian_stride,
+        },
+        loss: LossWeights::default(),
+        bins: BinConfig::default(),
+        adamw: AdamWConfig::default(),
+    }
+}
+
+fn run(data: &Path, out: &Path, steps: u64, resume: bool) -> Vec<f32> {
+    let mut trainer =
+        Trainer::new(&Config::tiny(), train_config(steps), data, out, resume).unwrap();
+    let mut losses = Vec::new();
+    trainer
+        .run(&|| false, &mut |r| {
+            assert!(r.loss.is_finite() && r.grad_norm.is_finite());
+            losses.push(r.loss);
+        })
+        .unwrap();
+    assert_eq!(trainer.step(), steps);
+    losses
+}
+
+fn weights(out: &Path) -> Vec<(String, Tensor)> {
+    let mut map: Vec<_> =
+        candle_core::safetensors::load(exported_weights(out, "tiny"), &Device::Cpu)
+            .unwrap()
+            .into_iter()
+            .collect();
+    map.sort_by(|a, b| a.0.cmp(&b.0));
+    map
+}
+
+#[test]
+fn a_resumed_run_ends_where_a_straight_run_does() {
+    let data = temp("data");
+    let config = SynthConfig {
+        seed: 11,
+        frames: 40,
+        width: 136,
+        height: 40,
+        ..SynthConfig::default()
+    };
+    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+
+    let (resumed, straight) = (temp("resumed"), temp("straight"));
+    let first = run(&data, &resumed, 4, false);
+    let second = run(&data, &resumed, 6, true);
+    assert_eq!((first.len(), second.len()), (4, 2));
+    let all = run(&data, &straight, 6, false);
+    assert_eq!(&all[..4], &first[..], "same seed, same first steps");
+    for (a, b) in all[4..].iter().zip(&second) {
+        assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "{a} vs {b}");
+    }
+    for ((name, a), (_, b)) in weights(&resumed).iter().zip(weights(&straight)) {
+        let diff = (a.to_dtype(DType::F64).unwrap() - b.to_dtype(DType::F64).unwrap())
+            .unwrap()
+            .abs()
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .max(0)
+            .unwrap()
+            .to_scalar::<f64>()
+            .unwrap();
+        assert!(diff < 1e-5, "{name} differs by {diff}");
+    }
+
+    let log = std::fs::read_to_string(resumed.join("log.csv")).unwrap();
+    let steps: Vec<&str> = log
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(steps, ["1", "2", "3", "4", "5", "6"]);
+    let curve = image::open(resumed.join("loss_curve.png")).unwrap();
+    assert_eq!((curve.width(), curve.height()), (800, 480));
+
+    let small = Trainer::new(&Config::small(), train_config(8), &data, &resumed, true);
+    assert!(matches!(small, Err(TrainError::PresetMismatch { .. })));
+    for dir in [data, resumed, straight] {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}

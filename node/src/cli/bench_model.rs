@@ -1,0 +1,125 @@
+//! `stereosplat bench model`: the learned reconstructor per preset on this machine, as JSON
+//! on stdout: milliseconds per reconstruction of one stereo pair (median and min over timed
+//! runs after warm-up), the process's peak resident memory so far (with `--preset all`,
+//! the largest of the presets run so far: run one preset per process for each alone), parameters and
+//! Gaussians emitted. A preset without shipped weights runs untrained (`"weights":
+//! "untrained"`): its time and memory are those of the trained network, its Gaussian count
+//! is not.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use model::frame::Side;
+use model::kitti360::Sequence;
+use model::net::{default_weights, Config, LearnedReconstructor, PRESETS};
+use model::reconstruct::{Reconstructor, StereoView};
+use model::synth::SynthConfig;
+use serde::Serialize;
+
+use super::synth::cached_drive;
+use crate::service::loopback::peak_rss_bytes;
+
+/// Flags of `bench model`.
+#[derive(Args, Clone, Debug)]
+pub struct BenchModelArgs {
+    /// Preset to measure, or `all`.
+    #[arg(long, default_value = "tiny")]
+    preset: String,
+    /// Image width of the stereo pair (the paper's is 544).
+    #[arg(long, default_value_t = 544)]
+    width: u32,
+    /// Image height (the paper's is 112).
+    #[arg(long, default_value_t = 112)]
+    height: u32,
+    /// Timed runs.
+    #[arg(long, default_value_t = 10)]
+    runs: usize,
+    /// Untimed runs first.
+    #[arg(long, default_value_t = 2)]
+    warmup: usize,
+    /// Where the generated pair is kept between runs.
+    #[arg(long, default_value = "out/bench_model/drive")]
+    cache: PathBuf,
+}
+
+#[derive(Serialize)]
+struct PresetReport {
+    preset: String,
+    weights: String,
+    width: u32,
+    height: u32,
+    threads: usize,
+    parameters: usize,
+    median_ms: f64,
+    min_ms: f64,
+    runs: usize,
+    gaussians: usize,
+    peak_rss_mib: f64,
+}
+
+/// Runs the benchmark.
+pub fn run(args: &BenchModelArgs) -> Result<()> {
+    let names: Vec<&str> = match args.preset.as_str() {
+        "all" => PRESETS.to_vec(),
+        one => vec![one],
+    };
+    let config = SynthConfig {
+        frames: 2,
+        width: args.width,
+        height: args.height,
+        ..SynthConfig::default()
+    };
+    let name = cached_drive(&args.cache, &config)?;
+    let sequence = Sequence::open(&args.cache, &name)?;
+    let pose = sequence.frames()[0].left_to_world;
+    let frame = sequence.load_frame(sequence.frames()[0].index)?;
+    let rig = sequence.rig();
+    let view = StereoView {
+        left: &frame.left,
+        right: &frame.right,
+        left_camera: rig.local_camera(pose, pose, Side::Left),
+        right_camera: rig.local_camera(pose, pose, Side::Right),
+    };
+    for name in names {
+        let cfg = Config::preset(name)?;
+        let path = default_weights(name);
+        let (mut rec, weights) = if path.exists() {
+            let rec = LearnedReconstructor::load(&cfg, &path)
+                .with_context(|| format!("loading {}", path.display()))?;
+            (rec, path.display().to_string())
+        } else {
+            (
+                LearnedReconstructor::untrained(&cfg)?,
+                "untrained".to_string(),
+            )
+        };
+        let mut times = Vec::with_capacity(args.runs);
+        let mut gaussians = 0;
+        for i in 0..args.warmup + args.runs {
+            let start = Instant::now();
+            let set = rec.reconstruct(&[view])?;
+            if i >= args.warmup {
+                times.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+            gaussians = set.len();
+        }
+        times.sort_by(f64::total_cmp);
+        let report = PresetReport {
+            preset: name.to_string(),
+            weights,
+            width: args.width,
+            height: args.height,
+            threads: rayon::current_num_threads(),
+            parameters: rec.parameters(),
+            median_ms: times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+            min_ms: times.first().copied().unwrap_or(f64::NAN),
+            runs: times.len(),
+            gaussians,
+            peak_rss_mib: peak_rss_bytes() as f64 / (1 << 20) as f64,
+        };
+        println!("{}", serde_json::to_string(&report)?);
+    }
+    Ok(())
+}

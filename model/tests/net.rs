@@ -186,3 +186,30 @@ fn cameras_far_from_the_origin_stay_finite() {
     let far = Vec3::new(1.0e5, -1.0e5, 50.0);
     check_stable(&[stripes(0.0), stripes(3.0)], &pair(far, 0.0), "far pose");
 }
+
+#[test]
+fn missing_weights_and_unknown_presets_are_typed_errors() {
+    use model::methods::{build, MethodError};
+    use model::net::LoadError;
+    let missing = build(
+        "stereosplat",
+        Some("tiny"),
+        Some(std::path::Path::new("/nonexistent/weights.safetensors")),
+    );
+    assert!(matches!(
+        missing,
+        Err(MethodError::Weights(LoadError::Missing(_)))
+    ));
+    assert!(matches!(
+        build("stereosplat", Some("huge"), None),
+        Err(MethodError::Preset(_))
+    ));
+    // A file that is not safetensors.
+    let junk = std::env::temp_dir().join(format!("stereosplat-junk-{}", std::process::id()));
+    std::fs::write(&junk, b"not a weight file").unwrap();
+    assert!(matches!(
+        build("stereosplat", None, Some(&junk)),
+        Err(MethodError::Weights(LoadError::Mismatch { .. }))
+    ));
+    let _ = std::fs::remove_file(junk);
+}

@@ -37,6 +37,7 @@ fn train_config(steps: u64) -> TrainConfig {
         loss: LossWeights::default(),
         bins: BinConfig::default(),
         adamw: AdamWConfig::default(),
+        resize: None,
     }
 }
 

@@ -63,3 +63,48 @@ pub fn cost_volume(
     }
     Tensor::stack(&volumes, 0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::{Device, IndexOp};
+    use glam::{Quat, Vec3};
+    use renderer::Intrinsics;
+
+    #[test]
+    fn correlation_peaks_at_the_true_depth_of_a_rectified_pair() {
+        let k = Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 40.0,
+            cy: 20.0,
+            width: 80,
+            height: 40,
+        };
+        let cam = |x: f32| Camera::from_camera_to_world(k, Quat::IDENTITY, Vec3::new(x, 0.0, 0.0));
+        let (h, w, c) = (10, 20, 64);
+        let left = Tensor::randn(0f32, 1.0, (1, c, h, w), &Device::Cpu).unwrap();
+        // Disparity 2 feature pixels (8 image pixels): right(x) = left(x + 2), depth
+        // fx * b / 8 = 6.25 m for a 0.5 m baseline.
+        let right = left
+            .narrow(3, 2, w - 2)
+            .unwrap()
+            .pad_with_zeros(3, 0, 2)
+            .unwrap();
+        let features = Tensor::cat(&[&left, &right], 0).unwrap();
+        let depths = [20.0, 10.0, 6.25, 4.0];
+        let volume = cost_volume(
+            &features,
+            &[cam(0.0), cam(0.5)],
+            &depths,
+            &Config::tiny(),
+            4,
+        )
+        .unwrap();
+        assert_eq!(volume.dims(), &[2, 4, h, w]);
+        // Left view, pixels whose match lies inside the right view.
+        let best = volume.i((0, .., .., 4..w)).unwrap().argmax(0).unwrap();
+        let best: Vec<u32> = best.flatten_all().unwrap().to_vec1().unwrap();
+        assert!(best.iter().all(|&b| b == 2), "{best:?}");
+    }
+}

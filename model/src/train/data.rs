@@ -80,12 +80,20 @@ pub struct TrainingSet {
 }
 
 impl TrainingSet {
-    /// Opens every sequence under `root` and cuts it into bins.
-    pub fn open(root: &Path, bins: &BinConfig) -> Result<Self, DataError> {
+    /// Opens every sequence under `root` (read at `resize` if given: width, height) and cuts
+    /// it into bins.
+    pub fn open(
+        root: &Path,
+        bins: &BinConfig,
+        resize: Option<(u32, u32)>,
+    ) -> Result<Self, DataError> {
         let mut sequences = Vec::new();
         let mut all = Vec::new();
         for name in Sequence::list(root)? {
-            let sequence = Sequence::open(root, &name)?;
+            let mut sequence = Sequence::open(root, &name)?;
+            if let Some((w, h)) = resize {
+                sequence = sequence.with_resolution(w, h);
+            }
             let poses: Vec<_> = sequence.frames().iter().map(|f| f.left_to_world).collect();
             all.extend(
                 make_bins(&poses, bins)

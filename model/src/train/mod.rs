@@ -87,6 +87,9 @@ pub struct TrainConfig {
     pub bins: BinConfig,
     /// Optimizer settings.
     pub adamw: AdamWConfig,
+    /// Read the frames at this size (width, height; intrinsics scaled), e.g. real KITTI-360
+    /// at 544x144; `None`: as stored.
+    pub resize: Option<(u32, u32)>,
 }
 
 /// What one step did, for progress and the log.
@@ -204,7 +207,7 @@ impl Trainer {
         let log = TrainLog::open(&out.join("log.csv"), step).map_err(io(out))?;
         Ok(Self {
             lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
-            data: TrainingSet::open(data, &cfg.bins)?,
+            data: TrainingSet::open(data, &cfg.bins, cfg.resize)?,
             varmap,
             net,
             optimizer,

@@ -60,6 +60,9 @@ pub struct TrainArgs {
     /// Always use the bin's first pair as input (switches stochastic view subsampling off).
     #[arg(long)]
     no_subsample: bool,
+    /// Read frames at this size (intrinsics scaled), e.g. real KITTI-360 at 544x144.
+    #[arg(long, num_args = 2, value_names = ["WIDTH", "HEIGHT"])]
+    resize: Option<Vec<u32>>,
     /// Target frames rendered per step.
     #[arg(long, default_value_t = 2)]
     targets: usize,
@@ -84,6 +87,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         loss: LossWeights::default(),
         bins: BinConfig::default(),
         adamw: AdamWConfig::default(),
+        resize: args.resize.as_ref().map(|s| (s[0], s[1])),
     };
     let mut trainer = Trainer::new(&net, cfg, &args.data, &args.out, args.resume)
         .with_context(|| format!("starting training in {}", args.out.display()))?;

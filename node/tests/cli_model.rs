@@ -1,0 +1,128 @@
+//! The learned model's commands end to end, as a user runs them: `train` (and `--resume`) on
+//! a small generated drive, `eval --method stereosplat` with the shipped tiny weights and
+//! 2 input pairs, and `bench model`'s JSON.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn stereosplat(args: &[&str], paths: &[&Path]) -> String {
+    let run = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
+        .args(args)
+        .args(paths)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    String::from_utf8(run.stdout).unwrap()
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("stereosplat-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// A 40-frame held-out drive at 136x40.
+fn drive(name: &str) -> PathBuf {
+    let data = temp_dir(name);
+    stereosplat(
+        &[
+            "synth-heldout",
+            "--frames",
+            "40",
+            "--width",
+            "136",
+            "--height",
+            "40",
+            "--out",
+        ],
+        &[&data],
+    );
+    data
+}
+
+#[test]
+fn train_writes_checkpoint_log_curve_and_resumes() {
+    let data = drive("model-train-data");
+    let out = temp_dir("model-train-out");
+    let train = |steps: &str, resume: bool| {
+        let mut args = vec!["train", "--steps", steps, "--checkpoint-every", "2"];
+        args.extend(["--targets", "1", "--max-pairs", "2"]);
+        if resume {
+            args.push("--resume");
+        }
+        args.push("--data");
+        stereosplat(&args, &[&data, Path::new("--out"), &out])
+    };
+    train("2", false);
+    let printed = train("3", true);
+    assert!(printed.contains("step 3"), "{printed}");
+    let log = std::fs::read_to_string(out.join("log.csv")).unwrap();
+    assert_eq!(log.lines().count(), 4, "{log}");
+    for file in [
+        "checkpoint/weights.safetensors",
+        "checkpoint/optimizer.safetensors",
+        "checkpoint/state.json",
+        "loss_curve.png",
+        "stereosplat_tiny.safetensors",
+    ] {
+        assert!(out.join(file).exists(), "{file}");
+    }
+    let _ = std::fs::remove_dir_all(&data);
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn eval_runs_the_shipped_weights_with_two_pairs() {
+    let data = drive("model-eval-data");
+    let out = temp_dir("model-eval-out");
+    let table = stereosplat(
+        &[
+            "eval",
+            "--method",
+            "stereosplat",
+            "--pairs",
+            "2",
+            "--max-bins",
+            "2",
+            "--pictures",
+            "0",
+            "--no-lpips",
+            "--data",
+        ],
+        &[&data, Path::new("--out"), &out],
+    );
+    assert!(table.contains("| stereosplat-tiny |"), "{table}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("eval.json")).unwrap()).unwrap();
+    let bins = json["bins"].as_array().unwrap();
+    assert_eq!(bins.len(), 2);
+    for bin in bins {
+        assert!(bin["gaussians"].as_u64().unwrap() > 0);
+    }
+    let psnr = json["summary"]["average"]["psnr"].as_f64().unwrap();
+    assert!(psnr.is_finite() && psnr > 5.0, "{psnr}");
+    let _ = std::fs::remove_dir_all(&data);
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn bench_model_prints_json_per_preset() {
+    let cache = temp_dir("model-bench");
+    let printed = stereosplat(
+        &[
+            "bench", "model", "--preset", "tiny", "--width", "136", "--height", "40", "--runs",
+            "1", "--warmup", "0", "--cache",
+        ],
+        &[&cache],
+    );
+    let report: serde_json::Value = serde_json::from_str(printed.trim()).unwrap();
+    assert_eq!(report["preset"], "tiny");
+    assert!(report["parameters"].as_u64().unwrap() > 100_000);
+    assert!(report["gaussians"].as_u64().unwrap() > 0);
+    assert!(report["median_ms"].as_f64().unwrap() > 0.0);
+    let _ = std::fs::remove_dir_all(&cache);
+}

@@ -21,7 +21,9 @@ pub fn candidate_depths(cfg: &Config) -> Vec<f64> {
 }
 
 /// Correlation volumes `(V, D, h, w)` of the views' features `(V, C, h, w)` (grid stride
-/// `stride` in image pixels), each averaged over the view's `match_views` nearest views.
+/// `stride` in image pixels): the dot product of a reference pixel's feature with the
+/// source's feature at each candidate depth (cosine similarity for unit features), each
+/// averaged over the view's `match_views` nearest views.
 pub fn cost_volume(
     features: &Tensor,
     cameras: &[Camera],
@@ -31,7 +33,6 @@ pub fn cost_volume(
 ) -> Result<Tensor> {
     let (v, c, h, w) = features.dims4()?;
     let d = depths.len();
-    let scale = 1.0 / (c as f64).sqrt();
     let neighbours = nearest_views(cameras, cfg.match_views);
     let mut volumes = Vec::with_capacity(v);
     for (i, sources) in neighbours.iter().enumerate() {
@@ -47,7 +48,7 @@ pub fn cost_volume(
                 features.device(),
             )?;
             let warped = grid_sample(&features.narrow(0, j, 1)?, &grid)?.reshape((c, d, h, w))?;
-            let corr = (warped.broadcast_mul(&reference)?.sum(0)? * scale)?;
+            let corr = warped.broadcast_mul(&reference)?.sum(0)?;
             sum = Some(match sum {
                 Some(s) => (s + corr)?,
                 None => corr,

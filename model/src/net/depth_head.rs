@@ -11,6 +11,9 @@ use super::blocks::{conv, ConvRelu, ResBlock};
 use super::Config;
 use crate::ops::upsample_bilinear;
 
+/// The temperature the correlation starts with.
+const INITIAL_TEMPERATURE: f64 = 10.0;
+
 /// The head's estimate at 1/4 resolution.
 pub struct CoarseDepth {
     /// Softmax over the candidates, `(V, D, h, w)`.
@@ -27,6 +30,9 @@ pub struct DepthHead {
     bottom: ResBlock,
     up: ConvRelu,
     logits: Conv,
+    /// Log of the factor on the cosine-similarity volume before the softmax (learned, from
+    /// 10: sharp enough that matching decides the first steps).
+    log_temperature: Tensor,
     /// Normalised inverse depth of each candidate (1 = nearest), `(1, D, 1, 1)`.
     candidates: Tensor,
 }
@@ -44,20 +50,26 @@ impl DepthHead {
             bottom: ResBlock::new(vb.pp("bottom"), 2 * u)?,
             up: ConvRelu::new(vb.pp("up"), 3 * u, u, 1)?,
             logits: conv(vb.pp("logits"), u, d, 3, 1)?,
+            log_temperature: vb.get_with_hints(
+                1,
+                "log_temperature",
+                candle_nn::Init::Const(INITIAL_TEMPERATURE.ln()),
+            )?,
             candidates: Tensor::from_vec(steps, (1, d, 1, 1), vb.device())?,
         })
     }
 
     /// Cost volume `(V, D, h, w)` and features `(V, Cc, h, w)` to the coarse depth. The
-    /// U-Net's logits are added to the raw correlation, so matching drives the softmax from
-    /// the first step and the U-Net learns the corrections.
+    /// U-Net's logits are added to the correlation times the temperature, so matching drives
+    /// the softmax from the first step and the U-Net learns the corrections.
     pub fn forward(&self, cost: &Tensor, features: &Tensor) -> Result<CoarseDepth> {
         let (_, _, h, w) = cost.dims4()?;
         let x1 = self.enter.forward(&Tensor::cat(&[cost, features], 1)?)?;
         let x2 = self.bottom.forward(&self.down.forward(&x1)?)?;
         let up = upsample_bilinear(&x2, h, w)?;
         let x = self.up.forward(&Tensor::cat(&[&up, &x1], 1)?)?;
-        let logits = (self.logits.forward(&x)? + cost)?;
+        let sharpened = cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
+        let logits = (self.logits.forward(&x)? + sharpened)?;
         let probabilities = candle_nn::ops::softmax(&logits, 1)?;
         let inverse = probabilities
             .broadcast_mul(&self.candidates)?

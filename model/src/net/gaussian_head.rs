@@ -3,9 +3,9 @@
 //! by the view's pose; opacity comes from the softmax matching confidence through two
 //! convolutions (the sigmoid is the renderer's, on the logit); scale, rotation, SH degree-0
 //! colour and a sigmoid confidence come from a shared convolutional trunk, which also
-//! refines the depth head's estimate (a bounded residual in normalised inverse depth): one
-//! 3x3 convolution at the Gaussians' resolution, then 1x1 layers, since that resolution is
-//! where the network spends most of its time.
+//! refines the depth head's estimate (a bounded residual in normalised inverse depth): two
+//! 3x3 convolutions at the Gaussians' resolution and a 1x1 output, kept narrow since that
+//! resolution is where the network spends most of its time.
 
 use candle_core::{Device, Module, Result, Tensor};
 use candle_nn::VarBuilder;
@@ -56,8 +56,7 @@ pub struct HeadOutput {
 /// The Gaussian heads.
 #[derive(Clone, Debug)]
 pub struct GaussianHead {
-    spatial: ConvRelu,
-    pointwise: Conv,
+    spatial: Vec<ConvRelu>,
     out: Conv,
     opacity_hidden: ConvRelu,
     opacity_out: Conv,
@@ -70,8 +69,10 @@ impl GaussianHead {
     pub fn new(vb: VarBuilder, cfg: &Config, context: usize) -> Result<Self> {
         let c = cfg.head_channels;
         Ok(Self {
-            spatial: ConvRelu::new(vb.pp("trunk0"), context + 1, c, 1)?,
-            pointwise: conv(vb.pp("trunk1"), c, c, 1, 1)?,
+            spatial: vec![
+                ConvRelu::new(vb.pp("trunk0"), context + 1, c, 1)?,
+                ConvRelu::new(vb.pp("trunk1"), c, c, 1)?,
+            ],
             out: conv(vb.pp("out"), c, TRUNK_OUT, 1, 1)?,
             opacity_hidden: ConvRelu::new(vb.pp("opacity0"), cfg.candidates, 16, 1)?,
             opacity_out: conv(vb.pp("opacity1"), 16, 1, 3, 1)?,
@@ -85,10 +86,8 @@ impl GaussianHead {
         let (v, _, hg, wg) = x.coarse.dims4()?;
         let p = hg * wg;
         let device = x.coarse.device();
-        let t = self
-            .spatial
-            .forward(&Tensor::cat(&[x.context, x.coarse], 1)?)?;
-        let t = self.out.forward(&self.pointwise.forward(&t)?.relu()?)?;
+        let t = super::blocks::chain(&self.spatial, &Tensor::cat(&[x.context, x.coarse], 1)?)?;
+        let t = self.out.forward(&t)?;
         let refine = (t.narrow(1, 0, 1)?.tanh()? * MAX_REFINE)?;
         let inverse = (x.coarse + refine)?.clamp(0f32, 1f32)?;
         let depth_map = metric_depth(&inverse, &self.cfg)?;

@@ -84,7 +84,11 @@ impl StereoSplat {
         let features = self
             .project
             .forward(&Tensor::cat(&[&mono, &attended], 1)?)?;
-        let cost = cost_volume(&features, cameras, &self.depths, &self.cfg, COST_STRIDE)?;
+        // Unit features: the volume holds cosine similarities, whose scale the depth head's
+        // learned temperature sets (raw dot products of fresh features give a flat softmax).
+        let norm = (features.sqr()?.sum_keepdim(1)? + 1e-6)?.sqrt()?;
+        let unit = features.broadcast_div(&norm)?;
+        let cost = cost_volume(&unit, cameras, &self.depths, &self.cfg, COST_STRIDE)?;
         let coarse = self.depth_head.forward(&cost, &features)?;
 
         let g = self.cfg.gaussian_stride;

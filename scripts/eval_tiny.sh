@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# The held-out comparison of the shipped tiny weights with the SGM baseline, and the
+# invariance check (1, 2 and 3 input pairs), as in results/stereosplat_tiny/README.md:
+# two held-out drives (seeds 1000000 and 1000001, 300 frames, 272x72), the paper's
+# protocol with a bin starting every 5th frame, LPIPS on.
+#   bash scripts/eval_tiny.sh [DATA_DIR] [OUT_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+data="${1:-data/heldout272}"
+out="${2:-out/eval_tiny}"
+bin=target/release/stereosplat
+cargo build --release --bin stereosplat
+if [ ! -f "$data/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
+  "$bin" synth-heldout --out "$data" --sequences 2 --frames 300 --width 272 --height 72
+fi
+"$bin" eval --data "$data" --method sgm --stride 5 --out "$out/sgm"
+for pairs in 1 2 3; do
+  "$bin" eval --data "$data" --method stereosplat --preset tiny --pairs "$pairs" --stride 5 \
+    --out "$out/tiny_pairs$pairs"
+done

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Reproduces the shipped tiny weights (model/weights/stereosplat_tiny.safetensors) from
+# scratch: eight generated training drives (seeds 0-7, 300 frames each, 272x72), then
+# `stereosplat train` with the defaults (seed 0, lr 1e-3 after 200 warm-up steps, K = 3
+# pairs, 2 targets per step) for 3000 steps. Run it again after an interruption: the drives
+# already written are kept and training resumes from its last checkpoint.
+#   bash scripts/train_tiny.sh [DATA_DIR] [RUN_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+data="${1:-data/train272}"
+run="${2:-runs/tiny}"
+bin=target/release/stereosplat
+cargo build --release --bin stereosplat
+for seed in 0 1 2 3 4 5 6 7; do
+  name=$(printf "synth_drive_%07d_sync" "$seed")
+  if [ ! -f "$data/data_poses/$name/poses.txt" ]; then
+    "$bin" synth --out "$data" --seed "$seed" --frames 300 --width 272 --height 72
+  fi
+done
+resume=()
+[ -f "$run/checkpoint/state.json" ] && resume=(--resume)
+"$bin" train --data "$data" --preset tiny --out "$run" --steps 3000 "${resume[@]}"
+echo "weights: $run/stereosplat_tiny.safetensors (copy to model/weights/ to ship them)"

@@ -3,28 +3,11 @@
 //! with the paper's protocol (LPIPS on by default, then off), and the table, JSON and
 //! pictures are checked.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
-fn stereosplat(args: &[&str], paths: &[&Path]) -> String {
-    let run = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
-        .args(args)
-        .args(paths)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    String::from_utf8(run.stdout).unwrap()
-}
+mod cli_support;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("stereosplat-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
+use cli_support::{stereosplat, temp_dir};
 
 #[test]
 fn synth_then_eval_writes_the_papers_table_for_the_baseline() {

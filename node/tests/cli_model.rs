@@ -3,27 +3,10 @@
 //! 2 input pairs, and `bench model`'s JSON.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn stereosplat(args: &[&str], paths: &[&Path]) -> String {
-    let run = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
-        .args(args)
-        .args(paths)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    String::from_utf8(run.stdout).unwrap()
-}
+mod cli_support;
 
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("stereosplat-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
+use cli_support::{stereosplat, temp_dir};
 
 /// A 40-frame held-out drive at 136x40.
 fn drive(name: &str) -> PathBuf {

@@ -69,20 +69,10 @@ pub fn cost_volume(
 mod tests {
     use super::*;
     use candle_core::{Device, IndexOp};
-    use glam::{Quat, Vec3};
-    use renderer::Intrinsics;
 
     #[test]
     fn correlation_peaks_at_the_true_depth_of_a_rectified_pair() {
-        let k = Intrinsics {
-            fx: 100.0,
-            fy: 100.0,
-            cx: 40.0,
-            cy: 20.0,
-            width: 80,
-            height: 40,
-        };
-        let cam = |x: f32| Camera::from_camera_to_world(k, Quat::IDENTITY, Vec3::new(x, 0.0, 0.0));
+        let cam = crate::net::geometry::test_camera;
         let (h, w, c) = (10, 20, 64);
         let left = Tensor::randn(0f32, 1.0, (1, c, h, w), &Device::Cpu).unwrap();
         // Disparity 2 feature pixels (8 image pixels): right(x) = left(x + 2), depth

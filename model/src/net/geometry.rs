@@ -95,27 +95,27 @@ pub fn nearest_views(cameras: &[Camera], n: usize) -> Vec<Vec<usize>> {
         .collect()
 }
 
+/// A camera of the unit tests: 80x40, fx 100, looking down +z from `(x, 0, 0)`.
+#[cfg(test)]
+pub(crate) fn test_camera(x: f32) -> Camera {
+    let k = renderer::Intrinsics {
+        fx: 100.0,
+        fy: 100.0,
+        cx: 40.0,
+        cy: 20.0,
+        width: 80,
+        height: 40,
+    };
+    Camera::from_camera_to_world(k, glam::Quat::IDENTITY, glam::Vec3::new(x, 0.0, 0.0))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{Quat, Vec3};
-    use renderer::Intrinsics;
-
-    fn camera(x: f32) -> Camera {
-        let k = Intrinsics {
-            fx: 100.0,
-            fy: 100.0,
-            cx: 40.0,
-            cy: 20.0,
-            width: 80,
-            height: 40,
-        };
-        Camera::from_camera_to_world(k, Quat::IDENTITY, Vec3::new(x, 0.0, 0.0))
-    }
 
     #[test]
     fn sweep_of_a_rectified_pair_shifts_by_the_disparity() {
-        let (left, right) = (camera(0.0), camera(0.5));
+        let (left, right) = (test_camera(0.0), test_camera(0.5));
         // Depth 10 m, baseline 0.5 m, fx 100: disparity 5 px, 1.25 px on the 1/4 grid.
         let g = sweep_grid(&left, &right, &[10.0], 4, (10, 20), &Device::Cpu).unwrap();
         let v: Vec<f32> = g.flatten_all().unwrap().to_vec1().unwrap();
@@ -127,7 +127,12 @@ mod tests {
 
     #[test]
     fn nearest_views_follow_translation() {
-        let cams = [camera(0.0), camera(0.5), camera(5.0), camera(5.5)];
+        let cams = [
+            test_camera(0.0),
+            test_camera(0.5),
+            test_camera(5.0),
+            test_camera(5.5),
+        ];
         let n = nearest_views(&cams, 2);
         assert_eq!(n[0], vec![1, 2]);
         assert_eq!(n[3], vec![2, 1]);
@@ -136,7 +141,7 @@ mod tests {
 
     #[test]
     fn orientation_of_an_identity_camera_is_identity() {
-        let m = orientation_matrix(&camera(3.0));
+        let m = orientation_matrix(&test_camera(3.0));
         for (r, row) in m.iter().enumerate() {
             for (c, v) in row.iter().enumerate() {
                 assert!((v - if r == c { 1.0 } else { 0.0 }).abs() < 1e-6);

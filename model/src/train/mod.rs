@@ -281,7 +281,7 @@ impl Trainer {
                 source,
             })?;
             report(&r);
-            if step % self.cfg.checkpoint_every == 0 {
+            if step.is_multiple_of(self.cfg.checkpoint_every) {
                 self.checkpoint(r.elapsed_s)?;
             }
         }

@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # Reproduces the shipped tiny weights (model/weights/stereosplat_tiny.safetensors) from
 # scratch: eight generated training drives (seeds 0-7, 300 frames each, 272x72), then
-# `stereosplat train` with the defaults (seed 0, lr 1e-3 after 200 warm-up steps, K = 3
-# pairs, 2 targets per step) for 3000 steps. Run it again after an interruption: the drives
-# already written are kept and training resumes from its last checkpoint.
+# `stereosplat train` with the defaults (seed 0, lr 1e-3 after 200 warm-up steps, 2 targets
+# per step) in two phases: steps 1-PHASE1 with stochastic view subsampling (m ~ U{1..3}
+# pairs), then to 3000 with the bin's first pair as input (`--no-subsample`, the evaluation
+# protocol's input; see results/stereosplat_tiny/README.md for why). Run it again after an
+# interruption: the drives already written are kept and training resumes from its last
+# checkpoint.
 #   bash scripts/train_tiny.sh [DATA_DIR] [RUN_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,7 +20,12 @@ for seed in 0 1 2 3 4 5 6 7; do
     "$bin" synth --out "$data" --seed "$seed" --frames 300 --width 272 --height 72
   fi
 done
+phase1=1600
+step() { sed -n 's/.*"step": *\([0-9]*\).*/\1/p' "$run/checkpoint/state.json" 2>/dev/null || echo 0; }
 resume=()
 [ -f "$run/checkpoint/state.json" ] && resume=(--resume)
-"$bin" train --data "$data" --preset tiny --out "$run" --steps 3000 "${resume[@]}"
+if [ "$(step)" -lt "$phase1" ]; then
+  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase1" "${resume[@]}"
+fi
+"$bin" train --data "$data" --preset tiny --out "$run" --steps 3000 --resume --no-subsample
 echo "weights: $run/stereosplat_tiny.safetensors (copy to model/weights/ to ship them)"

@@ -213,3 +213,42 @@ fn missing_weights_and_unknown_presets_are_typed_errors() {
     ));
     let _ = std::fs::remove_file(junk);
 }
+
+#[test]
+fn inference_kernels_compute_what_training_does() {
+    // Weights as variables: every layer takes the differentiable path. The same weights as
+    // plain tensors: convolution, layer norm and attention softmax take candle's kernels.
+    let (varmap, trained) = network();
+    let plain: std::collections::HashMap<String, Tensor> = varmap
+        .data()
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|(k, v)| (k.clone(), v.as_tensor().detach()))
+        .collect();
+    let vb = VarBuilder::from_tensors(plain, DType::F32, &Device::Cpu);
+    let inference = StereoSplat::new(vb, &Config::tiny()).unwrap();
+    let mut cams = pair(Vec3::ZERO, 0.0);
+    cams.extend(pair(Vec3::ZERO, 1.5));
+    let views = [stripes(0.0), stripes(3.0), stripes(1.0), stripes(4.0)];
+    let a = trained.forward(&images(&views), &cams).unwrap();
+    let b = inference.forward(&images(&views), &cams).unwrap();
+    for (x, y) in [
+        (&a.splats.means, &b.splats.means),
+        (&a.splats.colors, &b.splats.colors),
+        (&a.splats.opacity_logits, &b.splats.opacity_logits),
+        (&a.depth, &b.depth),
+    ] {
+        let diff: f32 = (x - y)
+            .unwrap()
+            .abs()
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .max(0)
+            .unwrap()
+            .to_scalar()
+            .unwrap();
+        assert!(diff < 1e-3, "{diff}");
+    }
+}

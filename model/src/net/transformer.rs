@@ -12,7 +12,14 @@ use candle_nn::{linear, Linear, VarBuilder};
 
 use super::Config;
 
-/// Layer norm over the last dimension, composed of differentiable tensor ops.
+/// Whether any of `tensors` takes part in a gradient. Where none does (inference), candle's
+/// fused kernels run instead of the compositions of differentiable ops, which compute the
+/// same function.
+fn tracked(tensors: &[&Tensor]) -> bool {
+    tensors.iter().any(|t| t.track_op())
+}
+
+/// Layer norm over the last dimension: composed of differentiable tensor ops when training.
 #[derive(Clone, Debug)]
 struct Norm {
     weight: Tensor,
@@ -28,7 +35,11 @@ impl Norm {
     }
 
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        candle_nn::ops::layer_norm_slow(x, &self.weight, &self.bias, 1e-5)
+        if tracked(&[x, &self.weight]) {
+            candle_nn::ops::layer_norm_slow(x, &self.weight, &self.bias, 1e-5)
+        } else {
+            candle_nn::ops::layer_norm(&x.contiguous()?, &self.weight, &self.bias, 1e-5)
+        }
     }
 }
 
@@ -66,7 +77,11 @@ impl Attention {
         let k = split(self.k.forward(context)?, tk)?;
         let v = split(self.v.forward(context)?, tk)?;
         let logits = (q.matmul(&k.transpose(2, 3)?.contiguous()?)? / (dh as f64).sqrt())?;
-        let weights = candle_nn::ops::softmax(&logits, D::Minus1)?;
+        let weights = if tracked(&[&logits]) {
+            candle_nn::ops::softmax(&logits, D::Minus1)?
+        } else {
+            candle_nn::ops::softmax_last_dim(&logits.contiguous()?)?
+        };
         let y = weights.matmul(&v)?.transpose(1, 2)?.reshape((b, tq, c))?;
         self.out.forward(&y)
     }

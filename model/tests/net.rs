@@ -239,16 +239,19 @@ fn inference_kernels_compute_what_training_does() {
         (&a.splats.opacity_logits, &b.splats.opacity_logits),
         (&a.depth, &b.depth),
     ] {
-        let diff: f32 = (x - y)
-            .unwrap()
-            .abs()
-            .unwrap()
-            .flatten_all()
-            .unwrap()
-            .max(0)
-            .unwrap()
-            .to_scalar()
-            .unwrap();
-        assert!(diff < 1e-3, "{diff}");
+        let max = |t: &Tensor| -> f32 {
+            t.abs()
+                .unwrap()
+                .flatten_all()
+                .unwrap()
+                .max(0)
+                .unwrap()
+                .to_scalar()
+                .unwrap()
+        };
+        // Relative to the values' scale (means and depths reach 100 m): the kernels sum in
+        // other orders, seen up to 4e-5; a wrong kernel is off by far more.
+        let diff = max(&(x - y).unwrap()) / max(x).max(1.0);
+        assert!(diff < 3e-4, "{diff}");
     }
 }

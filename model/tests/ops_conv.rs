@@ -2,7 +2,8 @@
 //! path, taken when the weights are variables) the same input and weight gradients as
 //! candle's convolution backward, for the kernel sizes, strides and paddings the network and
 //! LPIPS use. Sizes are chosen so that the strides tile the padded input exactly: candle's
-//! own backward (the reference) fails on the other sizes.
+//! own backward (the reference) fails on the other sizes. The inference path (no gradient
+//! tracked: `ops::im2col` and one product) is checked on those sizes too.
 
 use candle_core::{DType, Device, Module, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
@@ -83,24 +84,91 @@ fn gemm_convolution_matches_candle_in_value_and_gradient() {
     }
 }
 
+/// The convolution of `x` by candle's own kernel, bias added.
+fn candle_conv(x: &Tensor, weight: &Tensor, bias: Option<&Tensor>, s: usize, p: usize) -> Tensor {
+    let y = x.conv2d(weight, p, s, 1, 1).unwrap();
+    match bias {
+        Some(b) => y
+            .broadcast_add(&b.reshape((1, b.dim(0).unwrap(), 1, 1)).unwrap())
+            .unwrap(),
+        None => y,
+    }
+}
+
 #[test]
-fn inference_path_equals_the_gradient_path() {
+fn inference_path_matches_candle_and_the_gradient_path() {
     let dev = Device::Cpu;
-    let varmap = VarMap::new();
-    let vb = VarBuilder::from_varmap(&varmap, DType::F32, &dev);
-    let conv = Conv::new(vb, (3, 8), 3, 2, 1, true).unwrap();
-    let x = Tensor::randn(0f32, 1.0, (1, 3, 12, 20), &dev).unwrap();
-    let tracked = conv.forward(&x).unwrap();
-    // The same weights as plain tensors: no gradient is tracked, candle's kernel runs.
-    let plain: std::collections::HashMap<String, Tensor> = varmap
-        .data()
-        .lock()
+    // (in, out, kernel, stride, padding, bias, height, width): the network's shapes, sizes
+    // the stride does not tile, a 1x1, no bias.
+    let cases = [
+        (3, 8, 3, 2, 1, true, 12, 20),
+        (3, 8, 3, 2, 1, true, 13, 21),
+        (5, 4, 3, 1, 1, false, 7, 9),
+        (6, 2, 1, 1, 0, true, 5, 7),
+        (3, 6, 11, 4, 2, true, 40, 41),
+    ];
+    for (cin, cout, k, s, p, bias, h, w) in cases {
+        let varmap = VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F64, &dev);
+        let conv = Conv::new(vb, (cin, cout), k, s, p, bias).unwrap();
+        let x = Tensor::randn(0f64, 1.0, (2, cin, h, w), &dev).unwrap();
+        let tracked = conv.forward(&x).unwrap();
+        // The same weights as plain tensors: no gradient is tracked, the inference path runs.
+        let plain: std::collections::HashMap<String, Tensor> = varmap
+            .data()
+            .lock()
+            .unwrap()
+            .iter()
+            .map(|(k, v)| (k.clone(), v.as_tensor().detach()))
+            .collect();
+        let weight = plain.values().find(|t| t.rank() == 4).unwrap().clone();
+        let b = plain.values().find(|t| t.rank() == 1).cloned();
+        let vb = VarBuilder::from_tensors(plain, DType::F64, &dev);
+        let fixed = Conv::new(vb, (cin, cout), k, s, p, bias).unwrap();
+        let untracked = fixed.forward(&x).unwrap();
+        let reference = candle_conv(&x, &weight, b.as_ref(), s, p);
+        assert_eq!(untracked.dims(), reference.dims(), "k{k} s{s} {h}x{w}");
+        assert!(
+            max_diff(&untracked, &reference) < 1e-10,
+            "k{k} s{s} {h}x{w}"
+        );
+        assert!(max_diff(&tracked, &untracked) < 1e-10, "k{k} s{s} {h}x{w}");
+    }
+}
+
+#[test]
+fn im2col_unrolls_patches_and_refuses_inputs_smaller_than_the_kernel() {
+    use model::ops::{im2col, Patches};
+    let x = Tensor::arange(1f32, 7.0, &Device::Cpu)
         .unwrap()
-        .iter()
-        .map(|(k, v)| (k.clone(), v.as_tensor().detach()))
-        .collect();
-    let vb = VarBuilder::from_tensors(plain, DType::F32, &dev);
-    let fixed = Conv::new(vb, (3, 8), 3, 2, 1, true).unwrap();
-    let untracked = fixed.forward(&x).unwrap();
-    assert!(max_diff(&tracked, &untracked) < 1e-5);
+        .reshape((1, 1, 2, 3))
+        .unwrap();
+    let patches = Patches {
+        kernel: 2,
+        stride: 1,
+        padding: 0,
+        ones_row: true,
+    };
+    // 2x3 input, 2x2 kernel: a 1x2 output; rows are taps (0,0) (0,1) (1,0) (1,1), then ones.
+    let cols: Vec<Vec<f32>> = im2col(&x, patches)
+        .unwrap()
+        .squeeze(0)
+        .unwrap()
+        .to_vec2()
+        .unwrap();
+    assert_eq!(
+        cols,
+        vec![
+            vec![1., 2.],
+            vec![2., 3.],
+            vec![4., 5.],
+            vec![5., 6.],
+            vec![1., 1.]
+        ]
+    );
+    let big = Patches {
+        kernel: 5,
+        ..patches
+    };
+    assert!(im2col(&x, big).is_err());
 }

@@ -2,11 +2,13 @@
 //! direct transposed convolution for the input and a whole-image-kernel convolution for the
 //! weights, both slow on the CPU, while here both gradients are matrix products. Weights are
 //! named and shaped as candle-nn's `Conv2d` (`weight` `(out, in, k, k)`, `bias` `(out,)`),
-//! so files are interchangeable. Where no gradient is tracked (inference) candle's own
-//! forward kernel runs instead, the faster of the two there.
+//! so files are interchangeable. Where no gradient is tracked (inference) the columns come
+//! from one parallel unrolling pass ([`super::im2col`]) with the bias folded into the product.
 
 use candle_core::{Module, Result, Tensor};
 use candle_nn::{Init, VarBuilder};
+
+use super::im2col::{im2col, Patches};
 
 /// A square-kernel convolution with zero padding.
 #[derive(Clone, Debug)]
@@ -56,6 +58,16 @@ impl Conv {
         })
     }
 
+    /// The convolution's patch geometry.
+    fn patches(&self, ones_row: bool) -> Patches {
+        Patches {
+            kernel: self.kernel,
+            stride: self.stride,
+            padding: self.padding,
+            ones_row,
+        }
+    }
+
     /// `(N, k^2 C, Ho Wo)` columns of `x` `(N, C, H, W)` and the output size.
     fn columns(&self, x: &Tensor) -> Result<(Tensor, usize, usize)> {
         let (n, c, h, w) = x.dims4()?;
@@ -63,8 +75,7 @@ impl Conv {
         if k == 1 && s == 1 && p == 0 {
             return Ok((x.reshape((n, c, h * w))?, h, w));
         }
-        let ho = (h + 2 * p).saturating_sub(k) / s + 1;
-        let wo = (w + 2 * p).saturating_sub(k) / s + 1;
+        let (ho, wo) = self.patches(false).output_size(h, w);
         let padded = x.pad_with_zeros(2, p, p)?.pad_with_zeros(3, p, p)?;
         let wp = w + 2 * p;
         // One gather for all taps: its backward is a single scatter-add, where slicing per
@@ -90,17 +101,26 @@ impl Conv {
 
 impl Module for Conv {
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        if !x.track_op() && !self.weight.track_op() {
-            // No gradient wanted (inference, fixed inputs to LPIPS): candle's own kernel.
-            let y = x.conv2d(&self.weight, self.padding, self.stride, 1, 1)?;
-            return match &self.bias {
-                Some(b) => y.broadcast_add(&b.reshape((1, b.dim(0)?, 1, 1))?),
-                None => Ok(y),
-            };
-        }
-        let n = x.dim(0)?;
-        let (cols, ho, wo) = self.columns(x)?;
         let (cout, cin, k, _) = self.weight.dims4()?;
+        let n = x.dim(0)?;
+        if !x.track_op() && !self.weight.track_op() {
+            // No gradient wanted (inference, fixed inputs to LPIPS): one parallel im2col
+            // pass with a row of ones, the bias a column of the weights.
+            let patches = self.patches(self.bias.is_some());
+            let (h, w) = (x.dim(2)?, x.dim(3)?);
+            let (ho, wo) = patches.output_size(h, w);
+            let weight = self.weight.reshape((cout, cin * k * k))?;
+            let weight = match &self.bias {
+                Some(b) => Tensor::cat(&[&weight, &b.reshape((cout, 1))?], 1)?,
+                None => weight,
+            };
+            let cols = im2col(x, patches)?;
+            return weight
+                .unsqueeze(0)?
+                .broadcast_matmul(&cols)?
+                .reshape((n, cout, ho, wo));
+        }
+        let (cols, ho, wo) = self.columns(x)?;
         let w = self.weight.reshape((1, cout, cin * k * k))?;
         let y = w.broadcast_matmul(&cols)?;
         let y = match &self.bias {

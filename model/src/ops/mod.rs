@@ -15,11 +15,13 @@
 mod bilinear;
 mod conv;
 mod cpu;
+mod im2col;
 mod render;
 
 pub use bilinear::{grid_sample, upsample_bilinear};
 pub use conv::Conv;
 pub use cpu::OpError;
+pub use im2col::{im2col, Patches};
 pub use render::{
     render, SplatTensors, CH_ALPHA, CH_B, CH_CONFIDENCE, CH_DEPTH, CH_G, CH_R, COL_COLOR,
     COL_CONFIDENCE, COL_LOG_SCALE, COL_MEAN, COL_OPACITY_LOGIT, COL_ROTATION, OUT_CHANNELS, PARAMS,

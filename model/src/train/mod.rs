@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 pub use adamw::{AdamW, AdamWConfig};
 pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
 pub use log::{TrainLog, LOG_COLUMNS};
-pub use loss::{losses, masked_l1, LossWeights, Losses};
+pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses};
 
 use crate::bins::BinConfig;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
@@ -103,9 +103,9 @@ pub struct StepReport {
     pub l2: f32,
     /// LPIPS.
     pub lpips: f32,
-    /// Rendered-depth L1, metres.
+    /// Rendered-depth error (metres, or a fraction with the relative depth loss).
     pub rendered_depth: f32,
-    /// Estimated-depth L1, metres.
+    /// Estimated-depth error (metres, or a fraction with the relative depth loss).
     pub estimated_depth: f32,
     /// Confidence regression error.
     pub confidence: f32,

@@ -11,7 +11,7 @@ use clap::Args;
 use model::bins::BinConfig;
 use model::net::Config;
 use model::train::{
-    exported_weights, AdamWConfig, LossWeights, SampleConfig, TrainConfig, Trainer,
+    exported_weights, AdamWConfig, DepthError, LossWeights, SampleConfig, TrainConfig, Trainer,
 };
 
 use super::progress;
@@ -66,6 +66,30 @@ pub struct TrainArgs {
     /// Target frames rendered per step.
     #[arg(long, default_value_t = 2)]
     targets: usize,
+    /// The error the depth losses average: `metric` (the paper's L1 in metres) or
+    /// `relative` (|d - d*| / d*, the evaluation's AbsRel).
+    #[arg(long, default_value = "metric", value_parser = ["metric", "relative"])]
+    depth_loss: String,
+    /// Weight of the rendered-depth loss (default: the paper's 0.01, for metric errors).
+    #[arg(long)]
+    rendered_depth_weight: Option<f64>,
+    /// Weight of the estimated-depth loss (default: the paper's 0.05, for metric errors).
+    #[arg(long)]
+    estimated_depth_weight: Option<f64>,
+}
+
+/// The loss weights the flags ask for: the paper's, with the depth error and weights set.
+fn loss_weights(args: &TrainArgs) -> LossWeights {
+    let paper = LossWeights::default();
+    LossWeights {
+        depth_error: match args.depth_loss.as_str() {
+            "relative" => DepthError::Relative,
+            _ => DepthError::Metric,
+        },
+        rendered_depth: args.rendered_depth_weight.unwrap_or(paper.rendered_depth),
+        estimated_depth: args.estimated_depth_weight.unwrap_or(paper.estimated_depth),
+        ..paper
+    }
 }
 
 /// Runs `train`.
@@ -84,7 +108,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
             targets: args.targets,
             gaussian_stride: net.gaussian_stride,
         },
-        loss: LossWeights::default(),
+        loss: loss_weights(args),
         bins: BinConfig::default(),
         adamw: AdamWConfig::default(),
         resize: args.resize.as_ref().map(|s| (s[0], s[1])),
@@ -111,7 +135,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     trainer.run(&|| stop.load(Ordering::SeqCst), &mut |r| {
         bar.set_position(r.step);
         bar.set_message(format!(
-            "loss {:.4} l2 {:.4} lpips {:.3} depth {:.2} m {:.2} it/s",
+            "loss {:.4} l2 {:.4} lpips {:.3} depth {:.3} {:.2} it/s",
             r.loss, r.l2, r.lpips, r.estimated_depth, r.steps_per_s
         ));
     })?;

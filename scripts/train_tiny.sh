@@ -2,11 +2,13 @@
 # Reproduces the shipped tiny weights (model/weights/stereosplat_tiny.safetensors) from
 # scratch: eight generated training drives (seeds 0-7, 300 frames each, 272x72), then
 # `stereosplat train` with the defaults (seed 0, lr 1e-3 after 200 warm-up steps, 2 targets
-# per step) in two phases: steps 1-PHASE1 with stochastic view subsampling (m ~ U{1..3}
-# pairs), then to 3000 with the bin's first pair as input (`--no-subsample`, the evaluation
-# protocol's input; see results/stereosplat_tiny/README.md for why). Run it again after an
-# interruption: the drives already written are kept and training resumes from its last
-# checkpoint.
+# per step) in three phases: steps 1-PHASE1 with stochastic view subsampling (m ~ U{1..3}
+# pairs); then to 3000 with the bin's first pair as input (`--no-subsample`, the evaluation
+# protocol's input; see results/stereosplat_tiny/README.md for why); then to 5000 on the
+# first pair at half the rate with the relative depth loss (|d - d*| / d*, weight 0.5 on the
+# rendered and the estimated depth), which the evaluation's AbsRel scores. Run it again
+# after an interruption: the drives already written are kept and training resumes from its
+# last checkpoint.
 #   bash scripts/train_tiny.sh [DATA_DIR] [RUN_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,5 +29,10 @@ resume=()
 if [ "$(step)" -lt "$phase1" ]; then
   "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase1" "${resume[@]}"
 fi
-"$bin" train --data "$data" --preset tiny --out "$run" --steps 3000 --resume --no-subsample
+phase2=3000
+if [ "$(step)" -lt "$phase2" ]; then
+  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase2" --resume --no-subsample
+fi
+"$bin" train --data "$data" --preset tiny --out "$run" --steps 5000 --resume --no-subsample \
+  --lr 5e-4 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
 echo "weights: $run/stereosplat_tiny.safetensors (copy to model/weights/ to ship them)"

@@ -178,3 +178,27 @@ pub fn losses(
         confidence: conf_sum / n as f32,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::Device;
+
+    #[test]
+    fn depth_losses_average_metric_and_relative_errors_over_supervised_pixels() {
+        let dev = Device::Cpu;
+        let depth = Tensor::new(&[2f32, 11.0, 50.0, 7.0], &dev).unwrap();
+        // The last pixel has no LiDAR (0): the mask drops it, the floor keeps it finite.
+        let truth = Tensor::new(&[1f32, 10.0, 40.0, 0.0], &dev).unwrap();
+        let mask = lidar_mask(&truth, 80.0).unwrap();
+        let value = |kind| {
+            depth_loss(&depth, &truth, &mask, kind)
+                .unwrap()
+                .to_scalar::<f32>()
+                .unwrap()
+        };
+        // Metric: (1 + 1 + 10) / 3 m; relative: (1/1 + 1/10 + 10/40) / 3.
+        assert!((value(DepthError::Metric) - 4.0).abs() < 1e-6);
+        assert!((value(DepthError::Relative) - 0.45).abs() < 1e-6);
+    }
+}

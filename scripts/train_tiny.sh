@@ -4,7 +4,7 @@
 # `stereosplat train` with the defaults (seed 0, lr 1e-3 after 200 warm-up steps, 2 targets
 # per step) in three phases: steps 1-PHASE1 with stochastic view subsampling (m ~ U{1..3}
 # pairs); then to 3000 with the bin's first pair as input (`--no-subsample`, the evaluation
-# protocol's input; see results/stereosplat_tiny/README.md for why); then to 5000 on the
+# protocol's input; see results/stereosplat_tiny/README.md for why); then to 7000 on the
 # first pair at half the rate with the relative depth loss (|d - d*| / d*, weight 0.5 on the
 # rendered and the estimated depth), which the evaluation's AbsRel scores. Run it again
 # after an interruption: the drives already written are kept and training resumes from its
@@ -33,6 +33,6 @@ phase2=3000
 if [ "$(step)" -lt "$phase2" ]; then
   "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase2" --resume --no-subsample
 fi
-"$bin" train --data "$data" --preset tiny --out "$run" --steps 5000 --resume --no-subsample \
+"$bin" train --data "$data" --preset tiny --out "$run" --steps 7000 --resume --no-subsample \
   --lr 5e-4 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
 echo "weights: $run/stereosplat_tiny.safetensors (copy to model/weights/ to ship them)"

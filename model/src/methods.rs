@@ -15,6 +15,11 @@ use crate::reconstruct::Reconstructor;
 /// The names [`by_name`] knows.
 pub const NAMES: &[&str] = &["sgm", "stereosplat"];
 
+/// The reconstructor every command (the node, `demo`, `eval`, `bench node`) uses when none is
+/// named: the learned network with the shipped `tiny` weights, which beats `sgm` on held-out
+/// PSNR and AbsRel (`results/stereosplat_tiny/README.md`); `sgm` stays the faster choice.
+pub const DEFAULT: &str = "stereosplat";
+
 /// The preset of `stereosplat` when none is given.
 pub const DEFAULT_PRESET: &str = "tiny";
 

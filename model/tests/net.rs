@@ -4,6 +4,8 @@
 //! disparity), a scene at 1 m and at 80 m, cameras far from the origin. Every output and
 //! every gradient (through the differentiable rasterizer) must be finite.
 
+mod var_support;
+
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use glam::{Quat, Vec3};
@@ -219,13 +221,7 @@ fn inference_kernels_compute_what_training_does() {
     // Weights as variables: every layer takes the differentiable path. The same weights as
     // plain tensors: convolution, layer norm and attention softmax take candle's kernels.
     let (varmap, trained) = network();
-    let plain: std::collections::HashMap<String, Tensor> = varmap
-        .data()
-        .lock()
-        .unwrap()
-        .iter()
-        .map(|(k, v)| (k.clone(), v.as_tensor().detach()))
-        .collect();
+    let plain = var_support::frozen(&varmap);
     let vb = VarBuilder::from_tensors(plain, DType::F32, &Device::Cpu);
     let inference = StereoSplat::new(vb, &Config::tiny()).unwrap();
     let mut cams = pair(Vec3::ZERO, 0.0);

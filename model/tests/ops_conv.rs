@@ -5,6 +5,8 @@
 //! own backward (the reference) fails on the other sizes. The inference path (no gradient
 //! tracked: `ops::im2col` and one product) is checked on those sizes too.
 
+mod var_support;
+
 use candle_core::{DType, Device, Module, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
 use model::ops::Conv;
@@ -114,13 +116,7 @@ fn inference_path_matches_candle_and_the_gradient_path() {
         let x = Tensor::randn(0f64, 1.0, (2, cin, h, w), &dev).unwrap();
         let tracked = conv.forward(&x).unwrap();
         // The same weights as plain tensors: no gradient is tracked, the inference path runs.
-        let plain: std::collections::HashMap<String, Tensor> = varmap
-            .data()
-            .lock()
-            .unwrap()
-            .iter()
-            .map(|(k, v)| (k.clone(), v.as_tensor().detach()))
-            .collect();
+        let plain = var_support::frozen(&varmap);
         let weight = plain.values().find(|t| t.rank() == 4).unwrap().clone();
         let b = plain.values().find(|t| t.rank() == 1).cloned();
         let vb = VarBuilder::from_tensors(plain, DType::F64, &dev);

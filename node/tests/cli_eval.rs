@@ -53,7 +53,15 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
     assert_eq!(pictures, 3, "first, centre and last of one bin");
 
     let table = stereosplat(
-        &["eval", "--no-lpips", "--max-bins", "1", "--data"],
+        &[
+            "eval",
+            "--method",
+            "sgm",
+            "--no-lpips",
+            "--max-bins",
+            "1",
+            "--data",
+        ],
         &[&data, Path::new("--out"), &out],
     );
     assert!(

@@ -46,7 +46,7 @@ pub struct BenchNodeArgs {
     #[arg(long, default_values_t = [0.0, 1.0])]
     rate: Vec<f64>,
     /// The reconstructor.
-    #[arg(long, default_value = "sgm")]
+    #[arg(long, default_value = model::methods::DEFAULT)]
     method: String,
     /// Rasterizer of the per-bin renders.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]

@@ -45,7 +45,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 1.0)]
     rate: f64,
     /// The reconstructor.
-    #[arg(long, default_value = "sgm")]
+    #[arg(long, default_value = model::methods::DEFAULT)]
     method: String,
     /// Rasterizer of the per-bin renders.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]

@@ -26,7 +26,7 @@ pub struct EvalArgs {
     #[arg(long)]
     seq: Option<String>,
     /// The reconstructor (see `model::methods`).
-    #[arg(long, default_value = "sgm")]
+    #[arg(long, default_value = model::methods::DEFAULT)]
     method: String,
     /// Network preset of a learned method (tiny, small, paper; default tiny).
     #[arg(long)]

@@ -119,7 +119,7 @@ pub struct RunArgs {
     #[command(flatten)]
     zenoh: ZenohArgs,
     /// The reconstructor.
-    #[arg(long, default_value = "sgm")]
+    #[arg(long, default_value = model::methods::DEFAULT)]
     method: String,
     /// Bin length in metres.
     #[arg(long, default_value_t = 8.0)]

@@ -49,7 +49,7 @@ pub struct NodeConfig {
 }
 
 impl Default for NodeConfig {
-    /// Loopback peer, namespace `stereosplat`, the SGM baseline, a snapshot every 10 bins,
+    /// Loopback peer, namespace `stereosplat`, the default method (the learned network), a snapshot every 10 bins,
     /// renders on, nothing exported.
     fn default() -> Self {
         Self {
@@ -58,7 +58,7 @@ impl Default for NodeConfig {
             sync: SyncConfig::default(),
             binner: BinnerConfig::default(),
             queue_capacity: 4,
-            method: "sgm".into(),
+            method: model::methods::DEFAULT.into(),
             fusion: FusionConfig::default(),
             out_dir: None,
             snapshot_every: 10,

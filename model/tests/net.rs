@@ -219,7 +219,8 @@ fn missing_weights_and_unknown_presets_are_typed_errors() {
 #[test]
 fn inference_kernels_compute_what_training_does() {
     // Weights as variables: every layer takes the differentiable path. The same weights as
-    // plain tensors: convolution, layer norm and attention softmax take candle's kernels.
+    // plain tensors: convolution takes the inference im2col, layer norm and attention
+    // softmax candle's fused kernels.
     let (varmap, trained) = network();
     let plain = var_support::frozen(&varmap);
     let vb = VarBuilder::from_tensors(plain, DType::F32, &Device::Cpu);

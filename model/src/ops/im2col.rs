@@ -2,7 +2,7 @@
 //! one parallel pass over CPU memory, with an optional row of ones so the bias rides in the
 //! matrix product. The differentiable im2col in [`super::Conv`] is a gather whose backward
 //! is one scatter-add; where no gradient is wanted that gather and the separate bias add
-//! took half the network's time, so inference uses this kernel instead.
+//! took half of a reconstruction's profile, so inference uses this kernel instead.
 
 use candle_core::{CpuStorage, CustomOp1, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;

@@ -15,6 +15,9 @@ use super::im2col::{im2col, Patches};
 pub struct Conv {
     weight: Tensor,
     bias: Option<Tensor>,
+    /// Fixed weights (not variables) as the inference product's left side, made once:
+    /// `(1, out, in k^2 [+ 1])`, the bias as the last column.
+    folded: Option<Tensor>,
     kernel: usize,
     stride: usize,
     padding: usize,
@@ -49,9 +52,20 @@ impl Conv {
         } else {
             None
         };
+        let folded = if weight.track_op() {
+            None
+        } else {
+            let flat = weight.reshape((cout, cin * kernel * kernel))?;
+            let flat = match &bias {
+                Some(b) => Tensor::cat(&[&flat, &b.reshape((cout, 1))?], 1)?,
+                None => flat,
+            };
+            Some(flat.unsqueeze(0)?)
+        };
         Ok(Self {
             weight,
             bias,
+            folded,
             kernel,
             stride,
             padding,
@@ -103,21 +117,13 @@ impl Module for Conv {
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let (cout, cin, k, _) = self.weight.dims4()?;
         let n = x.dim(0)?;
-        if !x.track_op() && !self.weight.track_op() {
+        if let (Some(folded), false) = (&self.folded, x.track_op()) {
             // No gradient wanted (inference, fixed inputs to LPIPS): one parallel im2col
-            // pass with a row of ones, the bias a column of the weights.
+            // pass with a row of ones for the bias column.
             let patches = self.patches(self.bias.is_some());
-            let (h, w) = (x.dim(2)?, x.dim(3)?);
-            let (ho, wo) = patches.output_size(h, w);
-            let weight = self.weight.reshape((cout, cin * k * k))?;
-            let weight = match &self.bias {
-                Some(b) => Tensor::cat(&[&weight, &b.reshape((cout, 1))?], 1)?,
-                None => weight,
-            };
-            let cols = im2col(x, patches)?;
-            return weight
-                .unsqueeze(0)?
-                .broadcast_matmul(&cols)?
+            let (ho, wo) = patches.output_size(x.dim(2)?, x.dim(3)?);
+            return folded
+                .broadcast_matmul(&im2col(x, patches)?)?
                 .reshape((n, cout, ho, wo));
         }
         let (cols, ho, wo) = self.columns(x)?;

@@ -23,6 +23,24 @@ pub enum DepthError {
     Relative,
 }
 
+/// A depth-error name other than `metric` or `relative`.
+#[derive(Debug, thiserror::Error)]
+#[error("unknown depth error `{0}` (known: metric, relative)")]
+pub struct UnknownDepthError(pub String);
+
+impl std::str::FromStr for DepthError {
+    type Err = UnknownDepthError;
+
+    /// `metric` or `relative`, as `stereosplat train --depth-loss` takes them.
+    fn from_str(name: &str) -> std::result::Result<Self, Self::Err> {
+        match name {
+            "metric" => Ok(Self::Metric),
+            "relative" => Ok(Self::Relative),
+            other => Err(UnknownDepthError(other.to_string())),
+        }
+    }
+}
+
 /// Loss weights; the defaults are the paper's.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LossWeights {

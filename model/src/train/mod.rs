@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 pub use adamw::{AdamW, AdamWConfig};
 pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
 pub use log::{TrainLog, LOG_COLUMNS};
-pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses};
+pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};
 
 use crate::bins::BinConfig;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};

@@ -68,8 +68,8 @@ pub struct TrainArgs {
     targets: usize,
     /// The error the depth losses average: `metric` (the paper's L1 in metres) or
     /// `relative` (|d - d*| / d*, the evaluation's AbsRel).
-    #[arg(long, default_value = "metric", value_parser = ["metric", "relative"])]
-    depth_loss: String,
+    #[arg(long, default_value = "metric")]
+    depth_loss: DepthError,
     /// Weight of the rendered-depth loss (default: the paper's 0.01, for metric errors).
     #[arg(long)]
     rendered_depth_weight: Option<f64>,
@@ -82,10 +82,7 @@ pub struct TrainArgs {
 fn loss_weights(args: &TrainArgs) -> LossWeights {
     let paper = LossWeights::default();
     LossWeights {
-        depth_error: match args.depth_loss.as_str() {
-            "relative" => DepthError::Relative,
-            _ => DepthError::Metric,
-        },
+        depth_error: args.depth_loss,
         rendered_depth: args.rendered_depth_weight.unwrap_or(paper.rendered_depth),
         estimated_depth: args.estimated_depth_weight.unwrap_or(paper.estimated_depth),
         ..paper

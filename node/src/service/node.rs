@@ -49,8 +49,8 @@ pub struct NodeConfig {
 }
 
 impl Default for NodeConfig {
-    /// Loopback peer, namespace `stereosplat`, the default method (the learned network), a snapshot every 10 bins,
-    /// renders on, nothing exported.
+    /// Loopback peer, namespace `stereosplat`, the default method (the learned network), a
+    /// snapshot every 10 bins, renders on, nothing exported.
     fn default() -> Self {
         Self {
             transport: TransportConfig::default(),

@@ -8,12 +8,14 @@
 # first pair at half the rate with the relative depth loss (|d - d*| / d*, weight 0.5 on the
 # rendered and the estimated depth), which the evaluation's AbsRel scores. Run it again
 # after an interruption: the drives already written are kept and training resumes from its
-# last checkpoint.
-#   bash scripts/train_tiny.sh [DATA_DIR] [RUN_DIR]
+# last checkpoint. Flags after the two folders (e.g. `--set depth_logit_bound=4`) go to every
+# `stereosplat train` call, the same in each phase and on each resume.
+#   bash scripts/train_tiny.sh [DATA_DIR] [RUN_DIR] [--set KEY=VALUE ...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/train272}"
 run="${2:-runs/tiny}"
+extra=("${@:3}")
 bin=target/release/stereosplat
 cargo build --release --bin stereosplat
 for seed in 0 1 2 3 4 5 6 7; do
@@ -27,12 +29,14 @@ step() { sed -n 's/.*"step": *\([0-9]*\).*/\1/p' "$run/checkpoint/state.json" 2>
 resume=()
 [ -f "$run/checkpoint/state.json" ] && resume=(--resume)
 if [ "$(step)" -lt "$phase1" ]; then
-  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase1" "${resume[@]}"
+  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase1" "${resume[@]}" "${extra[@]}"
 fi
 phase2=3000
 if [ "$(step)" -lt "$phase2" ]; then
-  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase2" --resume --no-subsample
+  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase2" --resume --no-subsample \
+    "${extra[@]}"
 fi
 "$bin" train --data "$data" --preset tiny --out "$run" --steps 7000 --resume --no-subsample \
-  --lr 5e-4 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
+  --lr 5e-4 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5 \
+  "${extra[@]}"
 echo "weights: $run/stereosplat_tiny.safetensors (copy to model/weights/ to ship them)"

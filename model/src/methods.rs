@@ -9,7 +9,9 @@
 use std::path::Path;
 
 use crate::baseline::{SgmConfig, SgmReconstructor};
-use crate::net::{default_weights, Config, LearnedReconstructor, LoadError, UnknownPreset};
+use crate::net::{
+    default_weights, Config, LearnedReconstructor, LoadError, SettingError, UnknownPreset,
+};
 use crate::reconstruct::Reconstructor;
 
 /// The names [`by_name`] knows.
@@ -32,6 +34,9 @@ pub enum MethodError {
     /// A preset name that does not exist.
     #[error(transparent)]
     Preset(#[from] UnknownPreset),
+    /// A preset setting that does not apply.
+    #[error(transparent)]
+    Setting(#[from] SettingError),
     /// The learned model's weights could not be loaded.
     #[error(transparent)]
     Weights(#[from] LoadError),
@@ -39,20 +44,25 @@ pub enum MethodError {
 
 /// The reconstructor called `name`, with its default settings.
 pub fn by_name(name: &str) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
-    build(name, None, None)
+    build(name, None, None, &[])
 }
 
-/// The reconstructor called `name`; for `stereosplat`, of `preset` (default `tiny`) with the
-/// weights at `weights` (default: the preset's shipped file).
+/// The reconstructor called `name`; for `stereosplat`, of `preset` (default `tiny`) changed by
+/// `KEY=VALUE` `settings` ([`Config::with_settings`]), with the weights at `weights` (default:
+/// the preset's shipped file). Settings are an error for a method without a preset.
 pub fn build(
     name: &str,
     preset: Option<&str>,
     weights: Option<&Path>,
+    settings: &[String],
 ) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
     match name {
-        "sgm" => Ok(Box::new(SgmReconstructor::new(SgmConfig::default()))),
+        "sgm" => match settings.first() {
+            Some(s) => Err(SettingError::UnknownKey(s.clone()).into()),
+            None => Ok(Box::new(SgmReconstructor::new(SgmConfig::default()))),
+        },
         "stereosplat" => {
-            let cfg = Config::preset(preset.unwrap_or(DEFAULT_PRESET))?;
+            let cfg = Config::preset(preset.unwrap_or(DEFAULT_PRESET))?.with_settings(settings)?;
             let path = weights.map_or_else(|| default_weights(&cfg.name), Path::to_path_buf);
             Ok(Box::new(LearnedReconstructor::load(&cfg, &path)?))
         }

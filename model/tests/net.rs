@@ -140,13 +140,13 @@ fn pruning_keeps_the_floor_and_the_budget() {
             &pair(Vec3::ZERO, 0.0),
         )
         .unwrap();
-    let all = to_set(&p.splats, 0.0, usize::MAX).unwrap();
+    let all = to_set(&p.splats, None, 0.0, usize::MAX).unwrap();
     assert_eq!(all.len(), p.splats.means.dim(0).unwrap());
     let floor = 0.5;
-    let above = to_set(&p.splats, floor, usize::MAX).unwrap();
+    let above = to_set(&p.splats, None, floor, usize::MAX).unwrap();
     assert!(above.opacities.iter().all(|&o| o >= floor));
     let budget = above.len() / 3;
-    let capped = to_set(&p.splats, floor, budget).unwrap();
+    let capped = to_set(&p.splats, None, floor, budget).unwrap();
     assert_eq!(capped.len(), budget);
     // The budget keeps the most opaque.
     let least_kept = capped.opacities.iter().copied().fold(1.0, f32::min);
@@ -197,20 +197,31 @@ fn missing_weights_and_unknown_presets_are_typed_errors() {
         "stereosplat",
         Some("tiny"),
         Some(std::path::Path::new("/nonexistent/weights.safetensors")),
+        &[],
     );
     assert!(matches!(
         missing,
         Err(MethodError::Weights(LoadError::Missing(_)))
     ));
     assert!(matches!(
-        build("stereosplat", Some("huge"), None),
+        build("stereosplat", Some("huge"), None, &[]),
         Err(MethodError::Preset(_))
+    ));
+    let setting = |s: &str| build("stereosplat", None, None, &[s.to_string()]);
+    assert!(matches!(
+        setting("candidates=lots"),
+        Err(MethodError::Setting(_))
+    ));
+    assert!(setting("pair_fusion_margin=0.5").is_ok());
+    assert!(matches!(
+        build("sgm", None, None, &["candidates=8".to_string()]),
+        Err(MethodError::Setting(_))
     ));
     // A file that is not safetensors.
     let junk = std::env::temp_dir().join(format!("stereosplat-junk-{}", std::process::id()));
     std::fs::write(&junk, b"not a weight file").unwrap();
     assert!(matches!(
-        build("stereosplat", None, Some(&junk)),
+        build("stereosplat", None, Some(&junk), &[]),
         Err(MethodError::Weights(LoadError::Mismatch { .. }))
     ));
     let _ = std::fs::remove_file(junk);

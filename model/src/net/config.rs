@@ -33,8 +33,20 @@ pub struct Config {
     pub far: f32,
     /// How many nearest views (by camera translation) each reference view matches against.
     pub match_views: usize,
+    /// With several input pairs, drop a later pair's Gaussians that an earlier view already
+    /// explains: inside its image and less than this fraction behind its estimated surface
+    /// (see `pair_fusion`; 1.0: kept only beyond twice the surface's depth). `None` keeps
+    /// every pair's Gaussians. Inference only: training renders every Gaussian.
+    #[serde(default)]
+    pub pair_fusion_margin: Option<f32>,
     /// Channels of the U-Net depth head.
     pub unet_channels: usize,
+    /// Bound on the U-Net's own depth logits (`b tanh(x / b)`), so that the correlation
+    /// term, not a monocular guess, decides where matching is clear. `None`: unbounded (the
+    /// shipped `tiny` weights were trained so, and their U-Net logits span about 500 across
+    /// the candidates against the correlation's 6: they ignore the cost volume).
+    #[serde(default)]
+    pub depth_logit_bound: Option<f32>,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
@@ -53,7 +65,57 @@ pub const PRESETS: &[&str] = &["tiny", "small", "paper"];
 #[error("unknown preset `{0}` (known: {known})", known = PRESETS.join(", "))]
 pub struct UnknownPreset(pub String);
 
+/// A `KEY=VALUE` setting [`Config::with_settings`] cannot apply.
+#[derive(Debug, thiserror::Error)]
+pub enum SettingError {
+    /// Not of the form `KEY=VALUE`.
+    #[error("setting `{0}` is not KEY=VALUE")]
+    Malformed(String),
+    /// No field of the preset has this name.
+    #[error("no preset setting `{0}`")]
+    UnknownKey(String),
+    /// The value does not fit the field (numbers, `true`/`false`, `null`, `[a, b]`).
+    #[error("setting `{key}` cannot be `{value}`: {reason}")]
+    Invalid {
+        /// The field.
+        key: String,
+        /// The value as given.
+        value: String,
+        /// What the parser said.
+        reason: String,
+    },
+}
+
 impl Config {
+    /// This preset with fields changed by `KEY=VALUE` settings (values in JSON: `0.1`,
+    /// `true`, `null`, `[4, 16]`; anything else is a string), so every speed and accuracy
+    /// trade can be tried from the command line without a new preset.
+    pub fn with_settings<S: AsRef<str>>(self, settings: &[S]) -> Result<Self, SettingError> {
+        settings.iter().try_fold(self, |cfg, setting| {
+            let setting = setting.as_ref();
+            let (key, value) = setting
+                .split_once('=')
+                .ok_or_else(|| SettingError::Malformed(setting.to_string()))?;
+            let (key, value) = (key.trim(), value.trim());
+            let mut fields = match serde_json::to_value(&cfg) {
+                Ok(serde_json::Value::Object(map)) => map,
+                _ => unreachable!("Config serialises to a JSON object"),
+            };
+            let slot = fields
+                .get_mut(key)
+                .ok_or_else(|| SettingError::UnknownKey(key.to_string()))?;
+            *slot = serde_json::from_str(value)
+                .unwrap_or_else(|_| serde_json::Value::String(value.to_string()));
+            serde_json::from_value(serde_json::Value::Object(fields)).map_err(|e| {
+                SettingError::Invalid {
+                    key: key.to_string(),
+                    value: value.to_string(),
+                    reason: e.to_string(),
+                }
+            })
+        })
+    }
+
     /// Real time on a 2-core CPU: small channels, 32 candidates, Gaussians at 1/2 resolution.
     pub fn tiny() -> Self {
         Self {
@@ -70,7 +132,9 @@ impl Config {
             near: 1.0,
             far: 100.0,
             match_views: 2,
+            pair_fusion_margin: Some(1.0),
             unet_channels: 32,
+            depth_logit_bound: None,
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,
@@ -147,5 +211,32 @@ mod tests {
         }
         assert!(Config::preset("huge").is_err());
         assert_eq!(Config::paper().candidates, 192);
+    }
+
+    #[test]
+    fn settings_change_named_fields_and_reject_the_rest() {
+        let cfg = Config::tiny()
+            .with_settings(&[
+                "candidates=48",
+                "pair_fusion_margin = 0.25",
+                "window=[2, 8]",
+            ])
+            .unwrap();
+        assert_eq!(cfg.candidates, 48);
+        assert_eq!(cfg.pair_fusion_margin, Some(0.25));
+        assert_eq!(cfg.window, (2, 8));
+        assert_eq!(
+            cfg.with_settings(&["pair_fusion_margin=null"])
+                .unwrap()
+                .pair_fusion_margin,
+            None
+        );
+        let err = |s: &str| Config::tiny().with_settings(&[s]).unwrap_err();
+        assert!(matches!(err("candidates"), SettingError::Malformed(_)));
+        assert!(matches!(err("colour=3"), SettingError::UnknownKey(k) if k == "colour"));
+        assert!(
+            matches!(err("candidates=many"), SettingError::Invalid { key, .. } if key == "candidates")
+        );
+        assert!(matches!(err("candidates=-3"), SettingError::Invalid { .. }));
     }
 }

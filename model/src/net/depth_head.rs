@@ -35,6 +35,8 @@ pub struct DepthHead {
     log_temperature: Tensor,
     /// Normalised inverse depth of each candidate (1 = nearest), `(1, D, 1, 1)`.
     candidates: Tensor,
+    /// The preset's bound on the U-Net's logits.
+    logit_bound: Option<f32>,
 }
 
 impl DepthHead {
@@ -56,6 +58,7 @@ impl DepthHead {
                 candle_nn::Init::Const(INITIAL_TEMPERATURE.ln()),
             )?,
             candidates: Tensor::from_vec(steps, (1, d, 1, 1), vb.device())?,
+            logit_bound: cfg.depth_logit_bound,
         })
     }
 
@@ -69,7 +72,12 @@ impl DepthHead {
         let up = upsample_bilinear(&x2, h, w)?;
         let x = self.up.forward(&Tensor::cat(&[&up, &x1], 1)?)?;
         let sharpened = cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
-        let logits = (self.logits.forward(&x)? + sharpened)?;
+        let unet = self.logits.forward(&x)?;
+        let unet = match self.logit_bound {
+            Some(b) => ((unet / b as f64)?.tanh()? * b as f64)?,
+            None => unet,
+        };
+        let logits = (unet + sharpened)?;
         let probabilities = candle_nn::ops::softmax(&logits, 1)?;
         let inverse = probabilities
             .broadcast_mul(&self.candidates)?

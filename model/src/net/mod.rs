@@ -14,11 +14,12 @@ mod depth_head;
 mod encoders;
 mod gaussian_head;
 mod geometry;
+pub mod pair_fusion;
 mod reconstructor;
 mod stereosplat;
 mod transformer;
 
-pub use config::{Config, UnknownPreset, PRESETS};
+pub use config::{Config, SettingError, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;
 pub use reconstructor::{
     default_weights, images_and_cameras, to_set, LearnedReconstructor, LoadError,

@@ -9,7 +9,7 @@ use candle_nn::VarBuilder;
 use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
-use super::{Config, StereoSplat};
+use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
 
@@ -140,14 +140,47 @@ impl Reconstructor for LearnedReconstructor {
         let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
         let prediction = self.net.forward(&images, &cameras).map_err(backend)?;
         let cfg = self.net.config();
-        to_set(&prediction.splats, cfg.opacity_floor, cfg.max_gaussians).map_err(backend)
+        let surviving = match cfg.pair_fusion_margin {
+            Some(margin) if views.len() > 1 => {
+                Some(fused(&prediction, &cameras, cfg, margin).map_err(backend)?)
+            }
+            _ => None,
+        };
+        to_set(
+            &prediction.splats,
+            surviving.as_deref(),
+            cfg.opacity_floor,
+            cfg.max_gaussians,
+        )
+        .map_err(backend)
     }
 }
 
-/// The Gaussians whose opacity reaches `floor`, the `budget` most opaque if more, as a set.
-/// Non-finite Gaussians are dropped.
+/// Which of the prediction's Gaussians survive the fusion of pairs (`pair_fusion`).
+fn fused(
+    prediction: &Prediction,
+    cameras: &[Camera],
+    cfg: &Config,
+    margin: f32,
+) -> candle_core::Result<Vec<bool>> {
+    let (_, _, hg, wg) = prediction.depth.dims4()?;
+    let values = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
+    Ok(pair_fusion::surviving(
+        &values(&prediction.splats.means)?,
+        &values(&prediction.depth)?,
+        cameras,
+        (hg, wg),
+        cfg.gaussian_stride,
+        margin,
+    ))
+}
+
+/// The Gaussians whose opacity reaches `floor`, the `budget` most opaque if more, as a set;
+/// only those marked in `surviving` (one flag per Gaussian) when given. Non-finite Gaussians
+/// are dropped.
 pub fn to_set(
     splats: &SplatTensors,
+    surviving: Option<&[bool]>,
     floor: f32,
     budget: usize,
 ) -> candle_core::Result<GaussianSet> {
@@ -162,6 +195,12 @@ pub fn to_set(
         rows(&splats.colors)?,
         rows(&splats.confidences)?,
     );
+    if surviving.is_some_and(|s| s.len() != logits.len()) {
+        candle_core::bail!(
+            "{} Gaussians but a different number of fusion flags",
+            logits.len()
+        );
+    }
     let opacity = |i: usize| 1.0 / (1.0 + (-logits[i]).exp());
     let finite = |i: usize| {
         means[3 * i..3 * i + 3]
@@ -173,7 +212,7 @@ pub fn to_set(
             .all(|v| v.is_finite())
     };
     let mut keep: Vec<usize> = (0..logits.len())
-        .filter(|&i| opacity(i) >= floor && finite(i))
+        .filter(|&i| surviving.is_none_or(|s| s[i]) && opacity(i) >= floor && finite(i))
         .collect();
     if keep.len() > budget {
         keep.sort_by(|&a, &b| opacity(b).total_cmp(&opacity(a)).then(a.cmp(&b)));

@@ -56,6 +56,16 @@ pub enum TrainError {
         /// The checkpoint's.
         found: String,
     },
+    /// The checkpoint was trained with other network settings (`--set` differs).
+    #[error("checkpoint was trained with other settings of preset `{preset}`: {found} (asked: {expected})")]
+    SettingsMismatch {
+        /// The preset.
+        preset: String,
+        /// The settings asked for, as JSON.
+        expected: String,
+        /// The checkpoint's, as JSON.
+        found: String,
+    },
     /// The loss curve could not be drawn.
     #[error(transparent)]
     Curve(#[from] crate::curve::CurveError),
@@ -125,9 +135,24 @@ pub struct StepReport {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 struct State {
     preset: String,
+    /// The network's settings (absent in checkpoints from before settings could change).
+    #[serde(default)]
+    config: Option<Config>,
     step: u64,
     seed: u64,
     elapsed_s: f64,
+}
+
+/// Whether two presets build the same network and train it alike: the settings that only
+/// prune the output at inference (opacity floor, budget, pair fusion) do not count.
+fn same_network(a: &Config, b: &Config) -> bool {
+    let training = |c: &Config| Config {
+        opacity_floor: 0.0,
+        max_gaussians: 0,
+        pair_fusion_margin: None,
+        ..c.clone()
+    };
+    training(a) == training(b)
 }
 
 /// Files of a run directory.
@@ -194,6 +219,14 @@ impl Trainer {
                 return Err(TrainError::PresetMismatch {
                     expected: net_cfg.name.clone(),
                     found: state.preset,
+                });
+            }
+            if let Some(found) = state.config.filter(|c| !same_network(c, net_cfg)) {
+                let json = |c: &Config| serde_json::to_string(c).expect("config serialises");
+                return Err(TrainError::SettingsMismatch {
+                    preset: net_cfg.name.clone(),
+                    expected: json(net_cfg),
+                    found: json(&found),
                 });
             }
             let mut varmap = varmap.clone();
@@ -309,6 +342,7 @@ impl Trainer {
         std::fs::rename(&tmp, &opt).map_err(io(opt.clone()))?;
         let state = State {
             preset: self.net.config().name.clone(),
+            config: Some(self.net.config().clone()),
             step: self.optimizer.step,
             seed: self.cfg.seed,
             elapsed_s,

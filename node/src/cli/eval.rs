@@ -34,6 +34,10 @@ pub struct EvalArgs {
     /// Weights of a learned method (default: the preset's shipped file).
     #[arg(long)]
     weights: Option<PathBuf>,
+    /// Change a preset setting of a learned method, `KEY=VALUE` (repeatable), e.g.
+    /// `--set pair_fusion_margin=null`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    settings: Vec<String>,
     /// Output folder.
     #[arg(long, default_value = "out/eval")]
     out: PathBuf,
@@ -77,6 +81,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         &args.method,
         args.preset.as_deref(),
         args.weights.as_deref(),
+        &args.settings,
     )?;
     let mut raster = match args.gpu {
         true => Raster::Gpu(Box::new(GpuRasterizer::new().context("no wgpu adapter")?)),

@@ -25,6 +25,10 @@ pub struct TrainArgs {
     /// Network preset (tiny, small, paper).
     #[arg(long, default_value = "tiny")]
     preset: String,
+    /// Change a preset setting, `KEY=VALUE` (repeatable), e.g. `--set depth_logit_bound=4`;
+    /// give the same settings again when resuming and when evaluating the weights.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    settings: Vec<String>,
     /// Run directory: checkpoint/, log.csv, the exported weights.
     #[arg(long)]
     out: PathBuf,
@@ -91,7 +95,7 @@ fn loss_weights(args: &TrainArgs) -> LossWeights {
 
 /// Runs `train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
-    let net = Config::preset(&args.preset)?;
+    let net = Config::preset(&args.preset)?.with_settings(&args.settings)?;
     let cfg = TrainConfig {
         steps: args.steps,
         lr: args.lr,

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# The held-out comparison of the shipped tiny weights with the SGM baseline, and the
-# invariance check (1, 2 and 3 input pairs), as in results/stereosplat_tiny/README.md:
+# The held-out comparison of the shipped tiny weights with the SGM baseline, the invariance
+# check (1, 2 and 3 input pairs, with the preset's pair fusion and without it), and how much
+# the weights lean on stereo matching (the cost volume zeroed: match_views=0), as in
+# results/stereosplat_tiny/README.md:
 # two held-out drives (seeds 1000000 and 1000001, 300 frames, 272x72), the paper's
 # protocol with a bin starting every 5th frame, LPIPS on.
 #   bash scripts/eval_tiny.sh [DATA_DIR] [OUT_DIR]
@@ -18,3 +20,9 @@ for pairs in 1 2 3; do
   "$bin" eval --data "$data" --method stereosplat --preset tiny --pairs "$pairs" --stride 5 \
     --out "$out/tiny_pairs$pairs"
 done
+for pairs in 2 3; do
+  "$bin" eval --data "$data" --method stereosplat --preset tiny --pairs "$pairs" --stride 5 \
+    --set pair_fusion_margin=null --out "$out/tiny_pairs${pairs}_unfused"
+done
+"$bin" eval --data "$data" --method stereosplat --preset tiny --stride 5 --set match_views=0 \
+  --out "$out/tiny_no_matching"

@@ -36,9 +36,13 @@ fn pair(origin: Vec3, ahead: f32) -> Vec<Camera> {
 }
 
 fn network() -> (VarMap, StereoSplat) {
+    network_of(&Config::tiny())
+}
+
+fn network_of(cfg: &Config) -> (VarMap, StereoSplat) {
     let varmap = VarMap::new();
     let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
-    let net = StereoSplat::new(vb, &Config::tiny()).unwrap();
+    let net = StereoSplat::new(vb, cfg).unwrap();
     (varmap, net)
 }
 
@@ -69,7 +73,12 @@ fn assert_finite(t: &Tensor, what: &str) {
 
 /// Forward, render a target view, backward: every output and gradient finite.
 fn check_stable(views: &[Vec<f32>], cameras: &[Camera], what: &str) {
-    let (varmap, net) = network();
+    check_stable_with(&Config::tiny(), views, cameras, what);
+}
+
+/// [`check_stable`] for the network of `cfg`.
+fn check_stable_with(cfg: &Config, views: &[Vec<f32>], cameras: &[Camera], what: &str) {
+    let (varmap, net) = network_of(cfg);
     let p = net.forward(&images(views), cameras).unwrap();
     let s = &p.splats;
     for (t, name) in [
@@ -162,6 +171,30 @@ fn uniform_grey_black_and_saturated_images_stay_finite() {
         let v = vec![value; n];
         check_stable(&[v.clone(), v], &pair(Vec3::ZERO, 0.0), what);
     }
+}
+
+#[test]
+fn bounded_depth_logits_stay_finite_at_the_extremes() {
+    let cfg = Config::tiny()
+        .with_settings(&["depth_logit_bound=4"])
+        .unwrap();
+    let n = (3 * W * H) as usize;
+    let fx = intrinsics().fx;
+    check_stable_with(
+        &cfg,
+        &[vec![0.0; n], vec![0.0; n]],
+        &pair(Vec3::ZERO, 0.0),
+        "black",
+    );
+    let v = stripes(0.0);
+    check_stable_with(
+        &cfg,
+        &[v.clone(), v],
+        &pair(Vec3::ZERO, 0.0),
+        "zero disparity",
+    );
+    let far = stripes(fx * BASELINE / 80.0);
+    check_stable_with(&cfg, &[stripes(0.0), far], &pair(Vec3::ZERO, 0.0), "80 m");
 }
 
 #[test]

@@ -122,45 +122,12 @@ mod tests {
     fn behind_a_camera_or_off_its_image_is_never_explained() {
         let cam = test_camera(0.0);
         let depths = vec![10.0f32; 8];
-        assert!(!explained(
-            DVec3::new(0.0, 0.0, -5.0),
-            &cam,
-            &depths,
-            (2, 4),
-            20,
-            0.1
-        ));
-        assert!(!explained(
-            DVec3::new(0.0, 30.0, 1.0),
-            &cam,
-            &depths,
-            (2, 4),
-            20,
-            0.1
-        ));
-        assert!(!explained(
-            DVec3::new(f64::NAN, 0.0, 5.0),
-            &cam,
-            &depths,
-            (2, 4),
-            20,
-            0.1
-        ));
-        assert!(explained(
-            DVec3::new(0.0, 0.0, 10.9),
-            &cam,
-            &depths,
-            (2, 4),
-            20,
-            0.1
-        ));
-        assert!(!explained(
-            DVec3::new(0.0, 0.0, 11.1),
-            &cam,
-            &depths,
-            (2, 4),
-            20,
-            0.1
-        ));
+        let sees =
+            |x: f64, y: f64, z: f64| explained(DVec3::new(x, y, z), &cam, &depths, (2, 4), 20, 0.1);
+        assert!(!sees(0.0, 0.0, -5.0), "behind the camera");
+        assert!(!sees(0.0, 30.0, 1.0), "below the image");
+        assert!(!sees(f64::NAN, 0.0, 5.0), "not a position");
+        assert!(sees(0.0, 0.0, 10.9), "within the margin behind the surface");
+        assert!(!sees(0.0, 0.0, 11.1), "beyond the margin");
     }
 }

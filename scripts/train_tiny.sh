@@ -4,11 +4,11 @@
 # `stereosplat train` with the defaults (seed 0, lr 1e-3 after 200 warm-up steps, 2 targets
 # per step) in three phases: steps 1-PHASE1 with stochastic view subsampling (m ~ U{1..3}
 # pairs); then to 3000 with the bin's first pair as input (`--no-subsample`, the evaluation
-# protocol's input; see results/stereosplat_tiny/README.md for why); then to 7000 on the
+# protocol's input; see results/stereosplat_tiny_unbounded/README.md for why); then to 7000 on the
 # first pair at half the rate with the relative depth loss (|d - d*| / d*, weight 0.5 on the
 # rendered and the estimated depth), which the evaluation's AbsRel scores. Run it again
 # after an interruption: the drives already written are kept and training resumes from its
-# last checkpoint. Flags after the two folders (e.g. `--set depth_logit_bound=4`) go to every
+# last checkpoint. Flags after the two folders (e.g. `--set candidates=48`) go to every
 # `stereosplat train` call, the same in each phase and on each resume.
 #   bash scripts/train_tiny.sh [DATA_DIR] [RUN_DIR] [--set KEY=VALUE ...]
 set -euo pipefail

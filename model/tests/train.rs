@@ -113,10 +113,10 @@ fn a_resumed_run_ends_where_a_straight_run_does() {
     let small = Trainer::new(&Config::small(), train_config(8), &data, &resumed, true);
     assert!(matches!(small, Err(TrainError::PresetMismatch { .. })));
     // Network settings must match on resume; settings that only prune at inference need not.
-    let bounded = Config::tiny()
-        .with_settings(&["depth_logit_bound=4"])
+    let unbounded = Config::tiny()
+        .with_settings(&["depth_logit_bound=null"])
         .unwrap();
-    let other = Trainer::new(&bounded, train_config(8), &data, &resumed, true);
+    let other = Trainer::new(&unbounded, train_config(8), &data, &resumed, true);
     assert!(matches!(other, Err(TrainError::SettingsMismatch { .. })));
     let pruning = Config::tiny().with_settings(&["pair_fusion_margin=null", "opacity_floor=0.1"]);
     assert!(Trainer::new(&pruning.unwrap(), train_config(8), &data, &resumed, true).is_ok());

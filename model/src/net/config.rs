@@ -33,6 +33,12 @@ pub struct Config {
     pub far: f32,
     /// How many nearest views (by camera translation) each reference view matches against.
     pub match_views: usize,
+    /// With several input pairs, whether the network sees them together (views attend to and
+    /// match views of other pairs, the paper's joint input) or each pair alone, as in
+    /// single-pair training, before the pairs are fused. Inference only: training always
+    /// feeds its sampled pairs together.
+    #[serde(default)]
+    pub joint_pairs: bool,
     /// With several input pairs, drop a later pair's Gaussians that an earlier view already
     /// explains: inside its image and less than this fraction behind its estimated surface
     /// (see `pair_fusion`; 1.0: kept only beyond twice the surface's depth). `None` keeps
@@ -42,9 +48,10 @@ pub struct Config {
     /// Channels of the U-Net depth head.
     pub unet_channels: usize,
     /// Bound on the U-Net's own depth logits (`b tanh(x / b)`), so that the correlation
-    /// term, not a monocular guess, decides where matching is clear. `None`: unbounded (the
-    /// shipped `tiny` weights were trained so, and their U-Net logits span about 500 across
-    /// the candidates against the correlation's 6: they ignore the cost volume).
+    /// term, not a monocular guess, decides where matching is clear. `None`: unbounded; the
+    /// weights trained so (stop 10's, `results/stereosplat_tiny_unbounded/`) let the U-Net's
+    /// logits span about 500 across the candidates against the correlation's 6, and ignored
+    /// the cost volume.
     #[serde(default)]
     pub depth_logit_bound: Option<f32>,
     /// Channels of the Gaussian heads.
@@ -132,9 +139,10 @@ impl Config {
             near: 1.0,
             far: 100.0,
             match_views: 2,
+            joint_pairs: false,
             pair_fusion_margin: Some(1.0),
             unet_channels: 32,
-            depth_logit_bound: None,
+            depth_logit_bound: Some(4.0),
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,

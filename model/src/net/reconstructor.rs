@@ -138,8 +138,12 @@ impl Reconstructor for LearnedReconstructor {
     fn reconstruct(&mut self, views: &[StereoView<'_>]) -> Result<GaussianSet, ReconstructError> {
         let (images, cameras) = images_and_cameras(views, &Device::Cpu)?;
         let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
-        let prediction = self.net.forward(&images, &cameras).map_err(backend)?;
         let cfg = self.net.config();
+        let prediction = match cfg.joint_pairs || views.len() == 1 {
+            true => self.net.forward(&images, &cameras),
+            false => self.pair_by_pair(&images, &cameras),
+        }
+        .map_err(backend)?;
         let surviving = match cfg.pair_fusion_margin {
             Some(margin) if views.len() > 1 => {
                 Some(fused(&prediction, &cameras, cfg, margin).map_err(backend)?)
@@ -153,6 +157,34 @@ impl Reconstructor for LearnedReconstructor {
             cfg.max_gaussians,
         )
         .map_err(backend)
+    }
+}
+
+impl LearnedReconstructor {
+    /// Each pair (views `2k`, `2k + 1`) through the network alone, the predictions joined in
+    /// view order: the first pair's Gaussians are exactly what it gives alone.
+    fn pair_by_pair(&self, images: &Tensor, cameras: &[Camera]) -> candle_core::Result<Prediction> {
+        let parts = (0..cameras.len() / 2)
+            .map(|k| {
+                self.net
+                    .forward(&images.narrow(0, 2 * k, 2)?, &cameras[2 * k..2 * k + 2])
+            })
+            .collect::<candle_core::Result<Vec<_>>>()?;
+        let cat = |f: &dyn Fn(&Prediction) -> &Tensor| {
+            Tensor::cat(&parts.iter().map(f).collect::<Vec<_>>(), 0)
+        };
+        Ok(Prediction {
+            splats: SplatTensors {
+                means: cat(&|p| &p.splats.means)?,
+                log_scales: cat(&|p| &p.splats.log_scales)?,
+                rotations: cat(&|p| &p.splats.rotations)?,
+                opacity_logits: cat(&|p| &p.splats.opacity_logits)?,
+                colors: cat(&|p| &p.splats.colors)?,
+                confidences: cat(&|p| &p.splats.confidences)?,
+            },
+            depth: cat(&|p| &p.depth)?,
+            features: cat(&|p| &p.features)?,
+        })
     }
 }
 

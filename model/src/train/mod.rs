@@ -143,13 +143,14 @@ struct State {
     elapsed_s: f64,
 }
 
-/// Whether two presets build the same network and train it alike: the settings that only
-/// prune the output at inference (opacity floor, budget, pair fusion) do not count.
+/// Whether two presets build the same network and train it alike: the settings of inference
+/// alone (opacity floor, budget, pair fusion, joint pairs) do not count.
 fn same_network(a: &Config, b: &Config) -> bool {
     let training = |c: &Config| Config {
         opacity_floor: 0.0,
         max_gaussians: 0,
         pair_fusion_margin: None,
+        joint_pairs: false,
         ..c.clone()
     };
     training(a) == training(b)

@@ -25,7 +25,7 @@ pub struct TrainArgs {
     /// Network preset (tiny, small, paper).
     #[arg(long, default_value = "tiny")]
     preset: String,
-    /// Change a preset setting, `KEY=VALUE` (repeatable), e.g. `--set depth_logit_bound=4`;
+    /// Change a preset setting, `KEY=VALUE` (repeatable), e.g. `--set candidates=48`;
     /// give the same settings again when resuming and when evaluating the weights.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     settings: Vec<String>,

@@ -58,7 +58,9 @@ pub fn build(
 ) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
     match name {
         "sgm" => match settings.first() {
-            Some(s) => Err(SettingError::UnknownKey(s.clone()).into()),
+            Some(s) => {
+                Err(SettingError::UnknownKey(s.split('=').next().unwrap_or(s).into()).into())
+            }
             None => Ok(Box::new(SgmReconstructor::new(SgmConfig::default()))),
         },
         "stereosplat" => {

@@ -170,21 +170,7 @@ impl LearnedReconstructor {
                     .forward(&images.narrow(0, 2 * k, 2)?, &cameras[2 * k..2 * k + 2])
             })
             .collect::<candle_core::Result<Vec<_>>>()?;
-        let cat = |f: &dyn Fn(&Prediction) -> &Tensor| {
-            Tensor::cat(&parts.iter().map(f).collect::<Vec<_>>(), 0)
-        };
-        Ok(Prediction {
-            splats: SplatTensors {
-                means: cat(&|p| &p.splats.means)?,
-                log_scales: cat(&|p| &p.splats.log_scales)?,
-                rotations: cat(&|p| &p.splats.rotations)?,
-                opacity_logits: cat(&|p| &p.splats.opacity_logits)?,
-                colors: cat(&|p| &p.splats.colors)?,
-                confidences: cat(&|p| &p.splats.confidences)?,
-            },
-            depth: cat(&|p| &p.depth)?,
-            features: cat(&|p| &p.features)?,
-        })
+        Prediction::cat(&parts)
     }
 }
 

@@ -29,6 +29,27 @@ pub struct Prediction {
     pub features: Tensor,
 }
 
+impl Prediction {
+    /// Predictions of disjoint view sets joined in order, as one prediction of all their views.
+    pub fn cat(parts: &[Prediction]) -> Result<Self> {
+        let cat = |f: &dyn Fn(&Prediction) -> &Tensor| {
+            Tensor::cat(&parts.iter().map(f).collect::<Vec<_>>(), 0)
+        };
+        Ok(Self {
+            splats: SplatTensors {
+                means: cat(&|p| &p.splats.means)?,
+                log_scales: cat(&|p| &p.splats.log_scales)?,
+                rotations: cat(&|p| &p.splats.rotations)?,
+                opacity_logits: cat(&|p| &p.splats.opacity_logits)?,
+                colors: cat(&|p| &p.splats.colors)?,
+                confidences: cat(&|p| &p.splats.confidences)?,
+            },
+            depth: cat(&|p| &p.depth)?,
+            features: cat(&|p| &p.features)?,
+        })
+    }
+}
+
 /// The StereoSplat cost-volume network.
 #[derive(Clone, Debug)]
 pub struct StereoSplat {

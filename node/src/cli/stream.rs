@@ -136,6 +136,17 @@ pub struct RunArgs {
     /// Publish a global map snapshot every this many bins (0: only when queried).
     #[arg(long, default_value_t = 10)]
     snapshot_every: u64,
+    /// Publish the counters on `diagnostics` every this many seconds, besides with every
+    /// bin (0: only with the bins).
+    #[arg(long, default_value_t = 1.0)]
+    diagnostics_every: f64,
+    /// Seconds between a frame's stamp and the last emitted frame's beyond which the input
+    /// starts a new timeline (after 3 frames agree): a replay, a clock reset.
+    #[arg(long, default_value_t = 2.0)]
+    sync_jump: f64,
+    /// MiB of decoded images the synchroniser holds per stream at most.
+    #[arg(long, default_value_t = 64)]
+    sync_mib_per_stream: usize,
 }
 
 /// Runs the node until Ctrl-C or SIGTERM.
@@ -143,7 +154,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
     let config = NodeConfig {
         transport: args.zenoh.transport(),
         keys: args.zenoh.keys(),
-        sync: SyncConfig::default(),
+        sync: SyncConfig {
+            jump_ns: seconds_ns(args.sync_jump, "--sync-jump")?,
+            max_bytes_per_stream: args.sync_mib_per_stream.saturating_mul(1 << 20),
+            ..SyncConfig::default()
+        },
+        diagnostics_every: std::time::Duration::from_nanos(seconds_ns(
+            args.diagnostics_every,
+            "--diagnostics-every",
+        )? as u64),
         binner: BinnerConfig {
             length_m: args.bin_length,
             ..BinnerConfig::default()
@@ -171,6 +190,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
         })
     );
     Ok(())
+}
+
+/// A non-negative number of seconds as nanoseconds (at most about 292 years).
+fn seconds_ns(seconds: f64, flag: &str) -> Result<i64> {
+    anyhow::ensure!(
+        seconds.is_finite() && (0.0..9.2e9).contains(&seconds),
+        "{flag} must be a number of seconds from 0, not {seconds}"
+    );
+    Ok((seconds * 1e9) as i64)
 }
 
 /// Flags of `replay`.

@@ -88,6 +88,13 @@ impl<F: Clone> Binner<F> {
         self.open.as_ref().map(|b| b.id)
     }
 
+    /// Ends the open bin without a closing frame, because the input started over (the
+    /// synchroniser confirmed a jump in time: a replay, a clock reset); its id, if one was
+    /// open. The next frame opens a new bin; ids go on, so no id is used twice.
+    pub fn reset(&mut self) -> Option<u64> {
+        self.open.take().map(|b| b.id)
+    }
+
     /// Adds the next frame with its left camera pose.
     pub fn push(&mut self, frame: F, left_to_world: DAffine3) -> BinEvent<F> {
         let position = left_to_world.translation;
@@ -190,6 +197,34 @@ mod tests {
         }
         assert!(expected.len() > 10);
         assert_eq!(got, expected);
+    }
+
+    #[test]
+    fn a_reset_ends_the_open_bin_and_the_next_frame_opens_the_next_id() {
+        let mut binner = Binner::new(BinnerConfig::default());
+        let at = |x: f64| DAffine3::from_translation(DVec3::new(x, 0.0, 0.0));
+        assert_eq!(binner.reset(), None, "nothing open yet");
+        binner.push(0, at(100.0));
+        assert_eq!(binner.push(1, at(104.0)), BinEvent::Inside);
+        assert_eq!(binner.reset(), Some(0));
+        assert_eq!(binner.open_bin(), None);
+        // A replay from the start, 4 m behind the old bin's origin: a bin of its own.
+        assert!(matches!(
+            binner.push(2, at(96.0)),
+            BinEvent::Opened {
+                bin_id: 1,
+                first: 2
+            }
+        ));
+        assert_eq!(binner.push(3, at(100.0)), BinEvent::Inside);
+        assert!(matches!(
+            binner.push(4, at(104.0)),
+            BinEvent::Closed {
+                bin_id: 1,
+                next_first: 4,
+                ..
+            }
+        ));
     }
 
     #[test]

@@ -40,7 +40,8 @@ pub(super) struct Inputs {
     left_info: Option<CameraInfo>,
     right_info: Option<CameraInfo>,
     rig: Option<StereoRig>,
-    waiting_for_rig: VecDeque<Frame>,
+    /// Synchronised frames (with their reset marks) waiting for the camera infos.
+    waiting_for_rig: VecDeque<(Frame, bool)>,
     next_index: u32,
 }
 
@@ -68,11 +69,13 @@ impl Inputs {
     ) -> Vec<Step> {
         let arrival_ns = now_ns();
         let synced = match topic {
-            keys::LEFT_IMAGE => {
-                image(payload).map(|(t, img)| self.sync.push_left(t, (img, arrival_ns)))
+            keys::LEFT_IMAGE => image(payload)
+                .map(|(t, img)| self.sync.push_left(t, weight(&img), (img, arrival_ns))),
+            keys::RIGHT_IMAGE => {
+                image(payload).map(|(t, img)| self.sync.push_right(t, weight(&img), img))
             }
-            keys::RIGHT_IMAGE => image(payload).map(|(t, img)| self.sync.push_right(t, img)),
-            keys::POSE => pose(payload).map(|(t, p)| self.sync.push_pose(t, p)),
+            keys::POSE => pose(payload)
+                .map(|(t, p)| self.sync.push_pose(t, std::mem::size_of::<DAffine3>(), p)),
             keys::LEFT_INFO | keys::RIGHT_INFO => {
                 self.camera_info(topic, payload).map(|()| Vec::new())
             }
@@ -85,11 +88,20 @@ impl Inputs {
         let c = self.sync.counters();
         counters.set("sync/late", c.late);
         counters.set("sync/unmatched", c.unmatched);
+        counters.set("sync/over_budget", c.over_budget);
+        counters.set("sync/conflict", c.conflict);
+        counters.set("sync/outlier", c.outlier);
+        counters.set("sync/reset", c.reset);
         for f in synced {
+            let reset = f.reset;
             let frame = self.frame(f);
-            self.waiting_for_rig.push_back(frame);
+            self.waiting_for_rig.push_back((frame, reset));
             if self.waiting_for_rig.len() > MAX_WAITING_FOR_RIG {
-                self.waiting_for_rig.pop_front();
+                // A reset still applies to the frames after the dropped one.
+                let (_, dropped_reset) = self.waiting_for_rig.pop_front().expect("not empty");
+                if let Some(next) = self.waiting_for_rig.front_mut() {
+                    next.1 |= dropped_reset;
+                }
                 counters.add("dropped/no_camera_info", 1);
             }
         }
@@ -97,7 +109,11 @@ impl Inputs {
             return Vec::new();
         };
         let mut steps = Vec::new();
-        while let Some(frame) = self.waiting_for_rig.pop_front() {
+        while let Some((frame, reset)) = self.waiting_for_rig.pop_front() {
+            // A new timeline: the open bin ends with the old one (its latency still goes out).
+            if let Some(bin_id) = reset.then(|| self.binner.reset()).flatten() {
+                steps.push(Step::Closed(bin_id));
+            }
             let pose = frame.0.left_to_world;
             let job = |bin_id: u64, (frame, stamps): Frame| {
                 Box::new(Job {
@@ -160,6 +176,11 @@ impl Inputs {
 fn image(payload: &[u8]) -> Option<(i64, RgbImage)> {
     let msg = Image::decode(payload).ok()?;
     Some((msg.header.stamp.to_nanos(), rgb_from_image(&msg).ok()?))
+}
+
+/// The bytes a decoded image holds (what the synchroniser's byte budget counts).
+fn weight(img: &RgbImage) -> usize {
+    std::mem::size_of_val(img.data.as_slice())
 }
 
 /// A stamped camera-to-world pose, `None` if it does not decode or is not a rigid pose.

@@ -10,7 +10,7 @@ use zenoh::sample::Locality;
 
 use super::counters::Counters;
 use super::inputs::{Inputs, Step};
-use super::keys::{Direction, Keys, Topic, TOPICS};
+use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::outputs::Outputs;
 use crate::fusion::{bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap};
 use crate::msg::std_msgs::Header;
@@ -46,11 +46,14 @@ pub struct NodeConfig {
     pub renders: RenderWith,
     /// The node's name (ROS 2 liveliness tokens, logs).
     pub name: String,
+    /// The counters go out on `diagnostics` this often as well as with every bin's latency,
+    /// so a node that publishes no bins still says why (zero: only with the bins).
+    pub diagnostics_every: std::time::Duration,
 }
 
 impl Default for NodeConfig {
     /// Loopback peer, namespace `stereosplat`, the default method (the learned network), a
-    /// snapshot every 10 bins, renders on, nothing exported.
+    /// snapshot every 10 bins, renders on, nothing exported, diagnostics every second.
     fn default() -> Self {
         Self {
             transport: TransportConfig::default(),
@@ -64,6 +67,7 @@ impl Default for NodeConfig {
             snapshot_every: 10,
             renders: RenderWith::Auto,
             name: "stereosplat_node".into(),
+            diagnostics_every: std::time::Duration::from_secs(1),
         }
     }
 }
@@ -142,6 +146,13 @@ pub async fn run(
     let bev = config.renders != RenderWith::Off;
     let mut outputs = Outputs::new(&outlet, config.fusion, bev, config.snapshot_every)?;
     tokio::pin!(stop);
+    let diagnostics_on = !config.diagnostics_every.is_zero();
+    let mut diagnostics = tokio::time::interval(
+        config
+            .diagnostics_every
+            .max(std::time::Duration::from_millis(1)),
+    );
+    diagnostics.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
 
     loop {
         let mut todo = Vec::new();
@@ -163,6 +174,11 @@ pub async fn run(
                 }
             },
             Some(event) = out_rx.recv() => outputs.worker_event(event, worker.drops()).await?,
+            _ = diagnostics.tick(), if diagnostics_on => {
+                outputs.counters.set("dropped/worker_queue", worker.drops());
+                let msg = outputs.counters.diagnostics(now_ns());
+                outlet.put(DIAGNOSTICS, msg.encode()).await?;
+            },
         }
         for step in todo {
             match step {

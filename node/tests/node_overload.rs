@@ -17,7 +17,7 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use drive_support::{bin_of_frame_id, wait_for, Drive, Received};
+use drive_support::{bin_of_frame_id, net_support, wait_for, Drive, Received};
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::synth::SynthConfig;
@@ -32,9 +32,6 @@ use node::service::{replay, Keys};
 use node::transport::{open, TransportConfig};
 use zenoh::qos::CongestionControl;
 use zenoh::Session;
-
-#[path = "net_support/mod.rs"]
-mod net_support;
 
 /// Seconds of overload.
 const OVERLOAD_S: u64 = 60;

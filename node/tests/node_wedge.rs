@@ -233,7 +233,10 @@ async fn at_once(tag: &str, offsets_ns: [i64; 3]) -> (NodeSummary, usize) {
             let (stamp, f) = &s.drive.frames[k];
             let header = |id: &str| Header::new(stamp + s.offset_ns, id);
             let (key, payload) = match next[src] {
-                0 => (keys.left_image(), image_from_rgb(&f.left, header("left")).encode()),
+                0 => (
+                    keys.left_image(),
+                    image_from_rgb(&f.left, header("left")).encode(),
+                ),
                 1 => (
                     keys.right_image(),
                     image_from_rgb(&f.right, header("right")).encode(),

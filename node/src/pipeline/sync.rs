@@ -190,7 +190,7 @@ impl<L, R, P> Synchronizer<L, R, P> {
     /// Two sources met at `t`: drops every waiting message near it and refuses later ones.
     fn poison(&mut self, t: i64) {
         let s = self.config.slop_ns;
-        let range = (t - s + 1, t + s - 1);
+        let range = (t.saturating_sub(s - 1), t.saturating_add(s - 1));
         let dropped = self.left.remove_range(range)
             + self.right.remove_range(range)
             + self.pose.remove_range(range);
@@ -218,7 +218,7 @@ impl<L, R, P> Synchronizer<L, R, P> {
             let right = self.right.take(r).1;
             let pose = self.pose.take(p).1;
             // What is stamped up to this frame on its timeline can no longer match in order.
-            let passed = (stamp_ns - jump, stamp_ns);
+            let passed = (stamp_ns.saturating_sub(jump), stamp_ns);
             self.state.counters.unmatched += self.left.remove_range(passed)
                 + self.right.remove_range(passed)
                 + self.pose.remove_range(passed);
@@ -237,12 +237,12 @@ impl<L, R, P> Synchronizer<L, R, P> {
     /// Emits `frame` if it is on the timeline, else holds it and confirms a jump when enough
     /// frames agree.
     fn place(&mut self, frame: Synced<L, R, P>, out: &mut Vec<Synced<L, R, P>>) {
-        let jump = self.config.jump_ns;
+        let jump = self.config.jump_ns.max(0);
         let t = frame.stamp_ns;
         let on_timeline = self
             .state
             .last_emitted
-            .is_none_or(|last| t > last && t - last <= jump);
+            .is_none_or(|last| t > last && t.abs_diff(last) <= jump as u64);
         if on_timeline {
             self.state.counters.outlier += self.held.len() as u64;
             self.held.clear();
@@ -252,7 +252,7 @@ impl<L, R, P> Synchronizer<L, R, P> {
         let follows = self
             .held
             .last()
-            .is_some_and(|h| t > h.stamp_ns && t - h.stamp_ns <= jump);
+            .is_some_and(|h| t > h.stamp_ns && t.abs_diff(h.stamp_ns) <= jump as u64);
         if !follows {
             self.state.counters.outlier += self.held.len() as u64;
             self.held.clear();
@@ -266,7 +266,7 @@ impl<L, R, P> Synchronizer<L, R, P> {
         self.state.last_emitted = None;
         self.state.poisoned.clear();
         let newest = self.held.last().map_or(t, |h| h.stamp_ns);
-        let kept = (newest - jump, newest.saturating_add(jump));
+        let kept = (newest.saturating_sub(jump), newest.saturating_add(jump));
         self.state.counters.unmatched += self.left.retain_range(kept)
             + self.right.retain_range(kept)
             + self.pose.retain_range(kept);
@@ -305,17 +305,17 @@ impl State {
         one_per_instant: bool,
     ) -> Admit {
         self.arrivals += 1;
-        let s = config.slop_ns;
+        let s = config.slop_ns.max(0) as u64;
         // A poisoned instant stays so while the sources that met there may still send it.
         let memory = 3 * config.capacity.max(1) as u64;
         let now = self.arrivals;
         self.poisoned.retain(|&(_, at)| now - at <= memory);
-        if self.poisoned.iter().any(|&(p, _)| (p - t).abs() < s) {
+        if self.poisoned.iter().any(|&(p, _)| p.abs_diff(t) < s) {
             self.counters.conflict += 1;
             return Admit::Refused;
         }
         if let Some(last) = self.last_emitted {
-            if t <= last && last - t <= config.jump_ns {
+            if t <= last && last.abs_diff(t) <= config.jump_ns.max(0) as u64 {
                 self.counters.late += 1;
                 return Admit::Refused;
             }
@@ -325,8 +325,8 @@ impl State {
         }
         let just_emitted = self
             .last_emitted
-            .is_some_and(|last| t > last && t - last < s);
-        if just_emitted || stream.q.iter().any(|e| (e.stamp - t).abs() < s) {
+            .is_some_and(|last| t > last && t.abs_diff(last) < s);
+        if just_emitted || stream.q.iter().any(|e| e.stamp.abs_diff(t) < s) {
             self.counters.conflict += 1;
             return Admit::Conflict(t);
         }
@@ -400,8 +400,8 @@ impl<T> Stream<T> {
         self.q
             .iter()
             .enumerate()
-            .map(|(i, e)| (i, (e.stamp - t).saturating_abs()))
-            .filter(|(_, d)| *d <= slop)
+            .map(|(i, e)| (i, e.stamp.abs_diff(t)))
+            .filter(|(_, d)| *d <= slop.max(0) as u64)
             .min_by_key(|(_, d)| *d)
             .map(|(i, _)| i)
     }

@@ -265,3 +265,13 @@ fn a_second_source_just_after_an_emitted_frame_is_a_conflict() {
     assert_eq!(s.counters().conflict, 3);
     assert_eq!(drive(&mut s, 0, 1..5), vec![1, 2, 3, 4]);
 }
+
+#[test]
+fn stamps_at_the_ends_of_the_range_are_handled_like_any_other() {
+    let mut s = sync();
+    for t in [i64::MIN, i64::MAX, 0, i64::MIN + 1, i64::MAX - 1] {
+        frame(&mut s, t, 1);
+    }
+    assert_eq!(drive(&mut s, 0, 1..10), (1..10).collect::<Vec<_>>());
+    assert!(s.pending() <= 3 * SyncConfig::default().capacity);
+}

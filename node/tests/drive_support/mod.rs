@@ -28,7 +28,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::Session;
 
 #[path = "../net_support/mod.rs"]
-mod net_support;
+pub mod net_support;
 
 /// A generated drive in the KITTI-360 layout under a temporary folder (removed on drop), with
 /// every frame loaded.

@@ -153,36 +153,30 @@ impl<L, R, P> Synchronizer<L, R, P> {
 
     /// Adds a left image weighing `bytes`; returns the frames it completes (oldest first).
     pub fn push_left(&mut self, stamp_ns: i64, bytes: usize, msg: L) -> Vec<Synced<L, R, P>> {
-        match self.state.admit(&self.config, &self.left, stamp_ns, true) {
-            Admit::In => self
-                .left
-                .insert(&self.config, &mut self.state, stamp_ns, bytes, msg),
-            Admit::Refused => {}
-            Admit::Conflict(t) => self.poison(t),
+        let arrival = (stamp_ns, bytes, msg);
+        let conflict = self.state.add(&self.config, &mut self.left, arrival, true);
+        if let Some(t) = conflict {
+            self.poison(t);
         }
         self.drain()
     }
 
     /// Adds a right image weighing `bytes`; returns the frames it completes.
     pub fn push_right(&mut self, stamp_ns: i64, bytes: usize, msg: R) -> Vec<Synced<L, R, P>> {
-        match self.state.admit(&self.config, &self.right, stamp_ns, true) {
-            Admit::In => self
-                .right
-                .insert(&self.config, &mut self.state, stamp_ns, bytes, msg),
-            Admit::Refused => {}
-            Admit::Conflict(t) => self.poison(t),
+        let arrival = (stamp_ns, bytes, msg);
+        let conflict = self.state.add(&self.config, &mut self.right, arrival, true);
+        if let Some(t) = conflict {
+            self.poison(t);
         }
         self.drain()
     }
 
     /// Adds a pose weighing `bytes`; returns the frames it completes.
     pub fn push_pose(&mut self, stamp_ns: i64, bytes: usize, msg: P) -> Vec<Synced<L, R, P>> {
-        match self.state.admit(&self.config, &self.pose, stamp_ns, false) {
-            Admit::In => self
-                .pose
-                .insert(&self.config, &mut self.state, stamp_ns, bytes, msg),
-            Admit::Refused => {}
-            Admit::Conflict(t) => self.poison(t),
+        let arrival = (stamp_ns, bytes, msg);
+        let conflict = self.state.add(&self.config, &mut self.pose, arrival, false);
+        if let Some(t) = conflict {
+            self.poison(t);
         }
         self.drain()
     }
@@ -295,6 +289,23 @@ enum Admit {
 }
 
 impl State {
+    /// Admits and buffers one message `(stamp, bytes, msg)`; the instant where it meets
+    /// another source, if it does.
+    fn add<T>(
+        &mut self,
+        config: &SyncConfig,
+        stream: &mut Stream<T>,
+        (t, bytes, msg): (i64, usize, T),
+        one_per_instant: bool,
+    ) -> Option<i64> {
+        match self.admit(config, stream, t, one_per_instant) {
+            Admit::In => stream.insert(config, self, t, bytes, msg),
+            Admit::Refused => {}
+            Admit::Conflict(at) => return Some(at),
+        }
+        None
+    }
+
     /// Counts and refuses a late message or one at a poisoned instant; finds where an image
     /// (`one_per_instant`) meets another source's.
     fn admit<T>(

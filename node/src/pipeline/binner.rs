@@ -13,6 +13,9 @@ pub struct BinnerConfig {
     pub length_m: f64,
     /// Which later frames of a bin are kept (for evaluation or renders).
     pub keep: Keep,
+    /// The id of the first bin opened: 0 for a new map, the next after the last published
+    /// bin for a node that resumed a saved map (ids are never reused).
+    pub first_bin_id: u64,
 }
 
 /// Which frames after the first a bin keeps.
@@ -29,6 +32,7 @@ impl Default for BinnerConfig {
         Self {
             length_m: 8.0,
             keep: Keep::FirstOnly,
+            first_bin_id: 0,
         }
     }
 }
@@ -38,7 +42,7 @@ impl Default for BinnerConfig {
 pub enum BinEvent<F> {
     /// The frame opened bin `bin_id`: send it to the worker now.
     Opened {
-        /// Consecutive from 0.
+        /// Consecutive from `BinnerConfig::first_bin_id` (0 by default).
         bin_id: u64,
         /// The bin's first frame (its left camera defines the bin frame).
         first: F,
@@ -79,7 +83,7 @@ impl<F: Clone> Binner<F> {
         Self {
             config,
             open: None,
-            next_id: 0,
+            next_id: config.first_bin_id,
         }
     }
 

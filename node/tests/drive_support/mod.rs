@@ -136,10 +136,7 @@ impl RunningNode {
 
     /// A peer that connects to the node.
     pub fn client(&self) -> TransportConfig {
-        TransportConfig {
-            connect: vec![self.endpoint.clone()],
-            ..TransportConfig::default()
-        }
+        client_of(&self.endpoint)
     }
 
     /// Whether the node's task is still running.
@@ -159,6 +156,14 @@ impl RunningNode {
     }
 }
 
+/// A peer that connects to `endpoint` (a node in this process or another).
+pub fn client_of(endpoint: &str) -> TransportConfig {
+    TransportConfig {
+        connect: vec![endpoint.to_string()],
+        ..TransportConfig::default()
+    }
+}
+
 /// A session that publishes onto the node's input keys, blocking (not dropping) when zenoh's
 /// queues are full, so every frame reaches the node.
 pub struct Player {
@@ -170,9 +175,14 @@ pub struct Player {
 impl Player {
     /// Connects to `node`.
     pub async fn connect(node: &RunningNode) -> Self {
+        Self::at(&node.endpoint, node.keys.clone()).await
+    }
+
+    /// Connects to a node (in this process or another) listening on `endpoint` with `keys`.
+    pub async fn at(endpoint: &str, keys: Keys) -> Self {
         Self {
-            session: open(&node.client()).await.expect("player session"),
-            keys: node.keys.clone(),
+            session: open(&client_of(endpoint)).await.expect("player session"),
+            keys,
         }
     }
 
@@ -281,7 +291,13 @@ impl Collector {
     /// for a message's header: see [`Collector::headers`]), so that collecting many large
     /// maps does not grow the test process.
     pub async fn connect_truncated(node: &RunningNode, keys: &[String], max_bytes: usize) -> Self {
-        let session = open(&node.client()).await.expect("listener session");
+        Self::at(&node.endpoint, keys, max_bytes).await
+    }
+
+    /// As [`Collector::connect_truncated`], for a node (in this process or another)
+    /// listening on `endpoint`.
+    pub async fn at(endpoint: &str, keys: &[String], max_bytes: usize) -> Self {
+        let session = open(&client_of(endpoint)).await.expect("listener session");
         let samples: Arc<Mutex<Vec<Received>>> = Arc::default();
         let mut subscribers = Vec::new();
         for key in keys {

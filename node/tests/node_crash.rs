@@ -9,7 +9,6 @@
 //! file that `replay --mcap` reads as far as its complete chunks go, saying so.
 
 mod drive_support;
-mod net_support;
 
 use std::collections::BTreeSet;
 use std::io::{BufRead, BufReader, Read};
@@ -91,7 +90,7 @@ impl Child {
 /// Starts `stereosplat run` (SGM, no renders, a snapshot only on request) on a free loopback
 /// port with `--out out`, plus `extra` flags; returns it and its endpoint once it listens.
 async fn start_node(ns: &str, out: &Path, extra: &[&str]) -> (Child, String) {
-    let port = net_support::free_port();
+    let port = drive_support::free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let out = out.to_str().unwrap();
     let mut args = vec![
@@ -356,7 +355,7 @@ async fn a_checkpoint_that_does_not_load_stops_the_node_and_fresh_moves_it_aside
     let junk = b"SSGMAP\0\n\x02\0\0\0 cut off by a crash".to_vec();
     std::fs::write(&checkpoint, &junk).unwrap();
 
-    let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", drive_support::free_port());
     let out_arg = out.to_str().unwrap();
     let args = [
         "run", "--listen", &endpoint, "--method", "sgm", "--out", out_arg,
@@ -392,7 +391,7 @@ async fn a_recorder_killed_with_sigkill_leaves_a_recording_that_replays() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("killed.mcap");
-    let port = net_support::free_port();
+    let port = drive_support::free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let keys = Keys::new("crash_rec");
     let path_arg = path.to_str().unwrap();
@@ -435,7 +434,7 @@ async fn a_recorder_killed_with_sigkill_leaves_a_recording_that_replays() {
         "the killed recorder did not finish the file"
     );
 
-    let replay_endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
+    let replay_endpoint = format!("tcp/127.0.0.1:{}", drive_support::free_port());
     let (status, stdout, stderr) = Child::spawn(&[
         "replay",
         "--mcap",

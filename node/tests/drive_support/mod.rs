@@ -30,6 +30,11 @@ use zenoh::Session;
 #[path = "../net_support/mod.rs"]
 mod net_support;
 
+/// A TCP port on 127.0.0.1 that was free a moment ago, for a node started as a process.
+pub fn free_port() -> u16 {
+    net_support::free_port()
+}
+
 /// A generated drive in the KITTI-360 layout under a temporary folder (removed on drop), with
 /// every frame loaded.
 pub struct Drive {

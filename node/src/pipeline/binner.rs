@@ -218,4 +218,22 @@ mod tests {
         ));
         assert_eq!(binner.open_bin(), Some(1));
     }
+
+    #[test]
+    fn a_resumed_binner_starts_at_its_first_bin_id() {
+        let mut binner = Binner::new(BinnerConfig {
+            first_bin_id: 7,
+            ..BinnerConfig::default()
+        });
+        let at = |x: f64| DAffine3::from_translation(DVec3::new(x, 0.0, 0.0));
+        assert!(matches!(
+            binner.push(0, at(0.0)),
+            BinEvent::Opened { bin_id: 7, .. }
+        ));
+        assert!(matches!(
+            binner.push(1, at(8.0)),
+            BinEvent::Closed { bin_id: 7, .. }
+        ));
+        assert_eq!(binner.open_bin(), Some(8));
+    }
 }

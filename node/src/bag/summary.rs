@@ -20,7 +20,8 @@ const FOOTER_AND_MAGIC: u64 = 1 + 8 + 8 + 8 + 4 + 8;
 /// Bytes from the end of the file to the footer's CRC field (the CRC covers what precedes it).
 const CRC_FROM_END: u64 = 4 + 8;
 
-/// What a finished bag says about itself in its summary section.
+/// What a finished bag says about itself in its summary section (or, for a cut-off one, what
+/// [`super::recover`] found in its complete chunks).
 pub(super) struct Index {
     /// Channels in id order.
     pub channels: Vec<ChannelSummary>,

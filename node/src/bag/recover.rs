@@ -83,7 +83,7 @@ pub(super) fn recover_index(
         let (opcode, len) = (head[0], le_u64(&head[1..9]));
         if len > left - 9 {
             break format!(
-                "record at byte {pos} cut off ({} of its {len} bytes present)",
+                "record at byte {pos} cut off ({} bytes present, its length field says {len})",
                 left - 9
             );
         }

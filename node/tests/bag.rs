@@ -335,6 +335,91 @@ fn truncated_files_give_errors() {
     std::fs::remove_file(&cut_path).unwrap();
 }
 
+/// A recording cut off at any byte (a recorder killed with -9) gives back exactly the
+/// messages of its complete chunks, and says how many bytes it kept and ignored; a damaged
+/// chunk ends the recovered part there.
+#[test]
+fn cut_off_recordings_give_back_their_complete_chunks() {
+    // Twelve chunks of 25 messages, closed by `flush` as the recorder does every second.
+    let path = scratch("recover-source");
+    let written = drive(9, 300, 4096);
+    let mut writer = BagWriter::create(&path).unwrap();
+    for (i, m) in written.iter().enumerate() {
+        let (ch, t, p, q) = (&m.channel, m.log_time_ns, m.publish_time_ns, m.sequence);
+        writer.write(ch, t, p, q, &m.payload).unwrap();
+        if i % 25 == 24 {
+            writer.flush().unwrap();
+        }
+    }
+    writer.finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let mut chunk_ends: Vec<u64> = chunk_indexes(&bytes)
+        .iter()
+        .map(|c| c.chunk_start_offset + c.chunk_length)
+        .collect();
+    chunk_ends.sort_unstable();
+    assert_eq!(chunk_ends.len(), 12);
+    let mut cuts: Vec<u64> = chunk_ends
+        .iter()
+        .flat_map(|&e| [e - 1, e, e + 1])
+        .chain([8, 9, 100, bytes.len() as u64 - 1])
+        .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    cuts.extend((0..60).map(|_| rng.random_range(8..bytes.len() as u64)));
+    let cut_path = scratch("recover-cut");
+    for cut in cuts {
+        std::fs::write(&cut_path, &bytes[..cut as usize]).unwrap();
+        assert!(
+            BagReader::open(&cut_path).is_err(),
+            "cut at {cut} is not finished"
+        );
+        let (bag, recovery) = BagReader::open_or_recover(&cut_path).unwrap();
+        let recovery = recovery.expect("a cut-off file is recovered");
+        let complete = chunk_ends.iter().filter(|&&e| e <= cut).count();
+        let expected = in_log_time_order(&written[..complete * 25]);
+        assert_eq!(recovery.messages, expected.len() as u64, "cut at {cut}");
+        assert_eq!(recovery.chunks, complete as u64, "cut at {cut}");
+        assert_eq!(recovery.readable_bytes + recovery.ignored_bytes, cut);
+        let last_end = chunk_ends
+            .get(complete.wrapping_sub(1))
+            .copied()
+            .unwrap_or(8);
+        assert!(
+            recovery.readable_bytes >= last_end,
+            "cut at {cut}: {recovery}"
+        );
+        assert_eq!(bag.message_count(), expected.len() as u64);
+        let read: Vec<Message> = bag.messages().map(Result::unwrap).collect();
+        assert_eq!(read, expected, "cut at {cut}");
+    }
+    // A damaged sixth chunk: the five before it are recovered, the rest ignored.
+    let mut chunks = chunk_indexes(&bytes);
+    chunks.sort_by_key(|c| c.chunk_start_offset);
+    let sixth = chunks[5].chunk_start_offset;
+    let mut damaged = bytes[..chunk_ends[9] as usize].to_vec();
+    damaged[(sixth + chunks[5].chunk_length / 2) as usize] ^= 0x55;
+    std::fs::write(&cut_path, &damaged).unwrap();
+    let (bag, recovery) = BagReader::recover(&cut_path).unwrap();
+    assert_eq!(recovery.messages, 125, "{recovery}");
+    assert_eq!(recovery.readable_bytes, sixth, "{recovery}");
+    assert!(
+        recovery
+            .stopped
+            .starts_with(&format!("chunk at byte {sixth}: ")),
+        "{recovery}"
+    );
+    assert_eq!(bag.messages().count(), 125);
+    // Not MCAP at all: still an error naming the file.
+    std::fs::write(&cut_path, b"not an mcap file").unwrap();
+    let err = BagReader::open_or_recover(&cut_path)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("bag-test-recover-cut"), "{err}");
+    std::fs::remove_file(&path).unwrap();
+    std::fs::remove_file(&cut_path).unwrap();
+}
+
 /// The chunk indexes of the MCAP file `bytes`, as the `mcap` crate reads them.
 fn chunk_indexes(bytes: &[u8]) -> Vec<mcap::records::ChunkIndex> {
     mcap::Summary::read(bytes).unwrap().unwrap().chunk_indexes

@@ -393,6 +393,7 @@ fn save_and_restore_round_trip_and_corrupt_files_are_typed_errors() {
     assert_eq!(back.config(), map.config());
     assert_eq!(back.cell_count(), map.cell_count());
     assert_eq!(back.latest_origin(), map.latest_origin());
+    assert_eq!((back.increments(), back.epoch()), (6, 0));
     // The restored map goes on exactly as the original (same ids, same decisions).
     let (set, pose) = random_bin(&mut rng, 6);
     let next = map.insert_bin(6, &set, pose).unwrap();

@@ -3,11 +3,13 @@
 //! It owns the types every other crate speaks (a [`GaussianSet`], a pinhole [`Camera`],
 //! [`RenderOutput`]), the CPU reference rasterizer ([`cpu`], forward and backward, the oracle
 //! that training differentiates through), the wgpu rasterizer ([`gpu`], forward, what the node
-//! draws with), and file formats ([`ply`] for maps, [`picture`] for PNG).
+//! draws with), and file formats ([`ply`] for maps, [`picture`] for PNG), written crash-safely
+//! through [`atomic`].
 //!
 //! It must not know about networks, data sets or transport: those live in `model` and `node`,
 //! which depend on this crate and never the other way round.
 
+pub mod atomic;
 pub mod camera;
 pub mod cpu;
 pub mod gaussians;

@@ -9,6 +9,8 @@
 //! monotonically), near bright and far dark, over a range chosen by [`DepthScale`]. Pixels
 //! without a valid depth (alpha at most [`DEPTH_MIN_ALPHA`], depth not finite or not
 //! positive) are black, which the map never produces.
+//!
+//! Files are replaced atomically ([`crate::atomic`]): a crash mid-write keeps the old picture.
 
 use std::path::Path;
 
@@ -208,7 +210,9 @@ fn save(
     out: &RenderOutput,
     color: ExtendedColorType,
 ) -> Result<(), PictureError> {
-    image::save_buffer_with_format(path, buf, out.width, out.height, color, ImageFormat::Png)?;
+    crate::atomic::write_atomic(path, |w| {
+        image::write_buffer_with_format(w, buf, out.width, out.height, color, ImageFormat::Png)
+    })?;
     Ok(())
 }
 

@@ -208,9 +208,10 @@ pub fn read_ply(r: impl Read) -> Result<GaussianSet, PlyError> {
     read_body(&mut r, &header, None)
 }
 
-/// Writes `set` to a file at `path` (created or truncated) with [`write_ply`].
+/// Writes `set` to a file at `path` with [`write_ply`], atomically ([`crate::atomic`]): a
+/// crash mid-write leaves the previous file whole, never a header without its records.
 pub fn save_ply(set: &GaussianSet, path: impl AsRef<Path>) -> Result<(), PlyError> {
-    write_ply(set, File::create(path)?)
+    crate::atomic::write_atomic(path.as_ref(), |w| write_ply(set, w))
 }
 
 /// Reads the file at `path` with [`read_ply`]; knowing the file's length, it refuses a

@@ -5,7 +5,10 @@
 //! zstd-compressed MCAP with the `ros2` profile, `ros2msg` schemas and one channel per distinct
 //! [`ChannelInfo`], so `ros2 bag` (rosbag2's MCAP plugin) and Foxglove open it. [`BagReader`]
 //! reads it back in log-time order, bit for bit, checking the chunk and summary CRCs so that a
-//! damaged file gives a [`BagError`] instead of wrong data. [`Pacer`] turns recorded log times
+//! damaged file gives a [`BagError`] instead of wrong data; [`BagReader::recover`] reads the
+//! complete chunks of a recording that was cut off (a recorder killed with -9), saying how
+//! much it kept ([`Recovery`]). The writer closes a chunk at least every second while
+//! recording ([`BagWriter::flush`]), so such a kill loses about the last second. [`Pacer`] turns recorded log times
 //! into sleeps so a replay keeps the recorded timing, a multiple of it, or none.
 //!
 //! Chunks are compressed with zstd only: the `mcap` crate's lz4 feature would add a C build of
@@ -15,12 +18,14 @@
 mod error;
 mod pacing;
 mod reader;
+mod recover;
 mod summary;
 mod writer;
 
 pub use error::BagError;
 pub use pacing::{Pacer, Rate};
 pub use reader::{BagReader, ChannelSummary, Messages};
+pub use recover::Recovery;
 pub use writer::BagWriter;
 
 use std::sync::Arc;

@@ -6,15 +6,16 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use mcap::records::{op, ChunkIndex, MessageHeader, Record};
+use mcap::records::{op, ChunkIndex, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
+use super::recover::{recover_index, Recovery};
 use super::summary::{le_u64, read_at, read_index, Index};
 use super::{BagError, ChannelInfo, Message};
 
 /// Largest chunk, compressed or not, the reader loads (a guard against absurd sizes in a
 /// damaged index; the writer's chunks are about 1 MiB plus at most one message).
-const MAX_CHUNK_BYTES: u64 = 4 << 30;
+pub(super) const MAX_CHUNK_BYTES: u64 = 4 << 30;
 
 /// One channel of a bag and how many messages it holds.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -40,14 +41,7 @@ pub struct BagReader {
 impl BagReader {
     /// Opens `path` and reads its summary; fails on a truncated, unfinished or damaged file.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, BagError> {
-        let path = path.as_ref().to_path_buf();
-        let io_error = |action: &str, source| BagError::Io {
-            path: path.clone(),
-            action: action.into(),
-            source,
-        };
-        let file = File::open(&path).map_err(|e| io_error("open", e))?;
-        let file_len = file.metadata().map_err(|e| io_error("stat", e))?.len();
+        let (path, file, file_len) = open_file(path.as_ref())?;
         let index = read_index(&path, &file, file_len)?;
         Ok(Self {
             path,
@@ -55,6 +49,35 @@ impl BagReader {
             file_len,
             index,
         })
+    }
+
+    /// Opens a recording that may have been cut off (a recorder killed before it finished
+    /// the file): its complete, CRC-checked chunks from the start up to the first cut-off or
+    /// damaged record are read as a bag of their own, whatever the footer says. Says how
+    /// much it kept. Errors only when the file cannot be read or does not start as MCAP.
+    pub fn recover(path: impl AsRef<Path>) -> Result<(Self, Recovery), BagError> {
+        let (path, file, file_len) = open_file(path.as_ref())?;
+        let (index, recovery) = recover_index(&path, &file, file_len)?;
+        let bag = Self {
+            path,
+            file,
+            file_len,
+            index,
+        };
+        Ok((bag, recovery))
+    }
+
+    /// [`BagReader::open`], or when the file is not a finished, intact recording,
+    /// [`BagReader::recover`] with what it recovered. When both fail, the error of `open`.
+    pub fn open_or_recover(path: impl AsRef<Path>) -> Result<(Self, Option<Recovery>), BagError> {
+        let path = path.as_ref();
+        match Self::open(path) {
+            Ok(bag) => Ok((bag, None)),
+            Err(strict) => match Self::recover(path) {
+                Ok((bag, recovery)) => Ok((bag, Some(recovery))),
+                Err(_) => Err(strict),
+            },
+        }
     }
 
     /// The bag's channels, in the order of their MCAP ids, with their message counts.
@@ -136,7 +159,10 @@ impl BagReader {
         let limit = chunk.chunk_length.max(chunk.uncompressed_size) as usize;
         let times = chunk.message_start_time..=chunk.message_end_time;
         let mut problem = None;
-        for_each_message(&record, limit, |header, payload| {
+        for_each_record(&record, limit, |r| {
+            let Record::Message { header, data } = r else {
+                return;
+            };
             let channel = self.index.by_id.get(&header.channel_id);
             match channel {
                 _ if problem.is_some() => {}
@@ -149,7 +175,7 @@ impl BagReader {
                     log_time_ns: header.log_time,
                     publish_time_ns: header.publish_time,
                     sequence: header.sequence,
-                    payload,
+                    payload: data.into_owned(),
                 }),
             }
         })
@@ -161,14 +187,14 @@ impl BagReader {
     }
 }
 
-/// Decodes the chunk record `record` (opcode and length included) and calls `on_message` with
-/// each message in it, in file order. The chunk's CRC is checked before any record inside is
+/// Decodes the chunk record `record` (opcode and length included) and calls `on_record` with
+/// each record in it, in file order. The chunk's CRC is checked before any record inside is
 /// parsed, and no record may claim more than `limit` bytes, so damaged data can neither reach
-/// `on_message` nor make the decoder allocate absurd amounts.
-fn for_each_message(
+/// `on_record` nor make the decoder allocate absurd amounts.
+pub(super) fn for_each_record(
     record: &[u8],
     limit: usize,
-    mut on_message: impl FnMut(MessageHeader, Vec<u8>),
+    mut on_record: impl FnMut(Record<'_>),
 ) -> mcap::McapResult<()> {
     let options = LinearReaderOptions::default()
         .with_skip_start_magic(true)
@@ -185,15 +211,25 @@ fn for_each_message(
                 reader.notify_read(n);
                 input = &input[n..];
             }
-            LinearReadEvent::Record { opcode, data } if opcode == op::MESSAGE => {
-                if let Record::Message { header, data } = mcap::parse_record(opcode, data)? {
-                    on_message(header, data.into_owned());
-                }
+            LinearReadEvent::Record { opcode, data } => {
+                on_record(mcap::parse_record(opcode, data)?);
             }
-            LinearReadEvent::Record { .. } => {}
         }
     }
     Ok(())
+}
+
+/// Opens `path` for reading and learns its length.
+fn open_file(path: &Path) -> Result<(PathBuf, File, u64), BagError> {
+    let path = path.to_path_buf();
+    let io_error = |action: &str, source| BagError::Io {
+        path: path.clone(),
+        action: action.into(),
+        source,
+    };
+    let file = File::open(&path).map_err(|e| io_error("open", e))?;
+    let file_len = file.metadata().map_err(|e| io_error("stat", e))?.len();
+    Ok((path, file, file_len))
 }
 
 /// Iterator over a bag's messages in log-time order; see [`BagReader::messages`].

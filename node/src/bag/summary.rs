@@ -2,7 +2,7 @@
 //! channels, statistics and chunk indexes. Everything [`super::BagReader`] needs before the
 //! first message.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
@@ -20,7 +20,8 @@ const FOOTER_AND_MAGIC: u64 = 1 + 8 + 8 + 8 + 4 + 8;
 /// Bytes from the end of the file to the footer's CRC field (the CRC covers what precedes it).
 const CRC_FROM_END: u64 = 4 + 8;
 
-/// What a finished bag says about itself in its summary section.
+/// What a finished bag says about itself in its summary section (or, for a cut-off one, what
+/// [`super::recover`] found in its complete chunks).
 pub(super) struct Index {
     /// Channels in id order.
     pub channels: Vec<ChannelSummary>,
@@ -106,28 +107,49 @@ pub(super) fn read_index(path: &Path, file: &File, file_len: u64) -> Result<Inde
     if summary.chunk_indexes.is_empty() && stats.message_count > 0 {
         return Err(unindexed("messages but no chunk index"));
     }
-    let mut ids: Vec<u16> = summary.channels.keys().copied().collect();
-    ids.sort_unstable();
-    let mut channels = Vec::with_capacity(ids.len());
-    let mut by_id = HashMap::with_capacity(ids.len());
-    for id in ids {
-        let info = Arc::new(channel_info(path, &summary.channels[&id])?);
-        channels.push(ChannelSummary {
-            info: Arc::clone(&info),
-            message_count: stats.channel_message_counts.get(&id).copied().unwrap_or(0),
-        });
-        by_id.insert(id, info);
+    Index::new(
+        path,
+        &summary.channels,
+        &stats.channel_message_counts,
+        summary.chunk_indexes,
+        stats.message_count,
+        (stats.message_count > 0).then_some((stats.message_start_time, stats.message_end_time)),
+    )
+}
+
+impl Index {
+    /// The index of `channels` (by MCAP id) with their message `counts`, and `chunks`
+    /// (sorted here into log-time visiting order); errors on a channel without a `ros2msg`
+    /// schema.
+    pub(super) fn new(
+        path: &Path,
+        channels: &HashMap<u16, Arc<mcap::Channel<'static>>>,
+        counts: &BTreeMap<u16, u64>,
+        mut chunks: Vec<ChunkIndex>,
+        message_count: u64,
+        time_range: Option<(u64, u64)>,
+    ) -> Result<Self, BagError> {
+        let mut ids: Vec<u16> = channels.keys().copied().collect();
+        ids.sort_unstable();
+        let mut summaries = Vec::with_capacity(ids.len());
+        let mut by_id = HashMap::with_capacity(ids.len());
+        for id in ids {
+            let info = Arc::new(channel_info(path, &channels[&id])?);
+            summaries.push(ChannelSummary {
+                info: Arc::clone(&info),
+                message_count: counts.get(&id).copied().unwrap_or(0),
+            });
+            by_id.insert(id, info);
+        }
+        chunks.sort_by_key(|c| (c.message_start_time, c.chunk_start_offset));
+        Ok(Self {
+            channels: summaries,
+            by_id,
+            chunks,
+            message_count,
+            time_range,
+        })
     }
-    let mut chunks = summary.chunk_indexes;
-    chunks.sort_by_key(|c| (c.message_start_time, c.chunk_start_offset));
-    Ok(Index {
-        channels,
-        by_id,
-        chunks,
-        message_count: stats.message_count,
-        time_range: (stats.message_count > 0)
-            .then_some((stats.message_start_time, stats.message_end_time)),
-    })
 }
 
 /// Reads `len` bytes at `offset` of `file`.

@@ -70,6 +70,15 @@ impl BagWriter {
             .map_err(|source| format_error(&self.path, source))
     }
 
+    /// Closes the chunk being written and hands the bytes so far to the operating system, so
+    /// a process killed afterwards leaves every message written up to here in a complete
+    /// chunk that [`super::BagReader::recover`] reads.
+    pub fn flush(&mut self) -> Result<(), BagError> {
+        self.mcap
+            .flush()
+            .map_err(|source| format_error(&self.path, source))
+    }
+
     /// Writes the last chunk, the summary and the footer, and flushes the file to disk.
     pub fn finish(self) -> Result<(), BagError> {
         let Self { path, mut mcap, .. } = self;

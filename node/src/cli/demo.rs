@@ -18,7 +18,7 @@ use super::stream::{rate_of, RenderArg};
 use super::synth::{cached_drive, first_sequence};
 use crate::service::latency_stats::LatencyStats;
 use crate::service::loopback::{run_loopback, Received, ReceivedBin};
-use crate::service::NodeConfig;
+use crate::service::{NodeConfig, StartMap};
 
 /// Flags of `demo`.
 #[derive(Args, Clone, Debug)]
@@ -76,6 +76,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         method: args.method.clone(),
         renders: args.renders.into(),
         out_dir: Some(args.out.join("map")),
+        // Each demo is a run of its own: an earlier demo's map is kept aside, not resumed.
+        start_map: StartMap::Fresh,
+        checkpoint_every: 0,
         ..NodeConfig::default()
     };
     let bar = progress::bar(sequence.frames().len(), "replay");

@@ -85,7 +85,9 @@ pub struct BagReplayArgs {
     bag_namespace: Option<String>,
 }
 
-/// Replays the MCAP recording at `path` onto the node's keys, with a progress bar.
+/// Replays the MCAP recording at `path` onto the node's keys, with a progress bar. A recording
+/// that was cut off (no summary: a killed recorder) is replayed as far as its complete chunks
+/// go, with a line on stderr saying how much was recovered and how much ignored.
 pub fn replay_mcap(
     zenoh: &ZenohArgs,
     path: &Path,
@@ -93,7 +95,10 @@ pub fn replay_mcap(
     rate: Rate,
     warmup: Duration,
 ) -> Result<()> {
-    let bag = BagReader::open(path)?;
+    let (bag, recovery) = BagReader::open_or_recover(path)?;
+    if let Some(recovery) = &recovery {
+        eprintln!("{}: not a finished recording; {recovery}", path.display());
+    }
     let options = BagReplayOptions {
         rate,
         inputs_only: args.inputs_only,

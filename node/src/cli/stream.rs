@@ -9,7 +9,7 @@ use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
 use crate::service::keys::KeyMode;
-use crate::service::{self, Keys, NodeConfig};
+use crate::service::{self, Keys, NodeConfig, StartMap};
 use crate::transport::{open, TransportConfig};
 use anyhow::Result;
 use clap::Args;
@@ -127,9 +127,19 @@ pub struct RunArgs {
     /// Bins waiting for the worker at most (the oldest waiting is dropped beyond it).
     #[arg(long, default_value_t = 2)]
     queue: usize,
-    /// Where the fused global map is written when the node stops.
+    /// Where the fused global map is written when the node stops, and where its checkpoint
+    /// (`global_map.ssgmap`) is kept: a node started on a folder that holds one resumes it
+    /// (map, bin ids, sequence numbers); a checkpoint that does not load stops the node.
     #[arg(long, default_value = "out/node")]
     out: PathBuf,
+    /// Start a new, empty map even if `--out` holds a checkpoint (it is kept, renamed to
+    /// `global_map.ssgmap.replaced-<unix seconds>`).
+    #[arg(long)]
+    fresh: bool,
+    /// Checkpoint the map after every this many bins, before they are published (0: only
+    /// when the node stops). With 1, a crash loses no bin that was published.
+    #[arg(long, default_value_t = 1)]
+    checkpoint_every: u64,
     /// Rasterizer of the per-bin renders (input view and bird's-eye view); `off` for none.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
@@ -171,6 +181,11 @@ pub fn run(args: &RunArgs) -> Result<()> {
         method: args.method.clone(),
         fusion: FusionConfig::default(),
         out_dir: Some(args.out.clone()),
+        start_map: match args.fresh {
+            true => StartMap::Fresh,
+            false => StartMap::Resume,
+        },
+        checkpoint_every: args.checkpoint_every,
         renders: args.renders.into(),
         snapshot_every: args.snapshot_every,
         ..NodeConfig::default()

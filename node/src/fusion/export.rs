@@ -150,12 +150,13 @@ pub fn bev_image<'a>(
     Ok(img)
 }
 
-/// Writes a bird's-eye view (or any RGB image) as PNG.
+/// Writes a bird's-eye view (or any RGB image) as PNG, atomically ([`renderer::atomic`]).
 pub fn save_bev_png(img: &RgbImage, path: impl AsRef<Path>) -> Result<(), ExportError> {
     let path = path.as_ref();
-    img.save_with_format(path, image::ImageFormat::Png)
-        .map_err(|source| ExportError::Png {
+    renderer::atomic::write_atomic(path, |w| img.write_to(w, image::ImageFormat::Png)).map_err(
+        |source| ExportError::Png {
             path: path.to_path_buf(),
             source,
-        })
+        },
+    )
 }

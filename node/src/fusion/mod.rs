@@ -153,6 +153,8 @@ pub struct GlobalMap {
     next_id: u64,
     last_bin_id: Option<u64>,
     latest_origin: Option<DVec3>,
+    increments: u64,
+    epoch: u64,
 }
 
 impl GlobalMap {
@@ -166,6 +168,8 @@ impl GlobalMap {
             next_id: 0,
             last_bin_id: None,
             latest_origin: None,
+            increments: 0,
+            epoch: 0,
         })
     }
 
@@ -194,6 +198,23 @@ impl GlobalMap {
         self.last_bin_id
     }
 
+    /// How many bins were taken in (successful [`GlobalMap::insert_bin`] calls): the sequence
+    /// number of the last increment, which a saved map keeps so a restored one continues it.
+    pub fn increments(&self) -> u64 {
+        self.increments
+    }
+
+    /// How many times this map was resumed from a saved file ([`GlobalMap::resume`]); 0 for
+    /// a map that never was. Saved with the map.
+    pub fn epoch(&self) -> u64 {
+        self.epoch
+    }
+
+    /// Marks the map as resumed by a new run (a node restored it): the epoch goes up by one.
+    pub fn resume(&mut self) {
+        self.epoch += 1;
+    }
+
     /// The world position of the latest non-empty bin's origin (the eviction anchor).
     pub fn latest_origin(&self) -> Option<DVec3> {
         self.latest_origin
@@ -217,7 +238,7 @@ impl GlobalMap {
     /// Fuses one bin map (`set` in the bin's frame, `bin_to_world` its pose) into the map by
     /// the rule in the module doc and returns what changed. A bad pose or a set with
     /// mismatched arrays is an error and changes nothing; bad Gaussians are skipped and
-    /// counted; an empty bin changes nothing but the last bin id.
+    /// counted; an empty bin changes nothing but the last bin id and the increment count.
     pub fn insert_bin(
         &mut self,
         bin_id: u64,
@@ -230,6 +251,7 @@ impl GlobalMap {
         set.check_lengths()
             .map_err(|source| FusionError::BadSet { bin_id, source })?;
         self.last_bin_id = Some(bin_id);
+        self.increments += 1;
         let mut stats = InsertStats {
             input: set.len(),
             ..InsertStats::default()
@@ -369,25 +391,32 @@ impl GlobalMap {
 
     /// Rebuilds a map from stored parts (the cells follow from the positions); used by
     /// restore after the parts were checked.
-    fn from_parts(
-        config: FusionConfig,
-        gaussians: BTreeMap<GaussianId, WorldGaussian>,
-        next_id: u64,
-        last_bin_id: Option<u64>,
-        latest_origin: Option<DVec3>,
-    ) -> Self {
+    fn from_parts(parts: Stored) -> Self {
         let mut cells: HashMap<CellKey, Cell> = HashMap::new();
-        for (&id, g) in &gaussians {
-            let key = cell_of(g.position, config.cell_size);
+        for (&id, g) in &parts.gaussians {
+            let key = cell_of(g.position, parts.config.cell_size);
             cells.entry(key).or_default().push(id, g.confidence);
         }
         Self {
-            config,
-            gaussians,
+            config: parts.config,
+            gaussians: parts.gaussians,
             cells,
-            next_id,
-            last_bin_id,
-            latest_origin,
+            next_id: parts.next_id,
+            last_bin_id: parts.last_bin_id,
+            latest_origin: parts.latest_origin,
+            increments: parts.increments,
+            epoch: parts.epoch,
         }
     }
+}
+
+/// The parts of a map a file stores (everything but the cell hash, which follows).
+struct Stored {
+    config: FusionConfig,
+    gaussians: BTreeMap<GaussianId, WorldGaussian>,
+    next_id: u64,
+    last_bin_id: Option<u64>,
+    latest_origin: Option<DVec3>,
+    increments: u64,
+    epoch: u64,
 }

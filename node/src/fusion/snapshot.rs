@@ -1,22 +1,26 @@
 //! Saving the global map to a file and restoring it, so a restarted node continues with
 //! the same Gaussians and ids it had published.
 //!
-//! Format (all little endian): magic `SSGMAP\0\n`, version u32 (1), cell size f64, opacity
-//! floor f32, budget u64, next id u64, last bin flag u8 + id u64, latest origin flag u8 +
+//! Format (all little endian): magic `SSGMAP\0\n`, version u32 (2), cell size f64, opacity
+//! floor f32, budget u64, next id u64, increments u64 (the sequence number of the last
+//! published increment), epoch u64 (times resumed), last bin flag u8 + id u64, latest
+//! origin flag u8 +
 //! 3 x f64, count u64, then per Gaussian: id u64, bin id u64, position 3 x f64, log scale
 //! 3 x f32, rotation 4 x f32 (x, y, z, w), opacity f32, colour 3 x f32, confidence f32;
-//! last an FNV-1a 64 checksum (u64) of every byte before it. Files are written to a
-//! sibling temporary file and renamed, so a crash leaves the old file whole.
+//! last an FNV-1a 64 checksum (u64) of every byte before it. Version 1 (without increments
+//! and epoch) is not read: its sequence numbers cannot be continued. Files are replaced
+//! atomically ([`renderer::atomic`]: temporary sibling, fsync, rename, fsync of the folder),
+//! so a crash leaves the old file whole.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Quat, Vec3};
 
-use super::{FusionConfig, GaussianId, GlobalMap, WorldGaussian};
+use super::{FusionConfig, GaussianId, GlobalMap, Stored, WorldGaussian};
 
 const MAGIC: &[u8; 8] = b"SSGMAP\0\n";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 /// Bytes per stored Gaussian.
 const RECORD_BYTES: usize = 88;
 
@@ -90,6 +94,8 @@ impl GlobalMap {
         b.extend_from_slice(&self.config.opacity_floor.to_le_bytes());
         b.extend_from_slice(&(self.config.max_gaussians as u64).to_le_bytes());
         b.extend_from_slice(&self.next_id.to_le_bytes());
+        b.extend_from_slice(&self.increments.to_le_bytes());
+        b.extend_from_slice(&self.epoch.to_le_bytes());
         b.push(u8::from(self.last_bin_id.is_some()));
         b.extend_from_slice(&self.last_bin_id.unwrap_or(0).to_le_bytes());
         b.push(u8::from(self.latest_origin.is_some()));
@@ -113,18 +119,16 @@ impl GlobalMap {
         b
     }
 
-    /// Writes the map to `path` (through a temporary sibling file and a rename).
+    /// Writes the map to `path` atomically (see the module doc): a crash at any moment
+    /// leaves the previous file or the new one, whole.
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), StoreError> {
         let path = path.as_ref();
-        let mut tmp = path.as_os_str().to_owned();
-        tmp.push(".tmp");
-        let tmp = PathBuf::from(tmp);
-        let io = |source| StoreError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        std::fs::write(&tmp, self.to_bytes()).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+        renderer::atomic::write_bytes_atomic(path, &self.to_bytes()).map_err(|source| {
+            StoreError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
+        })
     }
 
     /// Reads a map written by [`GlobalMap::save`].
@@ -176,6 +180,8 @@ impl GlobalMap {
             .validate()
             .map_err(|_| r.invalid(at, "settings out of range"))?;
         let next_id = r.u64()?;
+        let increments = r.u64()?;
+        let epoch = r.u64()?;
         let last_bin_id = r.flagged(|r| r.u64())?;
         let latest_origin = r.flagged(|r| r.f64s::<3>().map(DVec3::from_array))?;
         if latest_origin.is_some_and(|o| !o.is_finite()) {
@@ -215,13 +221,15 @@ impl GlobalMap {
             previous = Some(id);
             gaussians.insert(GaussianId(id), g);
         }
-        Ok(GlobalMap::from_parts(
+        Ok(GlobalMap::from_parts(Stored {
             config,
             gaussians,
             next_id,
             last_bin_id,
             latest_origin,
-        ))
+            increments,
+            epoch,
+        }))
     }
 }
 

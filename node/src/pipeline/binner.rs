@@ -13,6 +13,9 @@ pub struct BinnerConfig {
     pub length_m: f64,
     /// Which later frames of a bin are kept (for evaluation or renders).
     pub keep: Keep,
+    /// The id of the first bin opened: 0 for a new map, the next after the last published
+    /// bin for a node that resumed a saved map (ids are never reused).
+    pub first_bin_id: u64,
 }
 
 /// Which frames after the first a bin keeps.
@@ -29,6 +32,7 @@ impl Default for BinnerConfig {
         Self {
             length_m: 8.0,
             keep: Keep::FirstOnly,
+            first_bin_id: 0,
         }
     }
 }
@@ -38,7 +42,7 @@ impl Default for BinnerConfig {
 pub enum BinEvent<F> {
     /// The frame opened bin `bin_id`: send it to the worker now.
     Opened {
-        /// Consecutive from 0.
+        /// Consecutive from `BinnerConfig::first_bin_id` (0 by default).
         bin_id: u64,
         /// The bin's first frame (its left camera defines the bin frame).
         first: F,
@@ -79,7 +83,7 @@ impl<F: Clone> Binner<F> {
         Self {
             config,
             open: None,
-            next_id: 0,
+            next_id: config.first_bin_id,
         }
     }
 
@@ -248,5 +252,23 @@ mod tests {
             }
         ));
         assert_eq!(binner.open_bin(), Some(1));
+    }
+
+    #[test]
+    fn a_resumed_binner_starts_at_its_first_bin_id() {
+        let mut binner = Binner::new(BinnerConfig {
+            first_bin_id: 7,
+            ..BinnerConfig::default()
+        });
+        let at = |x: f64| DAffine3::from_translation(DVec3::new(x, 0.0, 0.0));
+        assert!(matches!(
+            binner.push(0, at(0.0)),
+            BinEvent::Opened { bin_id: 7, .. }
+        ));
+        assert!(matches!(
+            binner.push(1, at(8.0)),
+            BinEvent::Closed { bin_id: 7, .. }
+        ));
+        assert_eq!(binner.open_bin(), Some(8));
     }
 }

@@ -1,7 +1,8 @@
 //! The streaming node: zenoh subscribers feed the synchroniser and the binner, each bin's
 //! first stereo pair goes to the worker, and every finished bin is published (its map in the
 //! bin frame, the bin's world pose, its latency) and fused into the global map, which is
-//! exported when the node stops.
+//! checkpointed as it grows, resumed after a restart and exported when the node stops
+//! ([`map_files`]).
 //!
 //! Around the node: [`replay()`] of a KITTI-360-layout sequence, [`record()`] of its topics to
 //! MCAP and [`replay_bag()`] of such a recording, [`monitor()`] of its latency with
@@ -12,6 +13,7 @@ mod inputs;
 pub mod keys;
 pub mod latency_stats;
 pub mod loopback;
+pub mod map_files;
 pub mod monitor;
 pub mod node;
 mod outputs;
@@ -22,6 +24,7 @@ pub mod replay_bag;
 pub use counters::Counters;
 pub use keys::Keys;
 pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
+pub use map_files::{RestoreError, StartMap};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
 pub use node::{run, NodeConfig, NodeSummary, ServiceError};
 pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};

@@ -4,15 +4,15 @@ use std::collections::HashMap;
 use std::future::Future;
 use std::path::PathBuf;
 
-use glam::DVec2;
 use tokio::sync::mpsc;
 use zenoh::sample::Locality;
 
 use super::counters::Counters;
 use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
-use super::outputs::Outputs;
-use crate::fusion::{bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap};
+use super::map_files::{export, start_map, RestoreError, StartMap};
+use super::outputs::{Checkpoints, Outputs};
+use crate::fusion::FusionConfig;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
 use crate::pipeline::binner::BinnerConfig;
@@ -37,8 +37,15 @@ pub struct NodeConfig {
     pub method: String,
     /// The global map's settings.
     pub fusion: FusionConfig,
-    /// Where the fused map (PLY, bird's-eye PNG, saved map) goes when the node stops.
+    /// Where the fused map (PLY, bird's-eye PNG, saved map) goes when the node stops, and
+    /// where its checkpoint is kept and resumed from (see [`super::map_files`]).
     pub out_dir: Option<PathBuf>,
+    /// Resume the checkpoint in `out_dir` or start fresh.
+    pub start_map: StartMap,
+    /// The map is checkpointed to `out_dir` after every this many fused bins, before they
+    /// are published (0: only when the node stops). 1 is what makes "a crash loses nothing
+    /// that was published" hold; larger values trade that for less disk writing.
+    pub checkpoint_every: u64,
     /// A global map snapshot is published after every this many bins (0: only on request).
     pub snapshot_every: u64,
     /// Per-bin renders: the bin map seen from its input view (drawn on the worker with this
@@ -53,7 +60,8 @@ pub struct NodeConfig {
 
 impl Default for NodeConfig {
     /// Loopback peer, namespace `stereosplat`, the default method (the learned network), a
-    /// snapshot every 10 bins, renders on, nothing exported, diagnostics every second.
+    /// snapshot every 10 bins, renders on, nothing exported (with an out folder: resume its
+    /// checkpoint, checkpoint after every bin), diagnostics every second.
     fn default() -> Self {
         Self {
             transport: TransportConfig::default(),
@@ -64,6 +72,8 @@ impl Default for NodeConfig {
             method: model::methods::DEFAULT.into(),
             fusion: FusionConfig::default(),
             out_dir: None,
+            start_map: StartMap::Resume,
+            checkpoint_every: 1,
             snapshot_every: 10,
             renders: RenderWith::Auto,
             name: "stereosplat_node".into(),
@@ -101,6 +111,9 @@ pub enum ServiceError {
     /// Writing the exports.
     #[error("exporting the global map: {0}")]
     Export(String),
+    /// The out folder's checkpoint cannot be resumed.
+    #[error(transparent)]
+    Restore(#[from] RestoreError),
 }
 
 fn zenoh_err(e: zenoh::Error) -> TransportError {
@@ -113,6 +126,28 @@ pub async fn run(
     config: NodeConfig,
     stop: impl Future<Output = ()>,
 ) -> Result<NodeSummary, ServiceError> {
+    let start = start_map(config.out_dir.as_deref(), config.fusion, config.start_map)?;
+    if let Some(path) = &start.resumed_from {
+        let m = &start.map;
+        eprintln!(
+            "resumed the global map of {}: {} Gaussians, bins up to {:?}, sequence {}, epoch {}",
+            path.display(),
+            m.len(),
+            m.last_bin_id(),
+            m.increments(),
+            m.epoch()
+        );
+    }
+    if let Some(to) = &start.moved_aside {
+        eprintln!(
+            "starting a fresh global map; the old one is kept as {}",
+            to.display()
+        );
+    }
+    let mut binner = config.binner;
+    if let Some(last) = start.map.last_bin_id() {
+        binner.first_bin_id = binner.first_bin_id.max(last + 1);
+    }
     let session = open(&config.transport).await?;
     let keys = &config.keys;
     let (inputs, outputs): (Vec<Topic>, Vec<Topic>) =
@@ -142,9 +177,17 @@ pub async fn run(
             let _ = out_tx.send(o);
         },
     );
-    let mut steps = Inputs::new(config.sync, config.binner);
+    let mut steps = Inputs::new(config.sync, binner);
     let bev = config.renders != RenderWith::Off;
-    let mut outputs = Outputs::new(&outlet, config.fusion, bev, config.snapshot_every)?;
+    let checkpoints = config.out_dir.clone().map(|dir| Checkpoints {
+        dir,
+        every: config.checkpoint_every,
+    });
+    let resumed = start.resumed_from.is_some();
+    let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, checkpoints);
+    if resumed {
+        outputs.announce_resume();
+    }
     tokio::pin!(stop);
     let diagnostics_on = !config.diagnostics_every.is_zero();
     let mut diagnostics = tokio::time::interval(
@@ -209,36 +252,4 @@ pub async fn run(
     // Closing (rather than dropping) the session flushes what is still queued for peers.
     session.close().await.map_err(zenoh_err)?;
     Ok(summary)
-}
-
-/// Writes the global map as 3DGS PLY (positions relative to the latest bin's origin, which is
-/// recorded in the file name's sidecar), a bird's-eye PNG and the restorable map file.
-fn export(map: &GlobalMap, dir: &std::path::Path) -> Result<(), ServiceError> {
-    let err = |e: &dyn std::fmt::Display| ServiceError::Export(e.to_string());
-    std::fs::create_dir_all(dir).map_err(|e| err(&e))?;
-    map.save(dir.join("global_map.ssgmap"))
-        .map_err(|e| err(&e))?;
-    let Some(origin) = map.latest_origin() else {
-        return Ok(());
-    };
-    let frame = glam::DAffine3::from_translation(origin);
-    let set = local_set(map.gaussians().map(|(_, g)| g), frame).map_err(|e| err(&e))?;
-    renderer::ply::save_ply(&set, dir.join("global_map.ply")).map_err(|e| err(&e))?;
-    std::fs::write(
-        dir.join("global_map_origin.json"),
-        format!(
-            "{{\"x\": {}, \"y\": {}, \"z\": {}}}\n",
-            origin.x, origin.y, origin.z
-        ),
-    )
-    .map_err(|e| err(&e))?;
-    let view = BevView {
-        centre: DVec2::new(origin.x, origin.y),
-        width: 512,
-        height: 512,
-        metres_per_pixel: 0.25,
-        background: [0, 0, 0],
-    };
-    let image = bev_image(map.gaussians().map(|(_, g)| g), &view).map_err(|e| err(&e))?;
-    save_bev_png(&image, dir.join("global_map_bev.png")).map_err(|e| err(&e))
 }

@@ -2,17 +2,23 @@
 //! global map's increment (and a snapshot every N bins or on request) and bird's-eye view,
 //! then its render when the worker has drawn it, and the bin's latency once the bin has
 //! also closed, with the counters beside it.
+//!
+//! Write-ahead: a bin is fused and the map checkpointed (when due) before anything of the
+//! bin is published, so a crash cannot lose a published bin. A resumed map says so: its
+//! first `map/update` is a snapshot of the restored map with the restored sequence number
+//! (a new map's first is increment 1), and the increments go on from there; the counter
+//! `map/epoch` in the diagnostics is the number of times the map was resumed.
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
 
 use glam::DVec2;
 
 use super::counters::Counters;
 use super::keys::{self, Topic};
+use super::map_files::checkpoint;
 use super::node::{NodeSummary, ServiceError};
-use crate::fusion::{
-    bev_image, increment_message, snapshot_message, BevView, FusionConfig, GlobalMap,
-};
+use crate::fusion::{bev_image, increment_message, snapshot_message, BevView, GlobalMap};
 use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::image::image_from_rgb;
 use crate::msg::latency::BinLatency;
@@ -28,6 +34,15 @@ use crate::transport::Outlet;
 /// the latest bin's origin.
 const BEV: (u32, f64) = (256, 0.25);
 
+/// Where and how often the map is checkpointed.
+#[derive(Clone, Debug)]
+pub(super) struct Checkpoints {
+    /// The out folder.
+    pub dir: PathBuf,
+    /// After every this many fused bins (0: never while running).
+    pub every: u64,
+}
+
 /// The node's outputs and the state they are made from.
 pub(super) struct Outputs<'a> {
     outlet: &'a Outlet,
@@ -37,8 +52,12 @@ pub(super) struct Outputs<'a> {
     bev: bool,
     /// Snapshot period in bins (0: on request only).
     snapshot_every: u64,
-    /// Sequence number of the last increment published.
-    sequence: u64,
+    /// Checkpointing, when the node has an out folder.
+    checkpoints: Option<Checkpoints>,
+    /// Bins fused since the last checkpoint.
+    unsaved_bins: u64,
+    /// A resumed map's snapshot is still to be published (before the first increment).
+    resume_pending: bool,
     /// Stamps of closed bins, until their map is published.
     closed_ns: BTreeMap<u64, i64>,
     /// Stamps of published bins, until they close (and their render is out).
@@ -52,25 +71,36 @@ pub(super) struct Outputs<'a> {
 }
 
 impl<'a> Outputs<'a> {
-    /// Nothing published yet; `bev` switches the per-bin bird's-eye view on.
+    /// Nothing published yet; bins are fused into `map` (new or resumed); `bev` switches the
+    /// per-bin bird's-eye view on.
     pub fn new(
         outlet: &'a Outlet,
-        fusion: FusionConfig,
+        map: GlobalMap,
         bev: bool,
         snapshot_every: u64,
-    ) -> Result<Self, ServiceError> {
-        Ok(Self {
+        checkpoints: Option<Checkpoints>,
+    ) -> Self {
+        let mut counters = Counters::default();
+        counters.set("map/epoch", map.epoch());
+        Self {
             outlet,
-            map: GlobalMap::new(fusion)?,
+            map,
             bev,
             snapshot_every,
-            sequence: 0,
+            checkpoints,
+            unsaved_bins: 0,
+            resume_pending: false,
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
             awaiting_render: BTreeSet::new(),
-            counters: Counters::default(),
+            counters,
             summary: NodeSummary::default(),
-        })
+        }
+    }
+
+    /// The map was resumed: publish its snapshot before the first increment.
+    pub fn announce_resume(&mut self) {
+        self.resume_pending = true;
     }
 
     /// Publishes what the worker handed back.
@@ -81,13 +111,21 @@ impl<'a> Outputs<'a> {
         }
     }
 
-    /// Publishes one finished bin: map, pose, map increment (and a snapshot when due),
-    /// bird's-eye view, then its latency if the bin has closed and needs no render.
+    /// Fuses one finished bin and checkpoints the map when due, then publishes the bin:
+    /// map, pose, map increment (after a resumed map's snapshot, and with a snapshot when
+    /// due), bird's-eye view, then its latency if the bin has closed and needs no render.
     async fn bin_done(&mut self, out: Output, drops: u64) -> Result<(), ServiceError> {
         let mut stamps = out.stamps;
         let header = |frame: &str| Header::new(stamps.arrival_ns, frame);
         match out.result {
             Ok(set) => {
+                if std::mem::take(&mut self.resume_pending) {
+                    self.put_update(self.snapshot(header("world"))).await?;
+                }
+                let fused = self.map.insert_bin(out.bin_id, &set, out.bin_to_world);
+                if fused.is_ok() {
+                    self.checkpoint_if_due();
+                }
                 let frame = format!("bin_{}", out.bin_id);
                 match cloud_from_gaussians(&set, header(&frame), None) {
                     Ok(cloud) => self.put(keys::BIN_MAP, cloud.encode()).await?,
@@ -98,10 +136,10 @@ impl<'a> Outputs<'a> {
                 self.put(keys::BIN_POSE, pose.encode()).await?;
                 stamps.publish_ns = now_ns();
                 self.summary.bins_published += 1;
-                match self.map.insert_bin(out.bin_id, &set, out.bin_to_world) {
+                match fused {
                     Ok(inc) => {
-                        self.sequence += 1;
-                        let msg = increment_message(&inc, self.sequence, header("world"));
+                        let sequence = self.map.increments();
+                        let msg = increment_message(&inc, sequence, header("world"));
                         self.put_update(msg).await?;
                         let due = self.snapshot_every > 0
                             && self
@@ -156,7 +194,29 @@ impl<'a> Outputs<'a> {
 
     /// The whole map as a MapUpdate snapshot at the current sequence number.
     pub fn snapshot(&self, header: Header) -> Result<MapUpdate, crate::msg::ConvertError> {
-        snapshot_message(&self.map.snapshot(), self.sequence, header)
+        snapshot_message(&self.map.snapshot(), self.map.increments(), header)
+    }
+
+    /// Saves the map when `every` bins were fused since the last save. A failed save is
+    /// counted (`error/checkpoint`) and reported on stderr; the node goes on.
+    fn checkpoint_if_due(&mut self) {
+        let Some(c) = &self.checkpoints else {
+            return;
+        };
+        self.unsaved_bins += 1;
+        if c.every == 0 || self.unsaved_bins < c.every {
+            return;
+        }
+        match checkpoint(&self.map, &c.dir) {
+            Ok(()) => {
+                self.unsaved_bins = 0;
+                self.counters.add("map/checkpoints", 1);
+            }
+            Err(e) => {
+                eprintln!("checkpoint failed: {e}");
+                self.counters.add("error/checkpoint", 1);
+            }
+        }
     }
 
     async fn put_update(

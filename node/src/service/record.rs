@@ -66,6 +66,10 @@ pub fn channel_of(keys: &Keys, topic: Topic) -> ChannelInfo {
     }
 }
 
+/// While recording, the chunk being written is closed and handed to the operating system at
+/// least this often, so a recorder killed with -9 loses at most about this much.
+const FLUSH_EVERY: Duration = Duration::from_secs(1);
+
 /// One sample as the recorder received it.
 struct Received {
     channel: usize,
@@ -84,7 +88,9 @@ fn now_ns() -> u64 {
 /// Records every topic of `keys` from `session` into a new MCAP file at `path` until `stop`
 /// completes or a limit is reached; then stops subscribing, writes what was already
 /// received (within the count limit) and finishes the file (summary and index), also when
-/// stopped early. Log time is the receive time; publish time is the sample's zenoh
+/// stopped early. Every second ([`FLUSH_EVERY`]) the chunk in progress is closed and
+/// flushed, so a killed recorder leaves a file whose complete chunks hold all but the last
+/// second (`crate::bag::BagReader::recover`). Log time is the receive time; publish time is the sample's zenoh
 /// timestamp when it has one, else the receive time; the sequence counts per channel from 1.
 pub async fn record(
     session: &Session,
@@ -136,10 +142,13 @@ pub async fn record(
         }
     };
     tokio::pin!(stop, deadline);
+    let mut flush = tokio::time::interval(FLUSH_EVERY);
+    flush.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     while !recording.full() {
         tokio::select! {
             _ = &mut stop => break,
             _ = &mut deadline => break,
+            _ = flush.tick() => recording.writer.flush()?,
             received = rx.recv() => match received {
                 Some(r) => recording.write(r)?,
                 None => break,

@@ -30,6 +30,11 @@ use zenoh::Session;
 #[path = "../net_support/mod.rs"]
 pub mod net_support;
 
+/// A TCP port on 127.0.0.1 that was free a moment ago, for a node started as a process.
+pub fn free_port() -> u16 {
+    net_support::free_port()
+}
+
 /// A generated drive in the KITTI-360 layout under a temporary folder (removed on drop), with
 /// every frame loaded.
 pub struct Drive {
@@ -136,10 +141,7 @@ impl RunningNode {
 
     /// A peer that connects to the node.
     pub fn client(&self) -> TransportConfig {
-        TransportConfig {
-            connect: vec![self.endpoint.clone()],
-            ..TransportConfig::default()
-        }
+        client_of(&self.endpoint)
     }
 
     /// Whether the node's task is still running.
@@ -159,6 +161,14 @@ impl RunningNode {
     }
 }
 
+/// A peer that connects to `endpoint` (a node in this process or another).
+pub fn client_of(endpoint: &str) -> TransportConfig {
+    TransportConfig {
+        connect: vec![endpoint.to_string()],
+        ..TransportConfig::default()
+    }
+}
+
 /// A session that publishes onto the node's input keys, blocking (not dropping) when zenoh's
 /// queues are full, so every frame reaches the node.
 pub struct Player {
@@ -170,9 +180,14 @@ pub struct Player {
 impl Player {
     /// Connects to `node`.
     pub async fn connect(node: &RunningNode) -> Self {
+        Self::at(&node.endpoint, node.keys.clone()).await
+    }
+
+    /// Connects to a node (in this process or another) listening on `endpoint` with `keys`.
+    pub async fn at(endpoint: &str, keys: Keys) -> Self {
         Self {
-            session: open(&node.client()).await.expect("player session"),
-            keys: node.keys.clone(),
+            session: open(&client_of(endpoint)).await.expect("player session"),
+            keys,
         }
     }
 
@@ -281,7 +296,13 @@ impl Collector {
     /// for a message's header: see [`Collector::headers`]), so that collecting many large
     /// maps does not grow the test process.
     pub async fn connect_truncated(node: &RunningNode, keys: &[String], max_bytes: usize) -> Self {
-        let session = open(&node.client()).await.expect("listener session");
+        Self::at(&node.endpoint, keys, max_bytes).await
+    }
+
+    /// As [`Collector::connect_truncated`], for a node (in this process or another)
+    /// listening on `endpoint`.
+    pub async fn at(endpoint: &str, keys: &[String], max_bytes: usize) -> Self {
+        let session = open(&client_of(endpoint)).await.expect("listener session");
         let samples: Arc<Mutex<Vec<Received>>> = Arc::default();
         let mut subscribers = Vec::new();
         for key in keys {

@@ -1,0 +1,150 @@
+//! The node's global-map files under its out folder: the checkpoint it writes as bins are
+//! fused and resumes from when it starts again, and the exports it writes when it stops.
+//!
+//! Resume rule: a node with an out folder that holds a checkpoint (`global_map.ssgmap`)
+//! starts from it unless told to start fresh ([`StartMap::Fresh`], `run --fresh`). The
+//! resumed map keeps its settings, Gaussians and ids; the next bin id follows its last bin;
+//! its increments continue its sequence numbers; its epoch goes up by one. A checkpoint that
+//! does not load (damaged, truncated, another version) stops the node with
+//! [`RestoreError::Unreadable`], naming the file and why, and the file is left as it is; a
+//! fresh start moves an existing checkpoint aside (to `global_map.ssgmap.replaced-<unix
+//! seconds>`) rather than overwriting it, so no saved map is ever replaced by an empty one.
+//! Every file is replaced atomically ([`renderer::atomic`]).
+
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use glam::{DAffine3, DVec2};
+
+use super::node::ServiceError;
+use crate::fusion::{
+    bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap, StoreError,
+};
+
+/// The checkpoint's file name in the out folder.
+pub const CHECKPOINT: &str = "global_map.ssgmap";
+
+/// How a node with an out folder starts its global map.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StartMap {
+    /// From the checkpoint in the out folder when there is one, else empty.
+    #[default]
+    Resume,
+    /// Empty; an existing checkpoint is moved aside first.
+    Fresh,
+}
+
+/// Why the node would not start on its out folder's checkpoint.
+#[derive(Debug, thiserror::Error)]
+pub enum RestoreError {
+    /// The checkpoint exists but does not load; it is left untouched.
+    #[error("{source}; the node will not start over a saved map it cannot read: move the file away or start fresh (`run --fresh` keeps it as {CHECKPOINT}.replaced-<time>)")]
+    Unreadable {
+        /// Why it does not load (names the file).
+        #[source]
+        source: StoreError,
+    },
+    /// A fresh start could not move the old checkpoint aside.
+    #[error("moving {from} aside to {to}: {source}")]
+    MoveAside {
+        /// The checkpoint.
+        from: PathBuf,
+        /// Where it was to go.
+        to: PathBuf,
+        /// The system error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// The map a node starts with, and where it came from.
+#[derive(Debug)]
+pub struct Start {
+    /// The map to fuse into.
+    pub map: GlobalMap,
+    /// The checkpoint it was resumed from (`None`: a new, empty map).
+    pub resumed_from: Option<PathBuf>,
+    /// Where a fresh start moved the old checkpoint.
+    pub moved_aside: Option<PathBuf>,
+}
+
+/// The map to start with under `out_dir` (`None`: no files, an empty map), by the rule in
+/// the module doc.
+pub fn start_map(
+    out_dir: Option<&Path>,
+    fusion: FusionConfig,
+    how: StartMap,
+) -> Result<Start, ServiceError> {
+    let mut start = Start {
+        map: GlobalMap::new(fusion)?,
+        resumed_from: None,
+        moved_aside: None,
+    };
+    let Some(path) = out_dir.map(|d| d.join(CHECKPOINT)) else {
+        return Ok(start);
+    };
+    if !path.exists() {
+        return Ok(start);
+    }
+    match how {
+        StartMap::Resume => {
+            let mut map =
+                GlobalMap::load(&path).map_err(|source| RestoreError::Unreadable { source })?;
+            map.resume();
+            start.map = map;
+            start.resumed_from = Some(path);
+        }
+        StartMap::Fresh => {
+            let secs = SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs());
+            let to = path.with_file_name(format!("{CHECKPOINT}.replaced-{secs}"));
+            std::fs::rename(&path, &to).map_err(|source| RestoreError::MoveAside {
+                from: path.clone(),
+                to: to.clone(),
+                source,
+            })?;
+            start.moved_aside = Some(to);
+        }
+    }
+    Ok(start)
+}
+
+/// Saves `map` as the checkpoint in `dir` (created if missing), atomically.
+pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
+    std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    map.save(dir.join(CHECKPOINT))
+}
+
+/// Writes the checkpoint, the global map as 3DGS PLY (positions relative to the latest bin's
+/// origin, which `global_map_origin.json` records) and a bird's-eye PNG, each atomically.
+pub fn export(map: &GlobalMap, dir: &Path) -> Result<(), ServiceError> {
+    let err = |e: &dyn std::fmt::Display| ServiceError::Export(e.to_string());
+    checkpoint(map, dir).map_err(|e| err(&e))?;
+    let Some(origin) = map.latest_origin() else {
+        return Ok(());
+    };
+    let frame = DAffine3::from_translation(origin);
+    let set = local_set(map.gaussians().map(|(_, g)| g), frame).map_err(|e| err(&e))?;
+    let ply = dir.join("global_map.ply");
+    renderer::ply::save_ply(&set, &ply).map_err(|e| err(&format!("{}: {e}", ply.display())))?;
+    let json = format!(
+        "{{\"x\": {}, \"y\": {}, \"z\": {}}}\n",
+        origin.x, origin.y, origin.z
+    );
+    let origin_file = dir.join("global_map_origin.json");
+    renderer::atomic::write_bytes_atomic(&origin_file, json.as_bytes())
+        .map_err(|e| err(&format!("{}: {e}", origin_file.display())))?;
+    let view = BevView {
+        centre: DVec2::new(origin.x, origin.y),
+        width: 512,
+        height: 512,
+        metres_per_pixel: 0.25,
+        background: [0, 0, 0],
+    };
+    let image = bev_image(map.gaussians().map(|(_, g)| g), &view).map_err(|e| err(&e))?;
+    save_bev_png(&image, dir.join("global_map_bev.png")).map_err(|e| err(&e))
+}

@@ -1,0 +1,95 @@
+//! Replacing a file so that a crash (a kill, a power cut) at any moment leaves either the
+//! old file or the complete new one, never a part of the new one.
+//!
+//! The content goes to a temporary sibling `<name>.tmp` (same folder, so the same file
+//! system), which is flushed and synced to disk, then renamed over the target (atomic on
+//! POSIX file systems), and the folder is synced so the rename itself is durable. Every
+//! exporter of the workspace (PLY, PNG, the node's map files) writes through here.
+
+use std::ffi::OsString;
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// The temporary sibling a write to `path` goes through: `path` with `.tmp` appended.
+pub fn temp_path(path: &Path) -> PathBuf {
+    let mut name = OsString::from(path.as_os_str());
+    name.push(".tmp");
+    PathBuf::from(name)
+}
+
+/// Replaces (or creates) the file at `path` with what `write` writes into the buffered
+/// writer it is given, atomically as the module doc describes. When `write` or any step
+/// fails, the target is untouched, the temporary file is removed and the error returned.
+pub fn write_atomic<E: From<io::Error>>(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
+) -> Result<(), E> {
+    let tmp = temp_path(path);
+    let result = (|| {
+        let mut w = BufWriter::new(File::create(&tmp)?);
+        write(&mut w)?;
+        let file = w.into_inner().map_err(io::IntoInnerError::into_error)?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&tmp, path)?;
+        sync_folder(path)?;
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// [`write_atomic`] of a byte buffer.
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    write_atomic(path, |w| w.write_all(bytes))
+}
+
+/// Syncs the folder holding `path`, so a rename into it survives a power cut. Where folders
+/// cannot be opened for syncing (not Unix), renames are left to the file system.
+fn sync_folder(path: &Path) -> io::Result<()> {
+    if !cfg!(unix) {
+        return Ok(());
+    }
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    File::open(folder)?.sync_all()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("renderer-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    #[test]
+    fn a_failed_write_leaves_the_old_file_and_no_temporary() {
+        let path = scratch("kept.bin");
+        write_bytes_atomic(&path, b"old content").unwrap();
+        let failed: io::Result<()> = write_atomic(&path, |w| {
+            w.write_all(b"half of the new")?;
+            Err(io::Error::other("killed mid-write"))
+        });
+        assert_eq!(failed.unwrap_err().to_string(), "killed mid-write");
+        assert_eq!(std::fs::read(&path).unwrap(), b"old content");
+        assert!(!temp_path(&path).exists());
+        write_bytes_atomic(&path, b"new").unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"new");
+        assert!(!temp_path(&path).exists());
+    }
+
+    #[test]
+    fn a_missing_folder_is_an_error_and_writes_nothing() {
+        let path = scratch("no/such/folder/file.bin");
+        assert!(write_bytes_atomic(&path, b"x").is_err());
+        assert!(!path.exists());
+    }
+}

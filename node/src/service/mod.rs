@@ -1,7 +1,8 @@
 //! The streaming node: zenoh subscribers feed the synchroniser and the binner, each bin's
 //! first stereo pair goes to the worker, and every finished bin is published (its map in the
 //! bin frame, the bin's world pose, its latency) and fused into the global map, which is
-//! exported when the node stops.
+//! exported when the node stops. Inputs beyond the [`InputLimits`] are refused and counted;
+//! the snapshot queryable answers through a [`snapshot_gate::SnapshotGate`].
 //!
 //! Around the node: [`replay()`] of a KITTI-360-layout sequence, [`record()`] of its topics to
 //! MCAP and [`replay_bag()`] of such a recording, [`monitor()`] of its latency with
@@ -11,6 +12,7 @@ pub mod counters;
 mod inputs;
 pub mod keys;
 pub mod latency_stats;
+pub mod limits;
 pub mod loopback;
 pub mod monitor;
 pub mod node;
@@ -18,12 +20,14 @@ mod outputs;
 pub mod record;
 pub mod replay;
 pub mod replay_bag;
+pub mod snapshot_gate;
 
 pub use counters::Counters;
 pub use keys::Keys;
 pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
+pub use limits::{InputLimits, Refusal};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
 pub use node::{run, NodeConfig, NodeSummary, ServiceError};
 pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};
-pub use replay::{replay, ReplaySummary};
+pub use replay::{replay, ReplaySummary, UnreadFrame};
 pub use replay_bag::{replay_bag, BagReplayOptions, BagReplaySummary};

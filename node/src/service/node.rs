@@ -3,6 +3,7 @@
 use std::collections::HashMap;
 use std::future::Future;
 use std::path::PathBuf;
+use std::time::Instant;
 
 use glam::DVec2;
 use tokio::sync::mpsc;
@@ -11,7 +12,9 @@ use zenoh::sample::Locality;
 use super::counters::Counters;
 use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, TOPICS};
+use super::limits::InputLimits;
 use super::outputs::Outputs;
+use super::snapshot_gate::SnapshotGate;
 use crate::fusion::{bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap};
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
@@ -46,6 +49,8 @@ pub struct NodeConfig {
     pub renders: RenderWith,
     /// The node's name (ROS 2 liveliness tokens, logs).
     pub name: String,
+    /// Sizes, poses and calibrations accepted, and the snapshot query rate.
+    pub limits: InputLimits,
 }
 
 impl Default for NodeConfig {
@@ -64,6 +69,7 @@ impl Default for NodeConfig {
             snapshot_every: 10,
             renders: RenderWith::Auto,
             name: "stereosplat_node".into(),
+            limits: InputLimits::default(),
         }
     }
 }
@@ -138,7 +144,9 @@ pub async fn run(
             let _ = out_tx.send(o);
         },
     );
-    let mut steps = Inputs::new(config.sync, config.binner);
+    let mut steps = Inputs::new(config.sync, config.binner, config.limits);
+    let mut snapshot_gate =
+        SnapshotGate::new(keys.snapshot_request(), config.limits.snapshot_interval);
     let bev = config.renders != RenderWith::Off;
     let mut outputs = Outputs::new(&outlet, config.fusion, bev, config.snapshot_every)?;
     tokio::pin!(stop);
@@ -156,6 +164,11 @@ pub async fn run(
                 }
             },
             Ok(q) = snapshot_requests.recv_async() => {
+                if let Err(refused) = snapshot_gate.admit(q.key_expr().as_str(), Instant::now()) {
+                    outputs.counters.add(refused.counter(), 1);
+                    q.reply_err(refused.to_string()).await.map_err(zenoh_err)?;
+                    continue;
+                }
                 let header = Header::new(now_ns(), "world");
                 match outputs.snapshot(header) {
                     Ok(m) => q.reply(q.key_expr().clone(), m.encode()).await.map_err(zenoh_err)?,

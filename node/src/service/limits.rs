@@ -194,8 +194,8 @@ impl InputLimits {
     /// A camera-to-world pose lies within the limit of the origin.
     pub fn check_pose(&self, pose: &DAffine3) -> Result<(), Refusal> {
         let distance_m = pose.translation.length();
-        // `!(d <= max)` also refuses NaN.
-        if !(distance_m <= self.max_translation_m) {
+        // A NaN distance is in no range: refused too.
+        if !(..=self.max_translation_m).contains(&distance_m) {
             return Err(Refusal::PoseOutOfRange {
                 distance_m,
                 max_m: self.max_translation_m,

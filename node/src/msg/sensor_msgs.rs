@@ -315,3 +315,45 @@ impl Message for PointCloud2 {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::Message;
+
+    #[test]
+    fn the_layout_is_the_image_without_its_pixels() {
+        let image = Image {
+            header: Header::new(7, "left"),
+            height: 2,
+            width: 3,
+            encoding: "rgb8".into(),
+            is_bigendian: 0,
+            step: 9,
+            data: (0..18).collect(),
+        };
+        let bytes = image.encode();
+        let layout = ImageLayout::peek(&bytes).unwrap();
+        assert_eq!(
+            (layout.width, layout.height, layout.step, layout.data_len),
+            (3, 2, 9, 18)
+        );
+        assert_eq!(
+            (layout.header, layout.encoding),
+            (image.header, image.encoding)
+        );
+        // The data is not needed, so a payload cut inside it still has its layout; one cut
+        // before the data's length does not.
+        assert_eq!(
+            ImageLayout::peek(&bytes[..bytes.len() - 5])
+                .unwrap()
+                .data_len,
+            18
+        );
+        let at_len = bytes.len() - 18;
+        assert!(ImageLayout::peek(&bytes[..at_len]).is_ok());
+        for cut in 0..at_len {
+            assert!(ImageLayout::peek(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
+    }
+}

@@ -10,6 +10,7 @@ use std::collections::VecDeque;
 use glam::DAffine3;
 use model::frame::{RgbImage, StereoFrame, StereoRig};
 use model::kitti360::resample::resample_area;
+use zenoh::bytes::ZBytes;
 
 use super::counters::Counters;
 use super::keys::{self, Topic};
@@ -82,29 +83,18 @@ impl Inputs {
 
     /// Takes one sample of input `topic`; a payload that does not decode, is unusable or is
     /// refused by the limits is counted as `bad_message/<topic>` (and a refusal under its
-    /// reason too) and ignored.
+    /// reason too) and ignored. The payload's size is checked before it is made contiguous
+    /// (a copy when zenoh received it in fragments).
     pub fn on_sample(
         &mut self,
         topic: Topic,
-        payload: &[u8],
+        payload: &ZBytes,
         counters: &mut Counters,
     ) -> Vec<Step> {
         let arrival_ns = now_ns();
-        let limits = self.limits;
-        let synced = match limits.check_message(payload.len()) {
+        let synced = match self.limits.check_message(payload.len()) {
             Err(e) => Err(e.into()),
-            Ok(()) => match topic {
-                keys::LEFT_IMAGE => image(payload, &limits, counters)
-                    .map(|(t, img)| self.sync.push_left(t, (img, arrival_ns))),
-                keys::RIGHT_IMAGE => {
-                    image(payload, &limits, counters).map(|(t, img)| self.sync.push_right(t, img))
-                }
-                keys::POSE => pose(payload, &limits).map(|(t, p)| self.sync.push_pose(t, p)),
-                keys::LEFT_INFO | keys::RIGHT_INFO => {
-                    self.camera_info(topic, payload).map(|()| Vec::new())
-                }
-                _ => Ok(Vec::new()),
-            },
+            Ok(()) => self.take(topic, &payload.to_bytes(), arrival_ns, counters),
         };
         let synced = match synced {
             Ok(synced) => synced,
@@ -158,6 +148,30 @@ impl Inputs {
             }
         }
         steps
+    }
+
+    /// Decodes and checks one sample and hands it to the synchroniser (or, for a camera
+    /// info, to the rig): the frames it completes.
+    fn take(
+        &mut self,
+        topic: Topic,
+        payload: &[u8],
+        arrival_ns: i64,
+        counters: &mut Counters,
+    ) -> Result<Vec<Synced<(RgbImage, i64), RgbImage, DAffine3>>, Unusable> {
+        let limits = self.limits;
+        match topic {
+            keys::LEFT_IMAGE => image(payload, &limits, counters)
+                .map(|(t, img)| self.sync.push_left(t, (img, arrival_ns))),
+            keys::RIGHT_IMAGE => {
+                image(payload, &limits, counters).map(|(t, img)| self.sync.push_right(t, img))
+            }
+            keys::POSE => pose(payload, &limits).map(|(t, p)| self.sync.push_pose(t, p)),
+            keys::LEFT_INFO | keys::RIGHT_INFO => {
+                self.camera_info(topic, payload).map(|()| Vec::new())
+            }
+            _ => Ok(Vec::new()),
+        }
     }
 
     /// Keeps a usable, sane camera info and updates the rig.

@@ -158,7 +158,7 @@ pub async fn run(
             Ok(s) = input.recv_async() => {
                 match input_keys.get(s.key_expr().as_str()) {
                     Some(&t) => {
-                        todo = steps.on_sample(t, &s.payload().to_bytes(), &mut outputs.counters);
+                        todo = steps.on_sample(t, s.payload(), &mut outputs.counters);
                     }
                     None => outputs.counters.add("ignored/unknown_key", 1),
                 }

@@ -40,6 +40,10 @@ pub(super) enum Step {
 
 type Frame = (StereoFrame, Stamps);
 
+/// What the synchroniser emits: the left image with its arrival time, the right image, the
+/// pose.
+type SyncedFrame = Synced<(RgbImage, i64), RgbImage, DAffine3>;
+
 /// Why an input sample was not used.
 #[derive(Debug, thiserror::Error)]
 enum Unusable {
@@ -158,7 +162,7 @@ impl Inputs {
         payload: &[u8],
         arrival_ns: i64,
         counters: &mut Counters,
-    ) -> Result<Vec<Synced<(RgbImage, i64), RgbImage, DAffine3>>, Unusable> {
+    ) -> Result<Vec<SyncedFrame>, Unusable> {
         let limits = self.limits;
         match topic {
             keys::LEFT_IMAGE => image(payload, &limits, counters)

@@ -260,8 +260,7 @@ mod tests {
             width,
             height,
             step,
-            encoding: "rgb8".into(),
-            ..ImageLayout::default()
+            data_len: step.saturating_mul(height),
         }
     }
 

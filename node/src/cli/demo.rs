@@ -7,7 +7,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use model::kitti360::images::write_png;
 use model::kitti360::Sequence;
@@ -71,7 +71,8 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     };
     let sequence = Sequence::open(&root, &name)?;
     let bins_dir = args.out.join("bins");
-    std::fs::create_dir_all(&bins_dir)?;
+    std::fs::create_dir_all(&bins_dir)
+        .with_context(|| format!("creating {}", bins_dir.display()))?;
     let config = NodeConfig {
         method: args.method.clone(),
         renders: args.renders.into(),
@@ -127,7 +128,8 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     std::fs::write(
         &latency_path,
         serde_json::to_string_pretty(&summary)? + "\n",
-    )?;
+    )
+    .with_context(|| format!("writing {}", latency_path.display()))?;
 
     let mut out = std::io::stdout().lock();
     writeln!(
@@ -152,7 +154,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
 /// world, f64).
 fn write_bin(dir: &Path, bin: &ReceivedBin) -> Result<()> {
     let stem = dir.join(format!("bin_{:04}", bin.bin_id));
-    renderer::ply::save_ply(&bin.gaussians, stem.with_extension("ply"))?;
+    let ply = stem.with_extension("ply");
+    renderer::ply::save_ply(&bin.gaussians, &ply)
+        .with_context(|| format!("writing {}", ply.display()))?;
     let m = bin.bin_to_world;
     let pose = serde_json::json!({
         "bin_id": bin.bin_id,
@@ -160,9 +164,8 @@ fn write_bin(dir: &Path, bin: &ReceivedBin) -> Result<()> {
         "translation": m.translation.to_array(),
         "gaussians": bin.gaussians.len(),
     });
-    std::fs::write(
-        dir.join(format!("bin_{:04}_pose.json", bin.bin_id)),
-        serde_json::to_string_pretty(&pose)? + "\n",
-    )?;
+    let path = dir.join(format!("bin_{:04}_pose.json", bin.bin_id));
+    std::fs::write(&path, serde_json::to_string_pretty(&pose)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

@@ -138,11 +138,13 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         skipped,
     );
     let md = report.markdown();
-    std::fs::write(args.out.join("eval.md"), &md)?;
-    std::fs::write(
-        args.out.join("eval.json"),
-        serde_json::to_string_pretty(&report)?,
-    )?;
+    for (name, text) in [
+        ("eval.md", md.clone()),
+        ("eval.json", serde_json::to_string_pretty(&report)?),
+    ] {
+        let path = args.out.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    }
     println!("{md}");
     println!(
         "wrote {}/eval.md, eval.json and pictures/",

@@ -35,7 +35,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     if args.scene.ply.is_none() {
         let ply = args.out.join("scene.ply");
-        renderer::ply::save_ply(&set, &ply)?;
+        renderer::ply::save_ply(&set, &ply)
+            .with_context(|| format!("writing {}", ply.display()))?;
         println!("scene: {} Gaussians -> {}", set.len(), ply.display());
     }
     let settings = RenderSettings::default();

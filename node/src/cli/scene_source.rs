@@ -1,7 +1,7 @@
 //! Where a command's Gaussians and camera come from: a PLY file or a seeded generated scene,
 //! seen by a camera at the origin looking down +z unless told otherwise.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use renderer::{scene, Camera, GaussianSet, Intrinsics};
 
@@ -67,7 +67,8 @@ impl SceneArgs {
     /// The Gaussians: loaded from `--ply`, or generated.
     pub fn gaussians(&self, cam: &Camera) -> Result<GaussianSet> {
         if let Some(path) = &self.ply {
-            return Ok(renderer::ply::load_ply(path)?);
+            return renderer::ply::load_ply(path)
+                .with_context(|| format!("reading {}", path.display()));
         }
         Ok(match self.scene {
             GeneratedScene::PixelAligned => {

@@ -11,7 +11,7 @@ use crate::pipeline::worker::RenderWith;
 use crate::service::keys::KeyMode;
 use crate::service::{self, Keys, NodeConfig, StartMap};
 use crate::transport::{open, TransportConfig};
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 use model::kitti360::Sequence;
 
@@ -241,6 +241,10 @@ pub struct ReplayArgs {
     /// Seconds to wait after connecting, so subscribers are in place before the first frame.
     #[arg(long, default_value_t = 1.0)]
     warmup: f64,
+    /// With `--data`: exit 0 even when some frames could not be read (each is still named
+    /// on stderr with its file and reason). Without it such a replay exits 1.
+    #[arg(long, conflicts_with = "mcap")]
+    allow_skipped: bool,
 }
 
 /// Replays a sequence onto the node's input topics, or with `--mcap` a recording onto its topics.
@@ -268,7 +272,16 @@ fn replay_sequence(
         Some(s) => s.clone(),
         None => super::synth::first_sequence(data)?,
     };
-    let sequence = Sequence::open(data, &name)?;
+    let sequence = Sequence::open(data, &name)
+        .with_context(|| format!("opening sequence {name} under {}", data.display()))?;
+    for bad in sequence.skipped() {
+        eprintln!(
+            "replay: {}: frame {} is not replayed: {}",
+            sequence.pose_file().display(),
+            bad.index,
+            bad.reason
+        );
+    }
     let runtime = tokio::runtime::Runtime::new()?;
     let summary = runtime.block_on(async {
         let session = open(&args.zenoh.transport()).await?;
@@ -279,9 +292,23 @@ fn replay_sequence(
         bar.finish_and_clear();
         anyhow::Ok(s?)
     })?;
+    for skip in &summary.skipped {
+        eprintln!("replay: frame {} skipped: {}", skip.index, skip.error);
+    }
     println!(
         "replayed {} frames of {name} ({} skipped)",
-        summary.frames, summary.skipped
+        summary.frames,
+        summary.skipped.len()
     );
-    Ok(())
+    match (summary.skipped.first(), args.allow_skipped) {
+        (Some(first), false) => anyhow::bail!(
+            "{} of {} frames could not be replayed (first: frame {}: {}); \
+             --allow-skipped replays the rest and exits 0",
+            summary.skipped.len(),
+            sequence.frames().len(),
+            first.index,
+            first.error
+        ),
+        _ => Ok(()),
+    }
 }

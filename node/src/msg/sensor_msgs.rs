@@ -50,6 +50,41 @@ impl Message for Image {
     }
 }
 
+/// The size an [`Image`] payload declares, read without copying its pixels, so a receiver
+/// can check it against its limits before it allocates anything for the image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImageLayout {
+    /// `width` of the message.
+    pub width: u32,
+    /// `height` of the message.
+    pub height: u32,
+    /// `step` of the message (bytes per row).
+    pub step: u32,
+    /// The length of `data` as declared (not checked against the bytes present).
+    pub data_len: u32,
+}
+
+impl ImageLayout {
+    /// The layout of an `Image` payload (encapsulation header first): the fields are read
+    /// up to and including the data's length; the data itself is neither read nor copied.
+    pub fn peek(payload: &[u8]) -> Result<Self, DecodeError> {
+        let mut r = CdrReader::new(payload)?;
+        Header::read(&mut r)?;
+        let height = r.u32("height")?;
+        let width = r.u32("width")?;
+        r.string("encoding")?;
+        r.u8("is_bigendian")?;
+        let step = r.u32("step")?;
+        let data_len = r.u32("data")?;
+        Ok(Self {
+            width,
+            height,
+            step,
+            data_len,
+        })
+    }
+}
+
 /// `sensor_msgs/msg/RegionOfInterest`: a sub-window of an image (all zero: the full image).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RegionOfInterest {
@@ -267,5 +302,43 @@ impl Message for PointCloud2 {
             data: r.bytes("data")?,
             is_dense: r.bool("is_dense")?,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::Message;
+
+    #[test]
+    fn the_layout_is_the_image_without_its_pixels() {
+        let image = Image {
+            header: Header::new(7, "left"),
+            height: 2,
+            width: 3,
+            encoding: "rgb8".into(),
+            is_bigendian: 0,
+            step: 9,
+            data: (0..18).collect(),
+        };
+        let bytes = image.encode();
+        let layout = ImageLayout::peek(&bytes).unwrap();
+        assert_eq!(
+            (layout.width, layout.height, layout.step, layout.data_len),
+            (3, 2, 9, 18)
+        );
+        // The data is not needed, so a payload cut inside it still has its layout; one cut
+        // before the data's length does not.
+        assert_eq!(
+            ImageLayout::peek(&bytes[..bytes.len() - 5])
+                .unwrap()
+                .data_len,
+            18
+        );
+        let at_len = bytes.len() - 18;
+        assert!(ImageLayout::peek(&bytes[..at_len]).is_ok());
+        for cut in 0..at_len {
+            assert!(ImageLayout::peek(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
     }
 }

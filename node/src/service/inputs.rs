@@ -1,19 +1,26 @@
 //! The node's input side: decoding each input sample, pairing left, right and pose, waiting
 //! for the camera infos, and binning; what comes out are steps for the worker and the
-//! outputs. Bad input is counted per key and changes nothing else.
+//! outputs. Bad input is counted per key (`bad_message/<key>`) and changes nothing else;
+//! input outside the [`InputLimits`] is refused before it is decoded further and counted
+//! under its reason as well (`refused/<reason>`). Images larger than the working size are
+//! area-averaged down to it (`input/downscaled`), and the rig's intrinsics are scaled alike.
 
 use std::collections::VecDeque;
 
 use glam::DAffine3;
 use model::frame::{RgbImage, StereoFrame, StereoRig};
+use model::kitti360::resample::resample_area;
+use zenoh::bytes::ZBytes;
 
 use super::counters::Counters;
 use super::keys::{self, Topic};
+use super::limits::{InputLimits, Refusal};
+use crate::msg::cdr::DecodeError;
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
 use crate::msg::pose::affine_from_pose;
-use crate::msg::sensor_msgs::{CameraInfo, Image};
-use crate::msg::Message;
+use crate::msg::sensor_msgs::{CameraInfo, Image, ImageLayout};
+use crate::msg::{ConvertError, Message};
 use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
 use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
 use crate::pipeline::worker::{now_ns, Job, Stamps};
@@ -33,6 +40,24 @@ pub(super) enum Step {
 
 type Frame = (StereoFrame, Stamps);
 
+/// What the synchroniser emits: the left image with its arrival time, the right image, the
+/// pose.
+type SyncedFrame = Synced<(RgbImage, i64), RgbImage, DAffine3>;
+
+/// Why an input sample was not used.
+#[derive(Debug, thiserror::Error)]
+enum Unusable {
+    /// Not a CDR payload of the key's type.
+    #[error(transparent)]
+    Decode(#[from] DecodeError),
+    /// Well-formed, but its content cannot become the node's types.
+    #[error(transparent)]
+    Convert(#[from] ConvertError),
+    /// Outside the input limits.
+    #[error(transparent)]
+    Refused(#[from] Refusal),
+}
+
 /// Decoders, synchroniser, camera model and binner.
 pub(super) struct Inputs {
     sync: Synchronizer<(RgbImage, i64), RgbImage, DAffine3>,
@@ -43,11 +68,12 @@ pub(super) struct Inputs {
     /// Synchronised frames (with their reset marks) waiting for the camera infos.
     waiting_for_rig: VecDeque<(Frame, bool)>,
     next_index: u32,
+    limits: InputLimits,
 }
 
 impl Inputs {
-    /// Nothing received yet.
-    pub fn new(sync: SyncConfig, binner: BinnerConfig) -> Self {
+    /// Nothing received yet; inputs are checked against `limits`.
+    pub fn new(sync: SyncConfig, binner: BinnerConfig, limits: InputLimits) -> Self {
         Self {
             sync: Synchronizer::new(sync),
             binner: Binner::new(binner),
@@ -56,34 +82,34 @@ impl Inputs {
             rig: None,
             waiting_for_rig: VecDeque::new(),
             next_index: 0,
+            limits,
         }
     }
 
-    /// Takes one sample of input `topic`; a payload that does not decode or is unusable is
-    /// counted as `bad_message/<topic>` and ignored.
+    /// Takes one sample of input `topic`; a payload that does not decode, is unusable or is
+    /// refused by the limits is counted as `bad_message/<topic>` (and a refusal under its
+    /// reason too) and ignored. The payload's size is checked before it is made contiguous
+    /// (a copy when zenoh received it in fragments).
     pub fn on_sample(
         &mut self,
         topic: Topic,
-        payload: &[u8],
+        payload: &ZBytes,
         counters: &mut Counters,
     ) -> Vec<Step> {
         let arrival_ns = now_ns();
-        let synced = match topic {
-            keys::LEFT_IMAGE => image(payload)
-                .map(|(t, img)| self.sync.push_left(t, weight(&img), (img, arrival_ns))),
-            keys::RIGHT_IMAGE => {
-                image(payload).map(|(t, img)| self.sync.push_right(t, weight(&img), img))
-            }
-            keys::POSE => pose(payload)
-                .map(|(t, p)| self.sync.push_pose(t, std::mem::size_of::<DAffine3>(), p)),
-            keys::LEFT_INFO | keys::RIGHT_INFO => {
-                self.camera_info(topic, payload).map(|()| Vec::new())
-            }
-            _ => Some(Vec::new()),
+        let synced = match self.limits.check_message(payload.len()) {
+            Err(e) => Err(e.into()),
+            Ok(()) => self.take(topic, &payload.to_bytes(), arrival_ns, counters),
         };
-        let Some(synced) = synced else {
-            counters.add(&format!("bad_message/{}", topic.name.replace('/', "_")), 1);
-            return Vec::new();
+        let synced = match synced {
+            Ok(synced) => synced,
+            Err(e) => {
+                counters.add(&format!("bad_message/{}", topic.name.replace('/', "_")), 1);
+                if let Unusable::Refused(r) = e {
+                    counters.add(r.counter(), 1);
+                }
+                return Vec::new();
+            }
         };
         let c = self.sync.counters();
         counters.set("sync/late", c.late);
@@ -114,6 +140,10 @@ impl Inputs {
             if let Some(bin_id) = reset.then(|| self.binner.reset()).flatten() {
                 steps.push(Step::Closed(bin_id));
             }
+            if let Err(r) = fits_rig(&frame.0, &rig) {
+                counters.add(r.counter(), 1);
+                continue;
+            }
             let pose = frame.0.left_to_world;
             let job = |bin_id: u64, (frame, stamps): Frame| {
                 Box::new(Job {
@@ -138,19 +168,47 @@ impl Inputs {
         steps
     }
 
-    /// Keeps a usable camera info (`None` if it is not one) and updates the rig.
-    fn camera_info(&mut self, topic: Topic, payload: &[u8]) -> Option<()> {
-        let msg = CameraInfo::decode(payload).ok()?;
-        let (_, baseline) = intrinsics_from_camera_info(&msg).ok()?;
-        if topic == keys::RIGHT_INFO {
-            // The right camera's P[3] = -fx * baseline: a rig needs a positive baseline.
-            (baseline > 0.0 && baseline.is_finite()).then_some(())?;
-            self.right_info = Some(msg);
-        } else {
-            self.left_info = Some(msg);
+    /// Decodes and checks one sample and hands it to the synchroniser (or, for a camera
+    /// info, to the rig): the frames it completes.
+    fn take(
+        &mut self,
+        topic: Topic,
+        payload: &[u8],
+        arrival_ns: i64,
+        counters: &mut Counters,
+    ) -> Result<Vec<SyncedFrame>, Unusable> {
+        let limits = self.limits;
+        match topic {
+            keys::LEFT_IMAGE => image(payload, &limits, counters)
+                .map(|(t, img)| self.sync.push_left(t, weight(&img), (img, arrival_ns))),
+            keys::RIGHT_IMAGE => image(payload, &limits, counters)
+                .map(|(t, img)| self.sync.push_right(t, weight(&img), img)),
+            keys::POSE => pose(payload, &limits)
+                .map(|(t, p)| self.sync.push_pose(t, std::mem::size_of::<DAffine3>(), p)),
+            keys::LEFT_INFO | keys::RIGHT_INFO => {
+                self.camera_info(topic, payload).map(|()| Vec::new())
+            }
+            _ => Ok(Vec::new()),
         }
-        self.rig = rig_of(self.left_info.as_ref(), self.right_info.as_ref());
-        Some(())
+    }
+
+    /// Keeps a usable, sane camera info and updates the rig.
+    fn camera_info(&mut self, topic: Topic, payload: &[u8]) -> Result<(), Unusable> {
+        let msg = CameraInfo::decode(payload)?;
+        let (k, baseline) = intrinsics_from_camera_info(&msg)?;
+        // The right camera's P[3] = -fx * baseline: a rig needs a positive baseline.
+        let right = topic == keys::RIGHT_INFO;
+        self.limits.check_camera(&k, right.then_some(baseline))?;
+        match right {
+            true => self.right_info = Some(msg),
+            false => self.left_info = Some(msg),
+        }
+        self.rig = rig_of(
+            self.left_info.as_ref(),
+            self.right_info.as_ref(),
+            &self.limits,
+        );
+        Ok(())
     }
 
     /// A synchronised frame with its stamps.
@@ -172,10 +230,23 @@ impl Inputs {
     }
 }
 
-/// A stamped image, `None` if it does not decode or convert.
-fn image(payload: &[u8]) -> Option<(i64, RgbImage)> {
-    let msg = Image::decode(payload).ok()?;
-    Some((msg.header.stamp.to_nanos(), rgb_from_image(&msg).ok()?))
+/// A stamped image at the working size. Its declared size is checked against the limits
+/// before anything is copied; a larger image than the working size is area-averaged down
+/// and counted as `input/downscaled`.
+fn image(
+    payload: &[u8],
+    limits: &InputLimits,
+    counters: &mut Counters,
+) -> Result<(i64, RgbImage), Unusable> {
+    limits.check_image(&ImageLayout::peek(payload)?)?;
+    let msg = Image::decode(payload)?;
+    let rgb = rgb_from_image(&msg)?;
+    let (w, h) = limits.working_size(rgb.width, rgb.height);
+    if (w, h) == (rgb.width, rgb.height) {
+        return Ok((msg.header.stamp.to_nanos(), rgb));
+    }
+    counters.add("input/downscaled", 1);
+    Ok((msg.header.stamp.to_nanos(), resample_area(&rgb, w, h)))
 }
 
 /// The bytes a decoded image holds (what the synchroniser's byte budget counts).
@@ -183,18 +254,45 @@ fn weight(img: &RgbImage) -> usize {
     std::mem::size_of_val(img.data.as_slice())
 }
 
-/// A stamped camera-to-world pose, `None` if it does not decode or is not a rigid pose.
-fn pose(payload: &[u8]) -> Option<(i64, DAffine3)> {
-    let msg = PoseStamped::decode(payload).ok()?;
-    Some((msg.header.stamp.to_nanos(), affine_from_pose(&msg).ok()?))
+/// A stamped camera-to-world pose: it must decode, be rigid and lie within the limits.
+fn pose(payload: &[u8], limits: &InputLimits) -> Result<(i64, DAffine3), Unusable> {
+    let msg = PoseStamped::decode(payload)?;
+    let pose = affine_from_pose(&msg)?;
+    limits.check_pose(&pose)?;
+    Ok((msg.header.stamp.to_nanos(), pose))
 }
 
-/// The rig once both camera infos are known.
-fn rig_of(left: Option<&CameraInfo>, right: Option<&CameraInfo>) -> Option<StereoRig> {
+/// The rig once both camera infos are known, its intrinsics scaled to the working size of
+/// their image size (the size the images are brought to by [`image`]).
+fn rig_of(
+    left: Option<&CameraInfo>,
+    right: Option<&CameraInfo>,
+    limits: &InputLimits,
+) -> Option<StereoRig> {
     let (intrinsics, _) = intrinsics_from_camera_info(left?).ok()?;
     let (_, baseline) = intrinsics_from_camera_info(right?).ok()?;
+    let (w, h) = limits.working_size(intrinsics.width, intrinsics.height);
+    let intrinsics = match (w, h) == (intrinsics.width, intrinsics.height) {
+        true => intrinsics,
+        false => intrinsics.scaled(w, h),
+    };
     Some(StereoRig {
         intrinsics,
         baseline,
     })
+}
+
+/// Whether a frame's images have the (working) size of the rig's cameras; a frame that
+/// does not would fail in the reconstructor, so it is refused before reaching the worker.
+fn fits_rig(frame: &StereoFrame, rig: &StereoRig) -> Result<(), Refusal> {
+    let camera = (rig.intrinsics.width, rig.intrinsics.height);
+    for image in [&frame.left, &frame.right] {
+        if (image.width, image.height) != camera {
+            return Err(Refusal::SizeMismatch {
+                image: (image.width, image.height),
+                camera,
+            });
+        }
+    }
+    Ok(())
 }

@@ -2,7 +2,8 @@
 //! first stereo pair goes to the worker, and every finished bin is published (its map in the
 //! bin frame, the bin's world pose, its latency) and fused into the global map, which is
 //! checkpointed as it grows, resumed after a restart and exported when the node stops
-//! ([`map_files`]).
+//! ([`map_files`]). Inputs beyond the [`InputLimits`] are refused and counted; the snapshot
+//! queryable answers through a [`snapshot_gate::SnapshotGate`].
 //!
 //! Around the node: [`replay()`] of a KITTI-360-layout sequence, [`record()`] of its topics to
 //! MCAP and [`replay_bag()`] of such a recording, [`monitor()`] of its latency with
@@ -12,6 +13,7 @@ pub mod counters;
 mod inputs;
 pub mod keys;
 pub mod latency_stats;
+pub mod limits;
 pub mod loopback;
 pub mod map_files;
 pub mod monitor;
@@ -20,13 +22,15 @@ mod outputs;
 pub mod record;
 pub mod replay;
 pub mod replay_bag;
+pub mod snapshot_gate;
 
 pub use counters::Counters;
 pub use keys::Keys;
 pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
+pub use limits::{InputLimits, Refusal};
 pub use map_files::{RestoreError, StartMap};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
 pub use node::{run, NodeConfig, NodeSummary, ServiceError};
 pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};
-pub use replay::{replay, ReplaySummary};
+pub use replay::{replay, ReplaySummary, UnreadFrame};
 pub use replay_bag::{replay_bag, BagReplayOptions, BagReplaySummary};

@@ -3,6 +3,7 @@
 use std::collections::HashMap;
 use std::future::Future;
 use std::path::PathBuf;
+use std::time::Instant;
 
 use tokio::sync::mpsc;
 use zenoh::sample::Locality;
@@ -10,8 +11,10 @@ use zenoh::sample::Locality;
 use super::counters::Counters;
 use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
+use super::limits::InputLimits;
 use super::map_files::{export, start_map, RestoreError, StartMap};
 use super::outputs::{Checkpoints, Outputs};
+use super::snapshot_gate::SnapshotGate;
 use crate::fusion::FusionConfig;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
@@ -56,6 +59,8 @@ pub struct NodeConfig {
     /// The counters go out on `diagnostics` this often as well as with every bin's latency,
     /// so a node that publishes no bins still says why (zero: only with the bins).
     pub diagnostics_every: std::time::Duration,
+    /// Sizes, poses and calibrations accepted, and the snapshot query rate.
+    pub limits: InputLimits,
 }
 
 impl Default for NodeConfig {
@@ -78,6 +83,7 @@ impl Default for NodeConfig {
             renders: RenderWith::Auto,
             name: "stereosplat_node".into(),
             diagnostics_every: std::time::Duration::from_secs(1),
+            limits: InputLimits::default(),
         }
     }
 }
@@ -177,7 +183,9 @@ pub async fn run(
             let _ = out_tx.send(o);
         },
     );
-    let mut steps = Inputs::new(config.sync, binner);
+    let mut steps = Inputs::new(config.sync, binner, config.limits);
+    let mut snapshot_gate =
+        SnapshotGate::new(keys.snapshot_request(), config.limits.snapshot_interval);
     let bev = config.renders != RenderWith::Off;
     let checkpoints = config.out_dir.clone().map(|dir| Checkpoints {
         dir,
@@ -204,12 +212,17 @@ pub async fn run(
             Ok(s) = input.recv_async() => {
                 match input_keys.get(s.key_expr().as_str()) {
                     Some(&t) => {
-                        todo = steps.on_sample(t, &s.payload().to_bytes(), &mut outputs.counters);
+                        todo = steps.on_sample(t, s.payload(), &mut outputs.counters);
                     }
                     None => outputs.counters.add("ignored/unknown_key", 1),
                 }
             },
             Ok(q) = snapshot_requests.recv_async() => {
+                if let Err(refused) = snapshot_gate.admit(q.key_expr().as_str(), Instant::now()) {
+                    outputs.counters.add(refused.counter(), 1);
+                    q.reply_err(refused.to_string()).await.map_err(zenoh_err)?;
+                    continue;
+                }
                 let header = Header::new(now_ns(), "world");
                 match outputs.snapshot(header) {
                     Ok(m) => q.reply(q.key_expr().clone(), m.encode()).await.map_err(zenoh_err)?,

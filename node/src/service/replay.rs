@@ -2,11 +2,13 @@
 //! topics: camera infos, then per frame the left and right images and the pose, paced by the
 //! recorded timestamps (or a multiple of them, or as fast as possible). Puts block rather
 //! than drop when zenoh's queues are full (the Outlet's publishers), so "as fast as
-//! possible" means as fast as the node takes them.
+//! possible" means as fast as the node takes them. A frame whose images cannot be read is
+//! skipped and listed with its error (which names the file and the reason), so the caller
+//! can report it and fail.
 
 use std::time::{Duration, Instant};
 
-use model::kitti360::Sequence;
+use model::kitti360::{Kitti360Error, Sequence};
 use zenoh::Session;
 
 use super::keys::{self, Direction, Keys, Topic, TOPICS};
@@ -18,13 +20,22 @@ use crate::msg::std_msgs::Header;
 use crate::msg::Message;
 use crate::transport::Outlet;
 
+/// A frame the replay could not publish.
+#[derive(Debug)]
+pub struct UnreadFrame {
+    /// The frame's index in the sequence.
+    pub index: u32,
+    /// Why it could not be loaded (names the file).
+    pub error: Kitti360Error,
+}
+
 /// What a replay published.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Debug, Default)]
 pub struct ReplaySummary {
     /// Frames published.
     pub frames: u64,
-    /// Frames that failed to load (skipped, counted).
-    pub skipped: u64,
+    /// Frames that failed to load, in order.
+    pub skipped: Vec<UnreadFrame>,
 }
 
 /// Publishes every frame of `sequence` on `session`; `progress(done, total)` after each.
@@ -86,7 +97,10 @@ pub async fn replay(
                 .await?;
                 summary.frames += 1;
             }
-            Err(_) => summary.skipped += 1,
+            Err(error) => summary.skipped.push(UnreadFrame {
+                index: f.index,
+                error,
+            }),
         }
         progress(i + 1, frames.len());
     }

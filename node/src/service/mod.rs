@@ -23,7 +23,7 @@ pub use counters::Counters;
 pub use keys::Keys;
 pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
-pub use node::{run, NodeConfig, NodeSummary, ServiceError};
+pub use node::{run, run_announced, NodeConfig, NodeSummary, ServiceError};
 pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};
 pub use replay::{replay, ReplaySummary};
 pub use replay_bag::{replay_bag, BagReplayOptions, BagReplaySummary};

@@ -109,6 +109,16 @@ pub async fn run(
     config: NodeConfig,
     stop: impl Future<Output = ()>,
 ) -> Result<NodeSummary, ServiceError> {
+    run_announced(config, stop, || {}).await
+}
+
+/// [`run`], calling `ready` once the session is open (its endpoints bound) and the inputs are
+/// subscribed: a node that cannot bind fails before it says it is ready.
+pub async fn run_announced(
+    config: NodeConfig,
+    stop: impl Future<Output = ()>,
+    ready: impl FnOnce(),
+) -> Result<NodeSummary, ServiceError> {
     let session = open(&config.transport).await?;
     let keys = &config.keys;
     let (inputs, outputs): (Vec<Topic>, Vec<Topic>) =
@@ -141,6 +151,7 @@ pub async fn run(
     let mut steps = Inputs::new(config.sync, config.binner);
     let bev = config.renders != RenderWith::Off;
     let mut outputs = Outputs::new(&outlet, config.fusion, bev, config.snapshot_every)?;
+    ready();
     tokio::pin!(stop);
 
     loop {

@@ -56,8 +56,7 @@ impl Authority {
     /// authority and trusting `trust` (the authority peers are checked against).
     fn identity(&self, cn: &str, trust: &Path) -> TlsFiles {
         let mut params =
-            CertificateParams::new(vec!["127.0.0.1".to_string(), "localhost".to_string()])
-                .unwrap();
+            CertificateParams::new(vec!["127.0.0.1".to_string(), "localhost".to_string()]).unwrap();
         params.distinguished_name.push(DnType::CommonName, cn);
         params.extended_key_usages = vec![
             ExtendedKeyUsagePurpose::ServerAuth,
@@ -127,7 +126,11 @@ fn with_no_endpoint_the_node_listens_on_loopback_only() {
     let quiet = dir.join("quiet.json5");
     std::fs::write(&quiet, "{ scouting: { delay: 100 } }").unwrap();
     let lan = dir.join("lan.json5");
-    std::fs::write(&lan, r#"{ listen: { endpoints: ["tcp/192.168.1.20:7447"] } }"#).unwrap();
+    std::fs::write(
+        &lan,
+        r#"{ listen: { endpoints: ["tcp/192.168.1.20:7447"] } }"#,
+    )
+    .unwrap();
     let from = |file: &Path| TransportConfig {
         config_file: Some(file.to_path_buf()),
         ..TransportConfig::default()
@@ -139,7 +142,10 @@ fn with_no_endpoint_the_node_listens_on_loopback_only() {
     );
     let warnings = from(&lan).exposure_warnings().unwrap();
     assert_eq!(warnings.len(), 1, "{warnings:?}");
-    assert!(warnings[0].contains("tcp/192.168.1.20:7447"), "{warnings:?}");
+    assert!(
+        warnings[0].contains("tcp/192.168.1.20:7447"),
+        "{warnings:?}"
+    );
 
     // A router keeps zenoh's port, on loopback.
     let router = TransportConfig {
@@ -293,25 +299,42 @@ async fn mutual_tls_and_access_control_admit_only_the_allowed_peers() {
             n
         }
     };
-    assert_eq!(replies(viewer.clone()).await, 1, "the viewer gets the snapshot");
-    assert_eq!(replies(camera.clone()).await, 0, "the camera gets no snapshot");
+    assert_eq!(
+        replies(viewer.clone()).await,
+        1,
+        "the viewer gets the snapshot"
+    );
+    assert_eq!(
+        replies(camera.clone()).await,
+        0,
+        "the camera gets no snapshot"
+    );
 
     // The camera's inputs reach a subscriber (the node's); the viewer's do not.
     let camera_publisher = camera.declare_publisher(keys.left_image()).await.unwrap();
     let start = Instant::now();
     while !camera_publisher.matching_status().await.unwrap().matching() {
-        assert!(start.elapsed() < Duration::from_secs(20), "the camera sees the node");
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "the camera sees the node"
+        );
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
     drop(camera_publisher);
     let viewer_publisher = viewer.declare_publisher(keys.left_image()).await.unwrap();
     let viewer_matched = viewer_publisher.matching_status().await.unwrap().matching();
     drop(viewer_publisher);
-    assert!(!viewer_matched, "the node's input subscription is hidden from the viewer");
+    assert!(
+        !viewer_matched,
+        "the node's input subscription is hidden from the viewer"
+    );
 
     // None of the refused peers ever got a session with the node.
-    for (name, session) in [("no certificate", &no_cert), ("forged", &forged), ("plain", &plain)]
-    {
+    for (name, session) in [
+        ("no certificate", &no_cert),
+        ("forged", &forged),
+        ("plain", &plain),
+    ] {
         let peers = session.info().peers_zid().await.count();
         assert_eq!(peers, 0, "the {name} peer is connected");
     }
@@ -337,7 +360,15 @@ async fn mutual_tls_and_access_control_admit_only_the_allowed_peers() {
 /// `stereosplat run` on `endpoint`, its stderr piped.
 fn spawn_node(endpoint: &str, out: &Path) -> Child {
     Command::new(env!("CARGO_BIN_EXE_stereosplat"))
-        .args(["run", "--listen", endpoint, "--method", "sgm", "--renders", "off"])
+        .args([
+            "run",
+            "--listen",
+            endpoint,
+            "--method",
+            "sgm",
+            "--renders",
+            "off",
+        ])
         .arg("--out")
         .arg(out)
         .stdout(Stdio::null())
@@ -356,15 +387,29 @@ fn a_second_node_on_a_port_in_use_fails_before_it_is_ready() {
     assert!(ready.is_some(), "the first node says it is ready");
 
     let second = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
-        .args(["run", "--listen", &endpoint, "--method", "sgm", "--renders", "off"])
+        .args([
+            "run",
+            "--listen",
+            &endpoint,
+            "--method",
+            "sgm",
+            "--renders",
+            "off",
+        ])
         .arg("--out")
         .arg(dir.join("second"))
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&second.stderr);
-    assert!(!second.status.success(), "the second node exits non-zero:\n{err}");
+    assert!(
+        !second.status.success(),
+        "the second node exits non-zero:\n{err}"
+    );
     assert!(!err.contains("node ready"), "{err}");
-    assert!(err.contains(&endpoint), "the error names the endpoint:\n{err}");
+    assert!(
+        err.contains(&endpoint),
+        "the error names the endpoint:\n{err}"
+    );
     assert!(err.contains("Address already in use"), "{err}");
 
     // The first is unharmed and stops cleanly.
@@ -388,7 +433,10 @@ async fn a_session_on_a_port_in_use_is_a_typed_error_naming_it() {
     match open(&config).await {
         Err(TransportError::Open { listen, source }) => {
             assert_eq!(listen, endpoint);
-            assert!(source.to_string().contains("Address already in use"), "{source}");
+            assert!(
+                source.to_string().contains("Address already in use"),
+                "{source}"
+            );
         }
         Ok(_) => panic!("a second session bound {endpoint}"),
         Err(other) => panic!("expected Open, got {other}"),

@@ -181,7 +181,10 @@ mod tests {
         assert_eq!(exposure_warning("tcp/127.0.0.1:7447", false), None);
         assert_eq!(exposure_warning("unixsock-stream//tmp/n.sock", false), None);
         let all = exposure_warning("tcp/0.0.0.0:7447", false).unwrap();
-        assert!(all.starts_with("warning: listening on tcp/0.0.0.0:7447"), "{all}");
+        assert!(
+            all.starts_with("warning: listening on tcp/0.0.0.0:7447"),
+            "{all}"
+        );
         assert!(all.contains("every network interface"), "{all}");
         assert!(all.contains("any machine that reaches it"), "{all}");
         let lan = exposure_warning("tls/192.168.1.20:7447", true).unwrap();

@@ -151,6 +151,11 @@ pub async fn run_announced(
     let mut steps = Inputs::new(config.sync, config.binner);
     let bev = config.renders != RenderWith::Off;
     let mut outputs = Outputs::new(&outlet, config.fusion, bev, config.snapshot_every)?;
+    // Listen endpoints other machines can reach (each also warned about on stderr).
+    let exposed = config.transport.exposure_warnings()?.len() as u64;
+    if exposed > 0 {
+        outputs.counters.set("warning/exposed_listen", exposed);
+    }
     ready();
     tokio::pin!(stop);
 

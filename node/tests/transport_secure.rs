@@ -96,6 +96,19 @@ async fn wait_connected(session: &Session) -> bool {
     false
 }
 
+/// Waits (at most 20 s) until a publisher of `session` on `key` has a matching subscriber.
+async fn sees_a_subscriber(session: &Session, key: &str) -> bool {
+    let publisher = session.declare_publisher(key.to_string()).await.unwrap();
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(20) {
+        if publisher.matching_status().await.unwrap().matching() {
+            return true;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    false
+}
+
 /// Publishes `n` payloads that are not a valid message (the node counts each one it
 /// receives as bad input) on the left image key, then closes the session so they are
 /// flushed.
@@ -288,16 +301,7 @@ async fn mutual_tls_and_access_control_admit_only_the_allowed_peers() {
     assert!(wait_connected(&camera).await, "the camera connects");
 
     // The node's input subscription reaches the camera (so the camera's inputs are sent).
-    let camera_publisher = camera.declare_publisher(keys.left_image()).await.unwrap();
-    let start = Instant::now();
-    while !camera_publisher.matching_status().await.unwrap().matching() {
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "the camera sees the node"
-        );
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    drop(camera_publisher);
+    assert!(sees_a_subscriber(&camera, &keys.left_image()).await);
 
     // The viewer may query the map snapshot (asked until the node's queryable has reached
     // it); the camera, which has the node's declarations by now, may not.
@@ -324,16 +328,7 @@ async fn mutual_tls_and_access_control_admit_only_the_allowed_peers() {
 
     // The viewer sees the node's input subscription, so what it publishes there is sent:
     // the node's access control has to drop it.
-    let viewer_publisher = viewer.declare_publisher(keys.left_image()).await.unwrap();
-    let start = Instant::now();
-    while !viewer_publisher.matching_status().await.unwrap().matching() {
-        assert!(
-            start.elapsed() < Duration::from_secs(20),
-            "the viewer sees the node"
-        );
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    drop(viewer_publisher);
+    assert!(sees_a_subscriber(&viewer, &keys.left_image()).await);
 
     // None of the refused peers ever got a session with the node.
     for (name, session) in [

@@ -10,7 +10,7 @@ use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
 use crate::service::keys::KeyMode;
 use crate::service::{self, Keys, NodeConfig, StartMap};
-use crate::transport::{open, TransportConfig};
+use crate::transport::{open, TlsFiles, TransportConfig};
 use anyhow::{Context, Result};
 use clap::Args;
 use model::kitti360::Sequence;
@@ -25,7 +25,8 @@ pub struct ZenohArgs {
     /// A zenoh JSON5 config file to start from (the flags below override it).
     #[arg(long, env = "STEREOSPLAT_ZENOH_CONFIG")]
     zenoh_config: Option<PathBuf>,
-    /// Endpoints to listen on (repeatable), e.g. tcp/127.0.0.1:7447.
+    /// Endpoints to listen on (repeatable), e.g. tcp/127.0.0.1:7447. None: loopback on a
+    /// random port. A non-loopback address (0.0.0.0, ::, a LAN address) prints a warning.
     #[arg(long)]
     listen: Vec<String>,
     /// Endpoints to connect to (repeatable).
@@ -44,6 +45,22 @@ pub struct ZenohArgs {
     /// ROS domain id of the ros2 key mode.
     #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
     domain_id: u32,
+    /// Secure profile: the certificate authority (PEM) every peer's certificate must be
+    /// signed by; with --tls-cert and --tls-key, every link is TLS with mutual
+    /// authentication and every endpoint must be tls/.
+    #[arg(long, requires_all = ["tls_cert", "tls_key"])]
+    tls_ca: Option<PathBuf>,
+    /// Secure profile: this process's certificate (PEM), signed by --tls-ca.
+    #[arg(long, requires = "tls_ca")]
+    tls_cert: Option<PathBuf>,
+    /// Secure profile: this process's private key (PEM).
+    #[arg(long, requires = "tls_ca")]
+    tls_key: Option<PathBuf>,
+    /// Secure profile: zenoh access control rules (JSON5, zenoh's `access_control` object;
+    /// see launch/zenoh_acl.json5): which certificate names may publish or subscribe to
+    /// which keys.
+    #[arg(long)]
+    acl: Option<PathBuf>,
 }
 
 /// `--key-mode` values.
@@ -98,6 +115,15 @@ impl ZenohArgs {
             listen: self.listen.clone(),
             connect: self.connect.clone(),
             multicast_scouting: false,
+            tls: match (&self.tls_ca, &self.tls_cert, &self.tls_key) {
+                (Some(ca), Some(cert), Some(key)) => Some(TlsFiles {
+                    ca: ca.clone(),
+                    cert: cert.clone(),
+                    key: key.clone(),
+                }),
+                _ => None,
+            },
+            access_control: self.acl.clone(),
         }
     }
 
@@ -191,10 +217,10 @@ pub fn run(args: &RunArgs) -> Result<()> {
         ..NodeConfig::default()
     };
     let runtime = tokio::runtime::Runtime::new()?;
-    let summary = runtime.block_on(async {
-        eprintln!("node ready: {}", config.keys.namespace);
-        service::run(config, shutdown_signal()).await
-    })?;
+    let namespace = config.keys.namespace.clone();
+    let summary = runtime.block_on(service::run_announced(config, shutdown_signal(), || {
+        eprintln!("node ready: {namespace}")
+    }))?;
     println!(
         "{}",
         serde_json::json!({

@@ -132,6 +132,16 @@ pub async fn run(
     config: NodeConfig,
     stop: impl Future<Output = ()>,
 ) -> Result<NodeSummary, ServiceError> {
+    run_announced(config, stop, || {}).await
+}
+
+/// [`run`], calling `ready` once the session is open (its endpoints bound) and the inputs are
+/// subscribed: a node that cannot bind fails before it says it is ready.
+pub async fn run_announced(
+    config: NodeConfig,
+    stop: impl Future<Output = ()>,
+    ready: impl FnOnce(),
+) -> Result<NodeSummary, ServiceError> {
     let start = start_map(config.out_dir.as_deref(), config.fusion, config.start_map)?;
     if let Some(path) = &start.resumed_from {
         let m = &start.map;
@@ -196,6 +206,12 @@ pub async fn run(
     if resumed {
         outputs.announce_resume();
     }
+    // Listen endpoints other machines can reach (each also warned about on stderr).
+    let exposed = config.transport.exposure_warnings()?.len() as u64;
+    if exposed > 0 {
+        outputs.counters.set("warning/exposed_listen", exposed);
+    }
+    ready();
     tokio::pin!(stop);
     let diagnostics_on = !config.diagnostics_every.is_zero();
     let mut diagnostics = tokio::time::interval(

@@ -116,7 +116,7 @@ impl Drop for NodeProcess {
 }
 
 /// Every sample on the node's bin pose, latency, diagnostics and bin map keys, in arrival
-/// order (of a map only its header: its `frame_id` names the bin).
+/// order (of a map only its first 256 bytes, its header: its `frame_id` names the bin).
 async fn listen(
     session: &Session,
     keys: &Keys,
@@ -132,15 +132,17 @@ async fn listen(
         keys.diagnostics(),
         keys.bin_map(),
     ];
+    let map_key = keys.bin_map();
     for key in wanted {
         let sink = samples.clone();
+        let keep = if key == map_key { 256 } else { usize::MAX };
         let sub = session
             .declare_subscriber(key)
             .callback(move |s| {
                 let bytes = s.payload().to_bytes();
                 let item = (
                     s.key_expr().as_str().to_string(),
-                    bytes[..bytes.len().min(256)].to_vec(),
+                    bytes[..bytes.len().min(keep)].to_vec(),
                 );
                 sink.lock().unwrap().push(item);
             })

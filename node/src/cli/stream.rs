@@ -9,7 +9,7 @@ use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
 use crate::service::keys::KeyMode;
-use crate::service::{self, Keys, NodeConfig, StartMap};
+use crate::service::{self, InputLimits, Keys, NodeConfig, StartMap};
 use crate::transport::{open, TlsFiles, TransportConfig};
 use anyhow::{Context, Result};
 use clap::Args;
@@ -183,6 +183,45 @@ pub struct RunArgs {
     /// MiB of decoded images the synchroniser holds per stream at most.
     #[arg(long, default_value_t = 64)]
     sync_mib_per_stream: usize,
+    #[command(flatten)]
+    limits: LimitsArgs,
+}
+
+/// The input limits a user may change (`node::service::InputLimits`; the rest keep their
+/// defaults). A message or image above them is refused and counted as `refused/<reason>`.
+#[derive(Args, Debug, Clone)]
+pub struct LimitsArgs {
+    /// MiB an input message may hold at most.
+    #[arg(long, default_value_t = 32)]
+    max_message_mib: usize,
+    /// Pixels an input image may have at most (default 3840 x 2160).
+    #[arg(long, default_value_t = 3840 * 2160)]
+    max_image_pixels: u64,
+    /// Pixels the reconstructor is given at most; larger images are area-averaged down
+    /// (default 1408 x 376, KITTI-360's rectified size). More costs worker time and memory.
+    #[arg(long, default_value_t = 1408 * 376)]
+    working_pixels: u64,
+    /// Seconds between two answered snapshot queries at least.
+    #[arg(long, default_value_t = 1.0)]
+    snapshot_interval: f64,
+}
+
+impl LimitsArgs {
+    /// The node's limits with these flags applied.
+    fn limits(&self) -> Result<InputLimits> {
+        anyhow::ensure!(
+            self.working_pixels > 0 && self.max_image_pixels > 0,
+            "--working-pixels and --max-image-pixels must be positive"
+        );
+        let interval = seconds_ns(self.snapshot_interval, "--snapshot-interval")?;
+        Ok(InputLimits {
+            max_message_bytes: self.max_message_mib.saturating_mul(1 << 20),
+            max_pixels: self.max_image_pixels,
+            max_working_pixels: self.working_pixels,
+            snapshot_interval: std::time::Duration::from_nanos(interval as u64),
+            ..InputLimits::default()
+        })
+    }
 }
 
 /// Runs the node until Ctrl-C or SIGTERM.
@@ -214,6 +253,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         checkpoint_every: args.checkpoint_every,
         renders: args.renders.into(),
         snapshot_every: args.snapshot_every,
+        limits: args.limits.limits()?,
         ..NodeConfig::default()
     };
     let runtime = tokio::runtime::Runtime::new()?;
@@ -336,5 +376,50 @@ fn replay_sequence(
             first.error
         ),
         _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn limits(extra: &[&str]) -> Result<InputLimits> {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            limits: LimitsArgs,
+        }
+        let args = std::iter::once("run").chain(extra.iter().copied());
+        <Cli as clap::Parser>::try_parse_from(args)?.limits.limits()
+    }
+
+    #[test]
+    fn limit_flags_set_the_node_limits_and_keep_the_other_defaults() {
+        assert_eq!(limits(&[]).unwrap(), InputLimits::default());
+        let l = limits(&[
+            "--max-message-mib",
+            "8",
+            "--max-image-pixels",
+            "1000000",
+            "--working-pixels",
+            "20000",
+            "--snapshot-interval",
+            "0.25",
+        ])
+        .unwrap();
+        assert_eq!(l.max_message_bytes, 8 << 20);
+        assert_eq!((l.max_pixels, l.max_working_pixels), (1_000_000, 20_000));
+        assert_eq!(l.snapshot_interval, std::time::Duration::from_millis(250));
+        assert_eq!(
+            l.max_translation_m,
+            InputLimits::default().max_translation_m
+        );
+    }
+
+    #[test]
+    fn impossible_limits_are_refused() {
+        assert!(limits(&["--working-pixels", "0"]).is_err());
+        assert!(limits(&["--snapshot-interval", "-1"]).is_err());
+        assert!(limits(&["--snapshot-interval", "NaN"]).is_err());
     }
 }

@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Coverage-guided fuzzing (cargo-fuzz, libFuzzer, AddressSanitizer) of every decoder of outside
+# input: the targets in fuzz/fuzz_targets (CDR messages, MCAP, PLY, KITTI-360 text files,
+# launch TOML). Builds every target once, seeds each corpus with the project's own encoder
+# output (`--example fuzz_seeds`), runs each target for SECONDS, and fails if any input
+# crashed, panicked, hung (over $FUZZ_TIMEOUT_S s) or asked for more than $FUZZ_RSS_MB MiB.
+#   bash scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]
+# (default 20 s, every target). Corpora grow in fuzz/corpus/<target>; a failing input is
+# kept in fuzz/artifacts/<target>/ and `cargo fuzz run TARGET FILE` replays it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-20}"
+shift || true
+timeout_s="${FUZZ_TIMEOUT_S:-25}"
+rss_mb="${FUZZ_RSS_MB:-2048}"
+
+# cargo-fuzz passes -Z flags (sanitizer, coverage passes) to rustc; the stable compiler takes
+# them with RUSTC_BOOTSTRAP=1, so no nightly toolchain is needed.
+export RUSTC_BOOTSTRAP=1
+if ! cargo fuzz --version >/dev/null 2>&1; then
+  cargo install cargo-fuzz --locked --version 0.13.2
+fi
+# Sixteen codegen units: a much faster build of the instrumented tree, a little slower runs.
+flags=(--release --sanitizer address --codegen-units 16)
+
+cargo fuzz build "${flags[@]}"
+if [ "$#" -gt 0 ]; then
+  targets=("$@")
+else
+  mapfile -t targets < <(cargo fuzz list)
+fi
+cargo run --release --example fuzz_seeds -- fuzz/corpus
+
+failed=()
+for target in "${targets[@]}"; do
+  log="fuzz/logs/$target.log"
+  mkdir -p fuzz/logs
+  echo "== $target: $seconds s"
+  if cargo fuzz run "${flags[@]}" "$target" "fuzz/corpus/$target" -- \
+    -max_total_time="$seconds" -timeout="$timeout_s" -rss_limit_mb="$rss_mb" \
+    -print_final_stats=1 >"$log" 2>&1; then
+    runs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")"
+    echo "   ok: ${runs:-?} executions, corpus $(find "fuzz/corpus/$target" -type f | wc -l) inputs"
+  else
+    failed+=("$target")
+    tail -n 40 "$log"
+    echo "   FAILED: see $log and fuzz/artifacts/$target/"
+  fi
+done
+
+if [ "${#failed[@]}" -gt 0 ]; then
+  echo "fuzz: ${#failed[@]} of ${#targets[@]} targets failed: ${failed[*]}"
+  exit 1
+fi
+echo "fuzz: ${#targets[@]} targets, $seconds s each, no crash"

@@ -14,29 +14,32 @@ shift || true
 timeout_s="${FUZZ_TIMEOUT_S:-25}"
 rss_mb="${FUZZ_RSS_MB:-2048}"
 
+# The seeds first, from the workspace's own (uninstrumented) build.
+cargo run --release --example fuzz_seeds -- fuzz/corpus
+
 # cargo-fuzz passes -Z flags (sanitizer, coverage passes) to rustc; the stable compiler takes
-# them with RUSTC_BOOTSTRAP=1, so no nightly toolchain is needed.
-export RUSTC_BOOTSTRAP=1
+# them with RUSTC_BOOTSTRAP=1, so no nightly toolchain is needed. Only cargo-fuzz gets it:
+# cargo fingerprints it, and the workspace build above would start again from scratch.
 if ! cargo fuzz --version >/dev/null 2>&1; then
   cargo install cargo-fuzz --locked --version 0.13.2
 fi
+fuzz() { RUSTC_BOOTSTRAP=1 cargo fuzz "$@"; }
 # Sixteen codegen units: a much faster build of the instrumented tree, a little slower runs.
 flags=(--release --sanitizer address --codegen-units 16)
 
-cargo fuzz build "${flags[@]}"
+fuzz build "${flags[@]}"
 if [ "$#" -gt 0 ]; then
   targets=("$@")
 else
-  mapfile -t targets < <(cargo fuzz list)
+  mapfile -t targets < <(fuzz list)
 fi
-cargo run --release --example fuzz_seeds -- fuzz/corpus
 
 failed=()
 for target in "${targets[@]}"; do
   log="fuzz/logs/$target.log"
   mkdir -p fuzz/logs
   echo "== $target: $seconds s"
-  if cargo fuzz run "${flags[@]}" "$target" "fuzz/corpus/$target" -- \
+  if fuzz run "${flags[@]}" "$target" "fuzz/corpus/$target" -- \
     -max_total_time="$seconds" -timeout="$timeout_s" -rss_limit_mb="$rss_mb" \
     -print_final_stats=1 >"$log" 2>&1; then
     runs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")"

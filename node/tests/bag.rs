@@ -479,6 +479,26 @@ fn byte_flips_give_errors_where_checked_and_never_panic() {
     std::fs::remove_file(&flip_path).unwrap();
 }
 
+/// Found by the `mcap` fuzz target: a chunk whose compression name claims 2.4 GB made the
+/// `mcap` crate reserve that much for a 2.7 kB file. The reader refuses it before parsing.
+#[test]
+fn a_chunk_string_longer_than_its_chunk_is_refused_unread() {
+    let (path, mut bytes, _) = small_bag("long-name-source");
+    let start = chunk_indexes(&bytes)[0].chunk_start_offset as usize;
+    // Opcode, record length, start and end times, uncompressed size and CRC: then the name.
+    let name_len_at = start + 1 + 8 + 8 + 8 + 8 + 4;
+    bytes[name_len_at..name_len_at + 4].copy_from_slice(&0x9000_0000u32.to_le_bytes());
+    let damaged = scratch("long-name");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let message = read_all(&damaged).unwrap_err().to_string();
+    assert!(
+        message.contains("compression name is longer than the chunk"),
+        "{message}"
+    );
+    std::fs::remove_file(&path).unwrap();
+    std::fs::remove_file(&damaged).unwrap();
+}
+
 #[test]
 fn huge_lengths_and_junk_give_errors_not_aborts() {
     let (path, bytes, _) = small_bag("junk-source");

@@ -74,7 +74,8 @@ pub fn parse_timestamp(line: &str) -> Option<i64> {
         return None;
     }
     let secs = days_from_civil(y, mo, da) * SECS_PER_DAY + h * 3600 + mi * 60 + s;
-    Some(secs * NS_PER_SEC + ns)
+    // Nanoseconds in an i64 reach 2262-04-11: a later (or pre-1677) date is malformed too.
+    secs.checked_mul(NS_PER_SEC)?.checked_add(ns)
 }
 
 /// Nanoseconds since the epoch as a KITTI timestamp line (no newline), nine fraction digits.
@@ -161,5 +162,17 @@ mod tests {
         );
         assert_eq!(parse_timestamp("2013-02-29 08:46:02.5"), None);
         assert_eq!(parse_timestamp("2013-05-28T08:46:02"), None);
+    }
+
+    /// Found by the `kitti_timestamps` fuzz target: a year past 2262 overflowed the i64
+    /// nanoseconds (a panic with overflow checks, a wrapped stamp without).
+    #[test]
+    fn dates_beyond_i64_nanoseconds_are_malformed() {
+        assert_eq!(parse_timestamp("3938-12-14 22:13:20.350"), None);
+        assert_eq!(parse_timestamp("0001-01-01 00:00:00"), None);
+        let last = parse_timestamp("2262-04-11 23:47:16.854775807");
+        assert_eq!(last, Some(i64::MAX));
+        assert_eq!(parse_timestamp("2262-04-11 23:47:16.854775808"), None);
+        assert_eq!(parse_timestamp("1600-01-01 00:00:00"), None);
     }
 }

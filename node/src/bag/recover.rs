@@ -14,7 +14,7 @@ use std::sync::Arc;
 use mcap::records::{op, ChunkIndex, Record};
 use mcap::MAGIC;
 
-use super::reader::{for_each_record, MAX_CHUNK_BYTES};
+use super::reader::{compression_name_fits, for_each_record, MAX_CHUNK_BYTES};
 use super::summary::{le_u64, read_at, Index};
 use super::BagError;
 
@@ -144,6 +144,9 @@ impl Found {
     /// `at`: its CRC is checked, its definitions kept, its messages counted. On an error
     /// nothing of the chunk is kept.
     fn chunk(&mut self, record: &[u8], at: u64) -> Result<(), String> {
+        if !compression_name_fits(record) {
+            return Err("compression name longer than the chunk".into());
+        }
         let Record::Chunk { header, .. } =
             mcap::parse_record(op::CHUNK, &record[9..]).map_err(|e| e.to_string())?
         else {

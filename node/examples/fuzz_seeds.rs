@@ -12,6 +12,7 @@ use model::kitti360::poses::{write_pose_file, PoseFormat};
 use model::kitti360::timestamps::write_timestamps;
 use model::kitti360::{layout, Calibration};
 use node::bag::{BagWriter, ChannelInfo, CDR};
+use node::fusion::{FusionConfig, GlobalMap};
 use node::msg::gaussians::cloud_from_gaussians;
 use node::msg::image::{camera_info, image_from_rgb};
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
@@ -72,6 +73,11 @@ fn main() -> anyhow::Result<()> {
         &bag(&seeds.0, &[&image.encode(), &pose_msg.encode()])?,
     )?;
     seeds.put("ply", "binary", &ply(&gaussians)?)?;
+    let mut map = GlobalMap::new(FusionConfig::default())?;
+    map.insert_bin(2, &gaussians, pose)?;
+    let path = seeds.0.join("scratch").join("global_map.ssgmap");
+    map.save(&path)?;
+    seeds.put("global_map", "two_bins", &std::fs::read(&path)?)?;
     seeds.put("ply", "ascii", ASCII_PLY.as_bytes())?;
     seeds.put("kitti_calibration", "synthetic", &calibration(&seeds.0)?)?;
     for (name, format) in [

@@ -146,5 +146,6 @@ pub fn export(map: &GlobalMap, dir: &Path) -> Result<(), ServiceError> {
         background: [0, 0, 0],
     };
     let image = bev_image(map.gaussians().map(|(_, g)| g), &view).map_err(|e| err(&e))?;
-    save_bev_png(&image, dir.join("global_map_bev.png")).map_err(|e| err(&e))
+    let bev = dir.join("global_map_bev.png");
+    save_bev_png(&image, &bev).map_err(|e| err(&format!("{}: {e}", bev.display())))
 }

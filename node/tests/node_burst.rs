@@ -22,7 +22,6 @@ use std::time::Duration;
 use drive_support::{bin_of_frame_id, rss_bytes, wait_for, Collector, Drive, Player, RunningNode};
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
-use model::synth::SynthConfig;
 use node::bag::Rate;
 use node::fusion::FusionConfig;
 use node::msg::latency::{BinLatency, Diagnostics};
@@ -63,18 +62,7 @@ struct Burst {
 }
 
 async fn burst(tag: &str) -> Burst {
-    let drive = Drive::generate(
-        tag,
-        &SynthConfig {
-            seed: 23,
-            frames: 40,
-            width: 272,
-            height: 72,
-            supersample: 1,
-            lidar_azimuth_steps: 64,
-            ..SynthConfig::default()
-        },
-    );
+    let drive = Drive::small(tag);
     let keys = Keys::new(tag);
     let node = RunningNode::start(NodeConfig {
         keys: keys.clone(),

@@ -20,7 +20,6 @@ use std::time::{Duration, Instant};
 use drive_support::{bin_of_frame_id, net_support, wait_for, Drive, Received};
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
-use model::synth::SynthConfig;
 use node::bag::Rate;
 use node::msg::geometry_msgs::PoseStamped;
 use node::msg::image::image_from_rgb;
@@ -171,18 +170,7 @@ fn counter(d: &Diagnostics, kind: &str) -> u64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn twenty_times_the_frame_rate_for_a_minute_keeps_memory_bounded_and_the_node_recovers() {
-    let drive = Drive::generate(
-        "overload",
-        &SynthConfig {
-            seed: 23,
-            frames: 40,
-            width: 272,
-            height: 72,
-            supersample: 1,
-            lidar_azimuth_steps: 64,
-            ..SynthConfig::default()
-        },
-    );
+    let drive = Drive::small("overload");
     let keys = Keys::new("overload");
     let node = NodeProcess::start(&keys.namespace, &drive.dir("out"));
     let client = TransportConfig {

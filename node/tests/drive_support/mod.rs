@@ -49,6 +49,23 @@ pub struct Drive {
 }
 
 impl Drive {
+    /// The small, quick drive the load tests replay many times (40 frames at 272x72, no
+    /// supersampling, seed 23).
+    pub fn small(tag: &str) -> Self {
+        Self::generate(
+            tag,
+            &SynthConfig {
+                seed: 23,
+                frames: 40,
+                width: 272,
+                height: 72,
+                supersample: 1,
+                lidar_azimuth_steps: 64,
+                ..SynthConfig::default()
+            },
+        )
+    }
+
     /// Generates the drive `config` describes under a folder named after `tag` and the process.
     pub fn generate(tag: &str, config: &SynthConfig) -> Self {
         let root = std::env::temp_dir().join(format!("stereosplat-{tag}-{}", std::process::id()));

@@ -23,7 +23,10 @@ pub fn write_synthetic(
     config: &SynthConfig,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<String, Kitti360Error> {
-    let calibration = Calibration::synthetic(config.width, config.height);
+    let calibration = match config.look() {
+        Some(look) => Calibration::synthetic_rig(look.size, look.focal_px, look.baseline_m),
+        None => Calibration::synthetic(config.width, config.height),
+    };
     let rig = calibration.rig()?;
     let sequence = SynthSequence::new(*config, rig, calibration.cam_to_velo);
     let name = sequence_name(config.seed);

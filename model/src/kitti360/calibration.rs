@@ -334,6 +334,27 @@ impl Calibration {
         }
     }
 
+    /// A rig of another camera on KITTI-360's mounting: `size` pixels, focal length
+    /// `focal_px` (square pixels, principal point at the image centre) and `baseline_m`
+    /// metres between the cameras, as the domain randomisation draws them.
+    pub fn synthetic_rig(size: (u32, u32), focal_px: f64, baseline_m: f64) -> Self {
+        let (width, height) = (size.0.max(1), size.1.max(1));
+        let (cx, cy) = (0.5 * width as f64 - 0.5, 0.5 * height as f64 - 0.5);
+        let f = focal_px;
+        let p = |tx: f64| [[f, 0.0, cx, tx], [0.0, f, cy, 0.0], [0.0, 0.0, 1.0, 0.0]];
+        let base = Self::synthetic(width, height);
+        let cam0_to_pose = base.cam_to_pose[0];
+        Self {
+            p_rect_00: p(0.0),
+            p_rect_01: p(-f * baseline_m),
+            cam_to_pose: [
+                cam0_to_pose,
+                cam0_to_pose * DAffine3::from_translation(DVec3::new(baseline_m, 0.0, 0.0)),
+            ],
+            ..base
+        }
+    }
+
     /// Rectified camera 0 to the GPS/IMU pose frame: `cam_to_pose_00 * inverse(R_rect_00)`,
     /// so that `cam0_to_world = pose * rect_to_pose()`.
     pub fn rect_to_pose(&self) -> DAffine3 {

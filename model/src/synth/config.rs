@@ -1,5 +1,8 @@
 //! Settings of a synthetic sequence. The rig and LiDAR mounting come from
-//! [`crate::kitti360::Calibration::synthetic`], KITTI-360's own calibration scaled.
+//! [`crate::kitti360::Calibration::synthetic`], KITTI-360's own calibration scaled, unless
+//! the drive is randomised ([`Randomisation`]): then it draws its own rig and image size.
+
+use super::randomise::{DriveLook, Randomisation};
 
 /// What to generate. Everything else (layout, palette, sun, trajectory) follows from `seed`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -18,6 +21,24 @@ pub struct SynthConfig {
     pub lidar_azimuth_steps: u32,
     /// LiDAR maximum range in metres.
     pub lidar_max_range: f64,
+    /// Domain randomisation (photo textures, lighting, rig, camera effects, floating
+    /// objects); `None`: the plain generator. A randomised drive draws its own image size,
+    /// so `width` and `height` are then unused.
+    pub randomise: Option<Randomisation>,
+}
+
+impl SynthConfig {
+    /// The randomised drive's rig and camera look, drawn from the seed (`None` when the
+    /// drive is not randomised).
+    pub fn look(&self) -> Option<DriveLook> {
+        self.randomise
+            .map(|r| r.draw(&mut super::stream(self.seed, 4)))
+    }
+
+    /// The image size the drive is rendered at: the drawn one when randomised.
+    pub fn size(&self) -> (u32, u32) {
+        self.look().map_or((self.width, self.height), |l| l.size)
+    }
 }
 
 impl Default for SynthConfig {
@@ -31,6 +52,7 @@ impl Default for SynthConfig {
             supersample: 2,
             lidar_azimuth_steps: 1024,
             lidar_max_range: 120.0,
+            randomise: None,
         }
     }
 }

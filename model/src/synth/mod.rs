@@ -8,10 +8,13 @@
 //! every random choice comes from ChaCha streams keyed by (seed, purpose, segment), and
 //! every pixel and LiDAR ray is computed independently of thread scheduling.
 
+mod camera_effects;
 mod camera_render;
 mod config;
 mod lidar;
+mod photos;
 mod primitives;
+mod randomise;
 mod scene;
 mod shading;
 mod textures;
@@ -25,7 +28,9 @@ use rand_chacha::ChaCha8Rng;
 pub use camera_render::camera_ray;
 pub use config::SynthConfig;
 pub use lidar::{BOTTOM_ELEVATION, RINGS, TOP_ELEVATION};
+pub use photos::PhotoBank;
 pub use primitives::Ray;
+pub use randomise::{CameraLook, DriveLook, Randomisation};
 pub use shading::SurfaceClass;
 pub use trace::KERB_HEIGHT;
 pub use trajectory::{CAMERA_HEIGHT, FRAME_DT};
@@ -62,6 +67,7 @@ pub struct SynthSequence {
     street: Street,
     trajectory: Trajectory,
     palette: Palette,
+    look: Option<DriveLook>,
 }
 
 fn stream(seed: u64, purpose: u64) -> ChaCha8Rng {
@@ -75,14 +81,19 @@ impl SynthSequence {
         let trajectory = Trajectory::new(&mut stream(config.seed, 1), config.frames);
         let duration = config.frames as f64 * FRAME_DT;
         let length = trajectory.end_arc() + ONCOMING_SPEED * duration + 2.0 * OBJECT_RANGE;
+        let mut palette = Palette::new(&mut stream(config.seed, 3));
+        if let Some(r) = &config.randomise {
+            palette.randomise(&mut stream(config.seed, 5), r);
+        }
         Self {
             config,
             rig,
             cam_to_velo,
             road: Road::new(&mut stream(config.seed, 2), length),
-            street: Street::new(config.seed),
+            street: Street::new(config.seed, config.randomise),
             trajectory,
-            palette: Palette::new(&mut stream(config.seed, 3)),
+            palette,
+            look: config.look(),
         }
     }
 
@@ -139,8 +150,14 @@ impl SynthSequence {
         let right_pose = self.rig.camera_to_world(left_pose, Side::Right);
         let k = &self.rig.intrinsics;
         let ss = self.config.supersample;
-        let left = camera_render::render_image(&world, &left_pose, k, ss);
-        let right = camera_render::render_image(&world, &right_pose, k, ss);
+        let mut left = camera_render::render_image(&world, &left_pose, k, ss);
+        let mut right = camera_render::render_image(&world, &right_pose, k, ss);
+        if let Some(look) = &self.look {
+            // Per-frame noise: its own stream per (seed, frame).
+            let mut rng = stream(self.config.seed ^ mix64(i as u64), 6);
+            camera_effects::apply(&mut left, &look.camera, look.camera.gain_left, &mut rng);
+            camera_effects::apply(&mut right, &look.camera, look.camera.gain_right, &mut rng);
+        }
         let (left_depth, _) = camera_render::render_centres(&world, &left_pose, k);
         let velo_to_world = left_pose * self.cam_to_velo.inverse();
         let lidar = lidar::scan(

@@ -9,9 +9,10 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::primitives::Shape;
-use super::shading::{FacadeStyle, Material, Palette, KERB, ROAD_HALF, SIDEWALK};
+use super::randomise::Randomisation;
+use super::shading::{FacadeStyle, Material, Palette, PhotoSurface, KERB, ROAD_HALF, SIDEWALK};
 use super::textures::mix64;
-use super::trajectory::Road;
+use super::trajectory::{Road, EGO_LATERAL};
 
 /// Length of one layout segment along the road, metres.
 pub const SEGMENT: f64 = 15.0;
@@ -76,12 +77,17 @@ fn car(out: &mut Vec<Object>, road: &Road, s: f64, lateral: f64, paint: DVec3, r
 #[derive(Clone, Debug)]
 pub struct Street {
     seed: u64,
+    /// Domain randomisation: photo facades and floating objects, when set.
+    randomisation: Option<Randomisation>,
 }
 
 impl Street {
-    /// The street of a sequence seed.
-    pub fn new(seed: u64) -> Self {
-        Self { seed }
+    /// The street of a sequence seed, randomised by `randomisation` if given.
+    pub fn new(seed: u64, randomisation: Option<Randomisation>) -> Self {
+        Self {
+            seed,
+            randomisation,
+        }
     }
 
     fn rng(&self, salt: u64, segment: i64) -> ChaCha8Rng {
@@ -118,7 +124,64 @@ impl Street {
         out
     }
 
+    /// `style` with a photo wall, drawn from its own stream (so the plain generator's draws,
+    /// and its drives, stay exactly as they were).
+    fn photo_facade(&self, style: FacadeStyle, k: i64, side: f64) -> FacadeStyle {
+        let Some(r) = self.randomisation else {
+            return style;
+        };
+        let mut rng = self.rng(3 + (side > 0.0) as u64, k);
+        let photo = rng
+            .random_bool(r.photo_probability.clamp(0.0, 1.0))
+            .then(|| PhotoSurface::draw(&mut rng, r.photo_period_m));
+        FacadeStyle { photo, ..style }
+    }
+
+    /// FlyingThings3D-style floating objects: photo-textured boxes and ellipsoids hanging
+    /// over the road and sidewalks, beside the camera's path at a clearance the camera
+    /// passes closely, so the drive sees them from far down to a fraction of a metre.
+    fn floaters(&self, road: &Road, k: i64, out: &mut Vec<Object>) {
+        let Some(r) = self.randomisation else {
+            return;
+        };
+        let mut rng = self.rng(5, k);
+        let (lo, hi) = r.floaters_per_segment;
+        let count = rng.random_range(lo.min(hi)..=hi.max(lo));
+        for _ in 0..count {
+            let size = rng.random_range(
+                r.floater_size_m.0..r.floater_size_m.1.max(r.floater_size_m.0 + 1e-6),
+            );
+            let half = DVec3::new(
+                size * rng.random_range(0.3..1.0),
+                size * rng.random_range(0.3..1.0),
+                size * rng.random_range(0.3..1.0),
+            );
+            let (c0, c1) = r.floater_clearance_m;
+            let clearance = rng.random_range(c0..c1.max(c0 + 1e-6));
+            let side = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let lateral = EGO_LATERAL + side * (clearance + half.x.hypot(half.y));
+            let at = (k as f64 + rng.random_range(0.0..1.0)) * SEGMENT;
+            let z = rng.random_range(0.0..2.2);
+            let material = Material::Photo(PhotoSurface::draw(&mut rng, (0.3, 2.0)));
+            let shape = if rng.random_bool(0.6) {
+                let yaw = rng.random_range(0.0..std::f64::consts::TAU);
+                Shape::Box {
+                    centre: road.world(at, lateral, z),
+                    axis: (yaw.cos(), yaw.sin()),
+                    half,
+                }
+            } else {
+                Shape::Ellipsoid {
+                    centre: road.world(at, lateral, z + half.z),
+                    radii: half,
+                }
+            };
+            out.push(Object::new(shape, material));
+        }
+    }
+
     fn static_segment(&self, road: &Road, palette: &Palette, k: i64, out: &mut Vec<Object>) {
+        self.floaters(road, k, out);
         let mut rng = self.rng(1, k);
         let s0 = k as f64 * SEGMENT;
         for side in [-1.0, 1.0] {
@@ -137,7 +200,9 @@ impl Street {
                     storey: rng.random_range(2.9..3.6),
                     plain: rng.random_bool(0.15),
                     seed: rng.random(),
+                    photo: None,
                 };
+                let style = self.photo_facade(style, k, side);
                 let half = DVec3::new(0.5 * (SEGMENT - gap), 0.5 * depth, 0.5 * height);
                 let shape = road_box(road, s0 + 0.5 * SEGMENT, lateral, 0.0, half, false);
                 out.push(Object::new(shape, Material::Facade(style)));

@@ -6,6 +6,8 @@ use glam::{DVec2, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+use super::photos::PhotoBank;
+use super::randomise::Randomisation;
 use super::textures::{band, fbm, stripes};
 
 /// What a pixel shows: the generator's semantic label, used to check scene content.
@@ -37,6 +39,40 @@ pub enum SurfaceClass {
     Trunk,
     /// A tree canopy.
     Canopy,
+    /// A floating object of the domain randomisation.
+    Floater,
+}
+
+/// A photo texture on a surface (domain randomisation, [`super::photos`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhotoSurface {
+    /// Tile of the bank.
+    pub tile: usize,
+    /// The tile repeats every this many metres.
+    pub period: f64,
+    /// Per-channel albedo multiplier (material colour).
+    pub tint: DVec3,
+}
+
+impl PhotoSurface {
+    /// A photo surface drawn from `rng`: any tile, a period in `period` metres, a tint.
+    pub fn draw(rng: &mut ChaCha8Rng, period: (f64, f64)) -> Self {
+        Self {
+            tile: rng.random_range(0..PhotoBank::get().len().max(1)),
+            period: rng.random_range(period.0..period.1.max(period.0 + 1e-6)),
+            tint: DVec3::new(
+                rng.random_range(0.6..1.3),
+                rng.random_range(0.6..1.3),
+                rng.random_range(0.6..1.3),
+            ),
+        }
+    }
+
+    /// Albedo at surface coordinates (u, v) metres for a footprint of `w` metres.
+    pub fn albedo(&self, u: f64, v: f64, w: f64) -> DVec3 {
+        (PhotoBank::get().sample(self.tile, u, v, self.period, w) * self.tint)
+            .clamp(DVec3::ZERO, DVec3::splat(0.95))
+    }
 }
 
 /// Half width of the carriageway (two 3.5 m lanes plus two 2.3 m parking lanes), metres.
@@ -63,6 +99,8 @@ pub struct FacadeStyle {
     pub plain: bool,
     /// Noise seed of the wall.
     pub seed: u64,
+    /// A photo texture replacing the wall's colour (domain randomisation).
+    pub photo: Option<PhotoSurface>,
 }
 
 /// The surface an object is made of.
@@ -80,6 +118,8 @@ pub enum Material {
     Trunk,
     /// Foliage of the given tint.
     Canopy(DVec3),
+    /// A photo-textured floating object (domain randomisation).
+    Photo(PhotoSurface),
 }
 
 /// Per-sequence colours and light.
@@ -109,6 +149,9 @@ pub struct Palette {
     pub paints: Vec<DVec3>,
     /// Noise seed of the ground.
     pub seed: u64,
+    /// Photo textures of the road, sidewalk and verge (domain randomisation), replacing
+    /// their procedural grain where set.
+    pub ground_photos: [Option<PhotoSurface>; 3],
 }
 
 fn jitter(rng: &mut ChaCha8Rng, base: DVec3, amount: f64) -> DVec3 {
@@ -186,6 +229,48 @@ impl Palette {
             walls,
             paints,
             seed: rng.random(),
+            ground_photos: [None; 3],
+        }
+    }
+
+    /// Widens this palette for domain randomisation: any sun height, colour and strength
+    /// (down to none), any ambient level, any haze; walls, paints and ground of any hue with
+    /// the ranges' colour probability; photo textures on the ground with their photo
+    /// probability.
+    pub fn randomise(&mut self, rng: &mut ChaCha8Rng, ranges: &Randomisation) {
+        let azimuth = rng.random_range(0.0..std::f64::consts::TAU);
+        let elevation = rng.random_range(5.0f64..75.0).to_radians();
+        self.sun_dir = DVec3::new(
+            azimuth.cos() * elevation.cos(),
+            azimuth.sin() * elevation.cos(),
+            elevation.sin(),
+        );
+        let warmth = rng.random_range(-0.25..0.25);
+        self.sun = DVec3::new(1.0 + warmth, 0.97, 1.0 - warmth) * rng.random_range(0.0..1.1);
+        self.ambient = DVec3::new(
+            rng.random_range(0.3..0.6),
+            rng.random_range(0.3..0.6),
+            rng.random_range(0.3..0.6),
+        ) * rng.random_range(0.5..1.6);
+        self.haze = rng.random_range(80.0..800.0);
+        let any = |rng: &mut ChaCha8Rng| {
+            DVec3::new(
+                rng.random_range(0.03..0.9),
+                rng.random_range(0.03..0.9),
+                rng.random_range(0.03..0.9),
+            )
+        };
+        if rng.random_bool(ranges.colour_probability.clamp(0.0, 1.0)) {
+            self.walls = (0..6).map(|_| any(rng)).collect();
+            self.paints = (0..6).map(|_| any(rng)).collect();
+            self.asphalt = any(rng) * 0.5;
+            self.paving = any(rng);
+            self.verge = any(rng);
+        }
+        for slot in &mut self.ground_photos {
+            *slot = rng
+                .random_bool(ranges.photo_probability.clamp(0.0, 1.0))
+                .then(|| PhotoSurface::draw(rng, ranges.photo_period_m));
         }
     }
 
@@ -216,7 +301,9 @@ impl Palette {
             let centre = band(lateral, -0.075, 0.075, w) * stripes(s / 9.0, 3.0 / 9.0, w / 9.0);
             let edge = band(side, 3.5, 3.62, w);
             let mark = (centre + edge).min(1.0);
-            let asphalt = self.asphalt * (1.0 + 0.35 * grain);
+            let asphalt = self.ground_photos[0].map_or(self.asphalt * (1.0 + 0.35 * grain), |p| {
+                p.albedo(s, lateral, w)
+            });
             let albedo = asphalt.lerp(DVec3::new(0.85, 0.85, 0.8), mark);
             let class = if mark > 0.5 {
                 SurfaceClass::Marking
@@ -228,10 +315,16 @@ impl Palette {
             (DVec3::splat(0.62) * (1.0 + 0.2 * grain), SurfaceClass::Kerb)
         } else if side < ROAD_HALF + KERB + SIDEWALK {
             let joints = stripes(s / 0.6, 0.06, w / 0.6).max(stripes(lateral / 0.6, 0.06, w / 0.6));
-            let albedo = self.paving * (1.0 + 0.25 * grain) * (1.0 - 0.35 * joints);
+            let paving = self.ground_photos[1].map_or(self.paving * (1.0 + 0.25 * grain), |p| {
+                p.albedo(s, lateral, w)
+            });
+            let albedo = paving * (1.0 - 0.35 * joints);
             (albedo, SurfaceClass::Sidewalk)
         } else {
-            (self.verge * (1.0 + 0.6 * grain), SurfaceClass::Verge)
+            let verge = self.ground_photos[2].map_or(self.verge * (1.0 + 0.6 * grain), |p| {
+                p.albedo(s, lateral, w)
+            });
+            (verge, SurfaceClass::Verge)
         }
     }
 }
@@ -275,15 +368,36 @@ pub fn material_albedo(
                 + fbm(12, local.y, local.z + local.x, 0.7, 4, w);
             (tint * (1.0 + 1.2 * leaves), SurfaceClass::Canopy)
         }
+        Material::Photo(photo) => {
+            let albedo = match top {
+                true => photo.albedo(local.x, local.y, w),
+                false => photo.albedo(horizontal_u, local.z, w),
+            };
+            (albedo, SurfaceClass::Floater)
+        }
     }
 }
 
 fn facade(style: &FacadeStyle, u: f64, z: f64, top: bool, w: f64) -> (DVec3, SurfaceClass) {
     let noise = fbm(style.seed, u, z, 1.5, 4, w);
+    if let Some(photo) = style.photo {
+        return facade_windows(style, photo.albedo(u, z, w), u, z, top, w);
+    }
     if style.plain {
         return (style.wall * (1.0 + 0.04 * noise), SurfaceClass::PlainWall);
     }
-    let mut wall = style.wall * (1.0 + 0.15 * noise);
+    facade_windows(style, style.wall * (1.0 + 0.15 * noise), u, z, top, w)
+}
+
+/// A facade's plinth, cornices and window grid over the wall albedo `wall`.
+fn facade_windows(
+    style: &FacadeStyle,
+    mut wall: DVec3,
+    u: f64,
+    z: f64,
+    top: bool,
+    w: f64,
+) -> (DVec3, SurfaceClass) {
     let plinth = band(z, -1.0, 0.6, w);
     wall = wall.lerp(wall * 0.55, plinth);
     let cornice = stripes(z / style.storey - 0.02, 0.05, w / style.storey);

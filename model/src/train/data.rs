@@ -81,7 +81,9 @@ pub struct TrainingSet {
 
 impl TrainingSet {
     /// Opens every sequence under `root` (read at `resize` if given: width, height) and cuts
-    /// it into bins.
+    /// it into bins. `root` is one KITTI-360-layout root, or a folder of them (each
+    /// subfolder with its own `calibration/`: drives of different rigs, as the domain
+    /// randomisation writes them).
     pub fn open(
         root: &Path,
         bins: &BinConfig,
@@ -89,8 +91,8 @@ impl TrainingSet {
     ) -> Result<Self, DataError> {
         let mut sequences = Vec::new();
         let mut all = Vec::new();
-        for name in Sequence::list(root)? {
-            let mut sequence = Sequence::open(root, &name)?;
+        for (root, name) in sequences_under(root)? {
+            let mut sequence = Sequence::open(&root, &name)?;
             if let Some((w, h)) = resize {
                 sequence = sequence.with_resolution(w, h);
             }
@@ -205,6 +207,28 @@ impl TrainingSet {
             targets,
         })
     }
+}
+
+/// Every (root, sequence name) under `root`: its own sequences if it is a KITTI-360 root,
+/// else those of each subfolder that is one (sorted, so the order is reproducible).
+fn sequences_under(root: &Path) -> Result<Vec<(std::path::PathBuf, String)>, DataError> {
+    let roots = match root.join("calibration").is_dir() {
+        true => vec![root.to_path_buf()],
+        false => {
+            let mut roots: Vec<_> = std::fs::read_dir(root)
+                .map_err(|e| Kitti360Error::io(root, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.join("calibration").is_dir())
+                .collect();
+            roots.sort();
+            roots
+        }
+    };
+    let mut all = Vec::new();
+    for r in roots {
+        all.extend(Sequence::list(&r)?.into_iter().map(|n| (r.clone(), n)));
+    }
+    Ok(all)
 }
 
 /// The frame's LiDAR depth, or an empty map when it has none (its depth losses vanish).

@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use model::generate::{write_synthetic, HELDOUT_SEED_BASE};
 use model::kitti360::Sequence;
-use model::synth::SynthConfig;
+use model::synth::{Randomisation, SynthConfig};
 
 use super::progress;
 
@@ -30,6 +30,11 @@ pub struct DriveArgs {
     /// Samples per pixel along each axis (anti-aliasing).
     #[arg(long, default_value_t = SynthConfig::default().supersample)]
     supersample: u32,
+    /// Domain randomisation (README, "Training data"): photo textures, lighting, a rig and
+    /// image size of its own (so `--width`/`--height` are unused), camera effects and
+    /// floating objects, all drawn from the seed.
+    #[arg(long)]
+    randomise: bool,
 }
 
 impl DriveArgs {
@@ -40,6 +45,7 @@ impl DriveArgs {
             width: self.width,
             height: self.height,
             supersample: self.supersample,
+            randomise: self.randomise.then(Randomisation::default),
             ..SynthConfig::default()
         }
     }
@@ -86,11 +92,10 @@ fn write(drive: &DriveArgs, seed: u64) -> Result<()> {
     let bar = progress::bar(config.frames as usize, "synth");
     let name = write_synthetic(&drive.out, &config, &mut progress::hook(&bar))?;
     bar.finish_and_clear();
+    let (width, height) = config.size();
     println!(
-        "wrote {} frames of {name} ({}x{}) under {}",
+        "wrote {} frames of {name} ({width}x{height}) under {}",
         config.frames,
-        config.width,
-        config.height,
         drive.out.display()
     );
     Ok(())
@@ -102,8 +107,7 @@ pub fn cached_drive(root: &Path, config: &SynthConfig) -> Result<String> {
     let name = model::generate::sequence_name(config.seed);
     let ready = Sequence::open(root, &name).is_ok_and(|s| {
         let k = s.rig().intrinsics;
-        s.frames().len() == config.frames as usize
-            && (k.width, k.height) == (config.width, config.height)
+        s.frames().len() == config.frames as usize && (k.width, k.height) == config.size()
     });
     if !ready {
         let bar = progress::bar(config.frames as usize, "generate");

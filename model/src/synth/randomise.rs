@@ -1,0 +1,204 @@
+//! Domain randomisation: the settings (each a range) that make generated drives vary the way
+//! real cameras and places do, and the per-drive draw from them. A network trained on the
+//! plain generator has seen one camera, one light model and flat-shaded streets, and fails
+//! on real photographs; trained on these drives it has to match real image statistics
+//! (photo textures), any rig (intrinsics, baseline, image size), any look (exposure, white
+//! balance, noise, blur, vignetting, JPEG, grey cameras) and near geometry (floating objects
+//! in front of the street, FlyingThings3D-style).
+//!
+//! Everything is drawn from the drive's seed: equal seeds still give bit-identical drives.
+
+use glam::DVec3;
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+/// The ranges the randomisation draws from. `Default` holds the documented ranges
+/// (README, "Training data"); every drive draws its own values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Randomisation {
+    /// Image sizes (width, height) a drive picks from (all multiples of 8, about 20-28k
+    /// pixels, so a training step costs about the same).
+    pub sizes: &'static [(u32, u32)],
+    /// Horizontal field of view, degrees.
+    pub hfov_deg: (f64, f64),
+    /// Stereo baseline, metres (drawn log-uniformly: phone and OAK-D rigs to wide car rigs).
+    pub baseline_m: (f64, f64),
+    /// Probability that the drive's colours (walls, paints, ground) are drawn at random
+    /// instead of from the street palette.
+    pub colour_probability: f64,
+    /// Probability that a surface (facade, ground band) wears a photo texture (floaters
+    /// always do).
+    pub photo_probability: f64,
+    /// Period of a photo texture on a surface, metres.
+    pub photo_period_m: (f64, f64),
+    /// Floating textured objects per 15 m road segment.
+    pub floaters_per_segment: (u32, u32),
+    /// Floater size (largest half extent), metres.
+    pub floater_size_m: (f64, f64),
+    /// Closest lateral clearance between a floater and the camera's path, metres: the camera
+    /// passes floaters this close, so they are seen from ~5 m down to this distance.
+    pub floater_clearance_m: (f64, f64),
+    /// Exposure gain (log-uniform).
+    pub exposure: (f64, f64),
+    /// White balance: per-channel gain around 1.
+    pub white_balance: f64,
+    /// Difference of exposure between the two cameras (relative).
+    pub camera_mismatch: f64,
+    /// Sensor noise standard deviation (in [0, 1] intensity).
+    pub noise: (f64, f64),
+    /// Gaussian blur sigma, pixels.
+    pub blur_px: (f64, f64),
+    /// Vignetting: relative darkening at the image corners.
+    pub vignetting: (f64, f64),
+    /// Probability that a drive's images go through JPEG, and its quality range.
+    pub jpeg_probability: f64,
+    /// JPEG quality range (1-100).
+    pub jpeg_quality: (u8, u8),
+    /// Probability that a drive's camera is monochrome (as OAK-D's stereo pair).
+    pub grey_probability: f64,
+}
+
+impl Default for Randomisation {
+    fn default() -> Self {
+        Self {
+            sizes: &[
+                (272, 72),
+                (240, 96),
+                (208, 112),
+                (192, 128),
+                (176, 144),
+                (160, 160),
+            ],
+            hfov_deg: (45.0, 100.0),
+            baseline_m: (0.05, 0.6),
+            colour_probability: 0.5,
+            photo_probability: 0.6,
+            photo_period_m: (0.5, 6.0),
+            floaters_per_segment: (0, 12),
+            floater_size_m: (0.2, 1.5),
+            floater_clearance_m: (0.3, 2.5),
+            exposure: (0.55, 1.6),
+            white_balance: 0.15,
+            camera_mismatch: 0.08,
+            noise: (0.0, 0.03),
+            blur_px: (0.0, 1.0),
+            vignetting: (0.0, 0.45),
+            jpeg_probability: 0.5,
+            jpeg_quality: (35, 95),
+            grey_probability: 0.15,
+        }
+    }
+}
+
+/// One drive's draw: its rig and its camera's look.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveLook {
+    /// Image width and height.
+    pub size: (u32, u32),
+    /// Focal length in pixels (square pixels, principal point at the centre).
+    pub focal_px: f64,
+    /// Baseline, metres.
+    pub baseline_m: f64,
+    /// How the images are spoiled.
+    pub camera: CameraLook,
+    /// The ranges it was drawn from (scene draws use them too).
+    pub ranges: Randomisation,
+}
+
+/// What the camera does to the rendered radiance, per drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraLook {
+    /// Per-channel gain of the left camera (exposure times white balance).
+    pub gain_left: DVec3,
+    /// Per-channel gain of the right camera.
+    pub gain_right: DVec3,
+    /// Noise standard deviation.
+    pub noise: f64,
+    /// Blur sigma in pixels (0: none).
+    pub blur_px: f64,
+    /// Corner darkening.
+    pub vignetting: f64,
+    /// JPEG quality, if the drive is compressed.
+    pub jpeg_quality: Option<u8>,
+    /// Monochrome camera.
+    pub grey: bool,
+}
+
+fn range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
+    if hi > lo {
+        rng.random_range(lo..hi)
+    } else {
+        lo
+    }
+}
+
+fn log_range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
+    range(rng, (lo.ln(), hi.ln())).exp()
+}
+
+impl Randomisation {
+    /// The draw of one drive from `rng` (the drive's own stream).
+    pub fn draw(&self, rng: &mut ChaCha8Rng) -> DriveLook {
+        let size = self.sizes[rng.random_range(0..self.sizes.len().max(1))];
+        let hfov = range(rng, self.hfov_deg).to_radians();
+        let focal_px = 0.5 * size.0 as f64 / (0.5 * hfov).tan();
+        let baseline_m = log_range(rng, self.baseline_m);
+        let exposure = log_range(rng, self.exposure);
+        let wb = DVec3::new(
+            range(rng, (1.0 - self.white_balance, 1.0 + self.white_balance)),
+            1.0,
+            range(rng, (1.0 - self.white_balance, 1.0 + self.white_balance)),
+        );
+        let mismatch = range(
+            rng,
+            (1.0 - self.camera_mismatch, 1.0 + self.camera_mismatch),
+        );
+        let jpeg = rng.random_bool(self.jpeg_probability.clamp(0.0, 1.0));
+        let (qlo, qhi) = self.jpeg_quality;
+        let quality = rng.random_range(qlo.min(qhi)..=qhi.max(qlo)).clamp(1, 100);
+        let camera = CameraLook {
+            gain_left: wb * exposure,
+            gain_right: wb * exposure * mismatch,
+            noise: range(rng, self.noise),
+            blur_px: range(rng, self.blur_px),
+            vignetting: range(rng, self.vignetting),
+            jpeg_quality: jpeg.then_some(quality),
+            grey: rng.random_bool(self.grey_probability.clamp(0.0, 1.0)),
+        };
+        DriveLook {
+            size,
+            focal_px,
+            baseline_m,
+            camera,
+            ranges: *self,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn draws_stay_inside_their_ranges_and_vary() {
+        let r = Randomisation::default();
+        let looks: Vec<DriveLook> = (0..200)
+            .map(|s| r.draw(&mut ChaCha8Rng::seed_from_u64(s)))
+            .collect();
+        for l in &looks {
+            assert!(r.sizes.contains(&l.size));
+            assert!((0.05..=0.6).contains(&l.baseline_m));
+            let hfov = 2.0 * (0.5 * l.size.0 as f64 / l.focal_px).atan();
+            assert!((44.9..=100.1).contains(&hfov.to_degrees()));
+            assert!(l.camera.gain_left.min_element() > 0.4);
+        }
+        let sizes: std::collections::BTreeSet<_> = looks.iter().map(|l| l.size).collect();
+        assert_eq!(sizes.len(), r.sizes.len());
+        assert!(looks.iter().any(|l| l.camera.grey) && looks.iter().any(|l| !l.camera.grey));
+        assert!(looks.iter().any(|l| l.camera.jpeg_quality.is_some()));
+        assert!(
+            looks.iter().any(|l| l.baseline_m < 0.1) && looks.iter().any(|l| l.baseline_m > 0.4)
+        );
+    }
+}

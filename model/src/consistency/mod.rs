@@ -65,7 +65,7 @@ pub struct CheckSettings {
 
 impl Default for CheckSettings {
     /// 7x7 patches, at most 4096 cells of 4 px or more, 2^20 Gaussians, opacity 0.05,
-    /// texture 0.02, ZNCC 0.5; at least 32 samples, coverage 0.2 and score 0.5 to pass
+    /// texture 0.02, ZNCC 0.7; at least 32 samples, coverage 0.2 and score 0.6 to pass
     /// (chosen from the distributions in the README's "Self-check").
     fn default() -> Self {
         Self {
@@ -75,10 +75,10 @@ impl Default for CheckSettings {
             max_gaussians: 1 << 20,
             min_opacity: 0.05,
             min_texture: 0.02,
-            good_zncc: 0.5,
+            good_zncc: 0.7,
             min_samples: 32,
             min_coverage: 0.2,
-            pass_score: 0.5,
+            pass_score: 0.6,
         }
     }
 }

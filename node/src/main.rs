@@ -4,7 +4,8 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_model, bench_node, demo, eval, launch, logs, render, stream, synth, train,
+    bench, bench_check, bench_model, bench_node, demo, eval, launch, logs, render, stream, synth,
+    train,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.

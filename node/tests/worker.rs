@@ -57,13 +57,9 @@ fn maps_to(tx: mpsc::Sender<Output>) -> impl FnMut(WorkerEvent) + Send + 'static
 fn bins_come_back_in_order_with_maps_and_stamps() {
     let (tx, rx) = mpsc::channel();
     let sgm = model::methods::by_name("sgm").unwrap();
-    let worker = Worker::spawn(
-        sgm,
-        RenderWith::Cpu,
-        4,
-        OnCheckFail::Flag,
-        move |o| tx.send(o).unwrap(),
-    );
+    let worker = Worker::spawn(sgm, RenderWith::Cpu, 4, OnCheckFail::Flag, move |o| {
+        tx.send(o).unwrap()
+    });
     let input = jobs(3);
     for job in input.clone() {
         assert_eq!(worker.submit(job), Submitted::Queued);

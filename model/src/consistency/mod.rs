@@ -196,7 +196,7 @@ fn nearest_centres(
     let step = n.div_ceil(s.max_gaussians.max(1)).max(1);
     for index in (0..n).step_by(step) {
         let (p, o) = (set.means[index], set.opacities[index]);
-        if !(o >= s.min_opacity) || !p.is_finite() {
+        if o.is_nan() || o < s.min_opacity || !p.is_finite() {
             continue;
         }
         let Some((u, v, z)) = project(&view.left_camera, p) else {

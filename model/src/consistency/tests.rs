@@ -93,8 +93,14 @@ fn run(left: &RgbImage, right: &RgbImage, set: &GaussianSet) -> CheckReport {
         right_camera,
     };
     let r = check(&view, set, &CheckSettings::default());
-    assert!(r.score.is_finite() && (0.0..=1.0).contains(&r.score), "{r:?}");
-    assert!(r.coverage.is_finite() && (0.0..=1.0).contains(&r.coverage), "{r:?}");
+    assert!(
+        r.score.is_finite() && (0.0..=1.0).contains(&r.score),
+        "{r:?}"
+    );
+    assert!(
+        r.coverage.is_finite() && (0.0..=1.0).contains(&r.coverage),
+        "{r:?}"
+    );
     r
 }
 

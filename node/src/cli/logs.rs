@@ -192,11 +192,7 @@ fn bin_line(l: &BinLatency) -> String {
         3 => "undetermined",
         _ => "not run",
     };
-    let mut check = format!(
-        "check {} {:.2}",
-        verdict(l.check_verdict),
-        l.check_score
-    );
+    let mut check = format!("check {} {:.2}", verdict(l.check_verdict), l.check_score);
     match l.check_action {
         1 => check.push_str(" (published flagged)"),
         2 => check.push_str(" (opacity lowered)"),

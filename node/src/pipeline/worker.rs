@@ -271,12 +271,12 @@ fn run_job(
         Ok(done) => done,
         Err(panic) => (
             Err(format!(
-            "reconstructor panicked: {}",
-            panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("(no message)")
+                "reconstructor panicked: {}",
+                panic
+                    .downcast_ref::<String>()
+                    .map(String::as_str)
+                    .or_else(|| panic.downcast_ref::<&str>().copied())
+                    .unwrap_or("(no message)")
             )),
             CheckOutcome::default(),
         ),

@@ -387,7 +387,14 @@ mod tests {
     fn check_verdicts_and_fallbacks_are_counted() {
         let mut stats = LatencyStats::new();
         // (verdict, action, fallback verdict)
-        for (v, a, fb) in [(1, 0, 0), (2, 3, 1), (2, 3, 2), (2, 1, 0), (3, 0, 0), (0, 0, 0)] {
+        for (v, a, fb) in [
+            (1, 0, 0),
+            (2, 3, 1),
+            (2, 3, 2),
+            (2, 1, 0),
+            (3, 0, 0),
+            (0, 0, 0),
+        ] {
             let mut l = bin(0, 10, 1, 1, 1, 1);
             (l.check_verdict, l.check_action, l.fallback_verdict) = (v, a, fb);
             stats.push(&l);

@@ -11,7 +11,6 @@ mod drive_support;
 use drive_support::{Collector, Drive, Player, RunningNode};
 use glam::DVec3;
 use model::frame::StereoFrame;
-use model::synth::SynthConfig;
 use node::msg::gaussians::gaussians_from_cloud;
 use node::msg::latency::BinLatency;
 use node::msg::sensor_msgs::PointCloud2;
@@ -116,18 +115,7 @@ async fn a_generated_drive_passes_the_check_on_every_bin() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn another_scenes_right_images_fail_and_sgm_replaces_the_map() {
     let drive = Drive::small("selfcheck-other");
-    let other = Drive::generate(
-        "selfcheck-other-scene",
-        &SynthConfig {
-            seed: 1_000_003,
-            frames: 40,
-            width: 272,
-            height: 72,
-            supersample: 1,
-            lidar_azimuth_steps: 64,
-            ..SynthConfig::default()
-        },
-    );
+    let other = Drive::small_of_seed("selfcheck-other-scene", 1_000_003);
     let frames = other_scene(&drive, &other);
     let r = run("selfcheck_other", &drive, &frames, OnCheckFail::Sgm).await;
     assert_complete(&r);

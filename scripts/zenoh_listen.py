@@ -127,10 +127,14 @@ def summarize(typename, msg):
             'orientation': [q.x, q.y, q.z, q.w],
         }
     if typename == f'{PACKAGE}/msg/BinLatency':
-        return {name: int(getattr(msg, name)) for name in (
+        fields = {name: int(getattr(msg, name)) for name in (
             'bin_id', 'first_frame_arrival_ns', 'bin_close_ns', 'model_start_ns',
             'model_end_ns', 'render_end_ns', 'publish_ns', 'queue_depth', 'drops',
-            'bad_messages')}
+            'bad_messages', 'check_verdict', 'check_action', 'fallback_verdict',
+            'check_samples')}
+        fields.update({name: float(getattr(msg, name))
+                       for name in ('check_score', 'fallback_score')})
+        return fields
     if typename == f'{PACKAGE}/msg/MapUpdate':
         return {
             'frame_id': msg.header.frame_id, 'sequence': int(msg.sequence),

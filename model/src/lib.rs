@@ -10,6 +10,7 @@
 
 pub mod baseline;
 pub mod bins;
+pub mod consistency;
 pub mod curve;
 pub mod eval;
 pub mod frame;

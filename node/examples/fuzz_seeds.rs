@@ -148,6 +148,12 @@ fn bin_latency() -> BinLatency {
         queue_depth: 1,
         drops: 0,
         bad_messages: 2,
+        check_verdict: 1,
+        check_action: 0,
+        fallback_verdict: 0,
+        check_samples: 900,
+        check_score: 0.93,
+        fallback_score: 0.0,
     }
 }
 

@@ -4,7 +4,8 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_model, bench_node, demo, eval, launch, logs, render, stream, synth, train,
+    bench, bench_check, bench_model, bench_node, demo, eval, launch, logs, render, stream, synth,
+    train,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -54,6 +55,8 @@ enum BenchCommand {
     Node(bench_node::BenchNodeArgs),
     /// The learned reconstructor per preset: ms per stereo pair, memory, parameters.
     Model(bench_model::BenchModelArgs),
+    /// The per-bin self-check on generated drives and bad pairs: scores, verdicts, cost.
+    Check(bench_check::BenchCheckArgs),
 }
 
 fn main() -> Result<()> {
@@ -72,5 +75,6 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
+        Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),
     }
 }

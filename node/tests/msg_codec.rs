@@ -30,8 +30,9 @@ fn every_sample_round_trips_through_cdr() {
         Diagnostics::decode(&s.diagnostics.encode()).unwrap(),
         s.diagnostics
     );
-    // BinLatency: u64 + 6 i64 + u32 (+4 pad) + 2 u64 after the 4-byte header.
-    assert_eq!(s.latency.encode().len(), 4 + 8 + 48 + 8 + 16);
+    // BinLatency: u64 + 6 i64 + u32 (+4 pad) + 2 u64, then 3 u8 (+1 pad) + u32 + 2 f64,
+    // after the 4-byte header.
+    assert_eq!(s.latency.encode().len(), 4 + 8 + 48 + 8 + 16 + 4 + 4 + 16);
 }
 
 #[test]

@@ -104,7 +104,10 @@ fn latency(m: &BinLatency) -> Value {
            "bin_close_ns": m.bin_close_ns, "model_start_ns": m.model_start_ns,
            "model_end_ns": m.model_end_ns, "render_end_ns": m.render_end_ns,
            "publish_ns": m.publish_ns, "queue_depth": m.queue_depth, "drops": m.drops,
-           "bad_messages": m.bad_messages})
+           "bad_messages": m.bad_messages, "check_verdict": m.check_verdict,
+           "check_action": m.check_action, "fallback_verdict": m.fallback_verdict,
+           "check_samples": m.check_samples, "check_score": m.check_score,
+           "fallback_score": m.fallback_score})
 }
 
 fn diagnostics(m: &Diagnostics) -> Value {

@@ -250,10 +250,16 @@ async fn a_python_zenoh_subscriber_decodes_with_rosbags_what_a_rust_subscriber_d
             ("queue_depth", r.queue_depth as i128),
             ("drops", r.drops as i128),
             ("bad_messages", r.bad_messages as i128),
+            ("check_verdict", r.check_verdict as i128),
+            ("check_action", r.check_action as i128),
+            ("fallback_verdict", r.fallback_verdict as i128),
+            ("check_samples", r.check_samples as i128),
         ];
         for (name, value) in fields {
             assert_eq!(p[name].as_i64().map(i128::from), Some(value), "{name}");
         }
+        assert_eq!(p["check_score"].as_f64(), Some(r.check_score));
+        assert_eq!(p["fallback_score"].as_f64(), Some(r.fallback_score));
     }
 
     // Diagnostics: the same counters.

@@ -361,6 +361,7 @@ async fn monitor_summarises_known_latencies() {
                 queue_depth: i as u32,
                 drops: 3,
                 bad_messages: i as u64,
+                ..BinLatency::default()
             }
         })
         .collect();

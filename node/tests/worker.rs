@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use model::kitti360::Calibration;
 use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
 use model::synth::{SynthConfig, SynthSequence};
+use node::pipeline::self_check::OnCheckFail;
 use node::pipeline::worker::{
     now_ns, Job, Output, RenderWith, Stamps, Submitted, Worker, WorkerEvent,
 };
@@ -56,7 +57,9 @@ fn maps_to(tx: mpsc::Sender<Output>) -> impl FnMut(WorkerEvent) + Send + 'static
 fn bins_come_back_in_order_with_maps_and_stamps() {
     let (tx, rx) = mpsc::channel();
     let sgm = model::methods::by_name("sgm").unwrap();
-    let worker = Worker::spawn(sgm, RenderWith::Cpu, 4, move |o| tx.send(o).unwrap());
+    let worker = Worker::spawn(sgm, RenderWith::Cpu, 4, OnCheckFail::Flag, move |o| {
+        tx.send(o).unwrap()
+    });
     let input = jobs(3);
     for job in input.clone() {
         assert_eq!(worker.submit(job), Submitted::Queued);
@@ -96,6 +99,7 @@ fn a_burst_drops_the_oldest_waiting_bins_without_blocking() {
         model::methods::by_name("sgm").unwrap(),
         RenderWith::Off,
         2,
+        OnCheckFail::Flag,
         maps_to(tx),
     );
     let input = jobs(2);
@@ -148,6 +152,7 @@ fn a_panic_is_reported_on_its_bin_and_the_worker_goes_on() {
         Box::new(PanicsOnSecond { calls: 0 }),
         RenderWith::Off,
         4,
+        OnCheckFail::Flag,
         maps_to(tx),
     );
     for job in jobs(3) {

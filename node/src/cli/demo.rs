@@ -14,7 +14,7 @@ use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 
 use super::progress;
-use super::stream::{rate_of, RenderArg};
+use super::stream::{rate_of, OnCheckFailArg, RenderArg};
 use super::synth::{cached_drive, first_sequence};
 use crate::service::latency_stats::LatencyStats;
 use crate::service::loopback::{run_loopback, Received, ReceivedBin};
@@ -47,6 +47,9 @@ pub struct DemoArgs {
     /// The reconstructor.
     #[arg(long, default_value = model::methods::DEFAULT)]
     method: String,
+    /// What to do with a bin whose map fails the self-check (see `run --help`).
+    #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
+    on_check_fail: OnCheckFailArg,
     /// Rasterizer of the per-bin renders.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
@@ -75,6 +78,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         .with_context(|| format!("creating {}", bins_dir.display()))?;
     let config = NodeConfig {
         method: args.method.clone(),
+        on_check_fail: args.on_check_fail.into(),
         renders: args.renders.into(),
         out_dir: Some(args.out.join("map")),
         // Each demo is a run of its own: an earlier demo's map is kept aside, not resumed.

@@ -183,9 +183,26 @@ pub fn monitor(args: &MonitorArgs) -> Result<()> {
     Ok(())
 }
 
-/// One line for a bin: its stage latencies in ms (`-` where a stamp is missing), queue and
-/// counters.
+/// One line for a bin: its stage latencies in ms (`-` where a stamp is missing), queue,
+/// counters and self-check (verdict, score, and what was done about a failure).
 fn bin_line(l: &BinLatency) -> String {
+    let verdict = |code: u8| match code {
+        1 => "pass",
+        2 => "FAIL",
+        3 => "undetermined",
+        _ => "not run",
+    };
+    let mut check = format!("check {} {:.2}", verdict(l.check_verdict), l.check_score);
+    match l.check_action {
+        1 => check.push_str(" (published flagged)"),
+        2 => check.push_str(" (opacity lowered)"),
+        3 => check.push_str(&format!(
+            " -> sgm {} {:.2}",
+            verdict(l.fallback_verdict),
+            l.fallback_score
+        )),
+        _ => {}
+    }
     let stages: Vec<String> = bin_stages_ms(l)
         .iter()
         .map(|(name, ms)| match ms {
@@ -194,7 +211,7 @@ fn bin_line(l: &BinLatency) -> String {
         })
         .collect();
     format!(
-        "bin {:>4}: {} ms; queue {}, drops {}, bad {}",
+        "bin {:>4}: {} ms; queue {}, drops {}, bad {}; {check}",
         l.bin_id,
         stages.join(", "),
         l.queue_depth,

@@ -1,6 +1,7 @@
 //! Subcommands of the `stereosplat` binary, one module each, plus what they share.
 
 pub mod bench;
+pub mod bench_check;
 pub mod bench_model;
 pub mod bench_node;
 pub mod demo;

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use crate::bag::Rate;
 use crate::fusion::FusionConfig;
 use crate::pipeline::binner::BinnerConfig;
+use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
 use crate::service::keys::KeyMode;
@@ -96,6 +97,27 @@ impl From<RenderArg> for RenderWith {
     }
 }
 
+/// `--on-check-fail` values: what the node does with a bin whose map fails its self-check.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnCheckFailArg {
+    /// Publish the map anyway; its latency message and the counters flag it.
+    Flag,
+    /// Publish it with opacity and confidence scaled by 0.1.
+    LowerOpacity,
+    /// Publish SGM's map of the bin instead (checked too; flagged if it also fails).
+    Sgm,
+}
+
+impl From<OnCheckFailArg> for OnCheckFail {
+    fn from(a: OnCheckFailArg) -> Self {
+        match a {
+            OnCheckFailArg::Flag => OnCheckFail::Flag,
+            OnCheckFailArg::LowerOpacity => OnCheckFail::LowerOpacity,
+            OnCheckFailArg::Sgm => OnCheckFail::Sgm,
+        }
+    }
+}
+
 /// The replay rate of a `--rate` value: 0 = as fast as possible, 1 = recorded, else a factor.
 pub fn rate_of(rate: f64) -> Result<Rate> {
     Ok(match rate {
@@ -147,6 +169,10 @@ pub struct RunArgs {
     /// The reconstructor.
     #[arg(long, default_value = model::methods::DEFAULT)]
     method: String,
+    /// What to do with a bin whose map fails the self-check (its own stereo pair does not
+    /// agree with the map's geometry; README, "Self-check").
+    #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
+    on_check_fail: OnCheckFailArg,
     /// Bin length in metres.
     #[arg(long, default_value_t = 8.0)]
     bin_length: f64,
@@ -244,6 +270,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         },
         queue_capacity: args.queue,
         method: args.method.clone(),
+        on_check_fail: args.on_check_fail.into(),
         fusion: FusionConfig::default(),
         out_dir: Some(args.out.clone()),
         start_map: match args.fresh {

@@ -9,7 +9,9 @@
 //! `stereosplat_msgs/msg/BinLatency`, in wire order:
 //! `uint64 bin_id`, `int64 first_frame_arrival_ns`, `int64 bin_close_ns`,
 //! `int64 model_start_ns`, `int64 model_end_ns`, `int64 render_end_ns`, `int64 publish_ns`,
-//! `uint32 queue_depth`, `uint64 drops`, `uint64 bad_messages`.
+//! `uint32 queue_depth`, `uint64 drops`, `uint64 bad_messages`, `uint8 check_verdict`,
+//! `uint8 check_action`, `uint8 fallback_verdict`, `uint32 check_samples`,
+//! `float64 check_score`, `float64 fallback_score`.
 //!
 //! `stereosplat_msgs/msg/Diagnostics`: `int64 stamp_ns`, `Counter[] counters`, where
 //! `stereosplat_msgs/msg/Counter` is `string kind`, `uint64 count`.
@@ -26,8 +28,9 @@ pub const DIAGNOSTICS_MSG: &str = include_str!("Diagnostics.msg");
 
 /// How long one bin took through the node. Stamps are nanoseconds since the Unix epoch on
 /// the node's clock, 0 where the bin never reached the stage; differences give the stage
-/// latencies.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// latencies. It also carries the bin's self-check (`model::consistency`) and what the node
+/// did when it failed (`node::pipeline::self_check`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BinLatency {
     /// The bin's number, counted from 0 since the node started.
     pub bin_id: u64,
@@ -49,6 +52,19 @@ pub struct BinLatency {
     pub drops: u64,
     /// Malformed input messages counted since the node started.
     pub bad_messages: u64,
+    /// The self-check of the bin's map: 0 not run (no map), 1 pass, 2 fail, 3 undetermined.
+    pub check_verdict: u8,
+    /// What was done about a failed check: 0 nothing, 1 flagged, 2 opacity lowered, 3
+    /// replaced by SGM's map.
+    pub check_action: u8,
+    /// The check of SGM's map when `check_action` is 3 (codes as `check_verdict`), else 0.
+    pub fallback_verdict: u8,
+    /// Textured samples the check scored.
+    pub check_samples: u32,
+    /// Fraction of the samples whose left and right patches agree, in [0, 1].
+    pub check_score: f64,
+    /// The same for SGM's map when `check_action` is 3, else 0.
+    pub fallback_score: f64,
 }
 
 impl Message for BinLatency {
@@ -69,6 +85,12 @@ impl Message for BinLatency {
         w.u32(self.queue_depth);
         w.u64(self.drops);
         w.u64(self.bad_messages);
+        w.u8(self.check_verdict);
+        w.u8(self.check_action);
+        w.u8(self.fallback_verdict);
+        w.u32(self.check_samples);
+        w.f64(self.check_score);
+        w.f64(self.fallback_score);
     }
 
     fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
@@ -83,6 +105,12 @@ impl Message for BinLatency {
             queue_depth: r.u32("queue_depth")?,
             drops: r.u64("drops")?,
             bad_messages: r.u64("bad_messages")?,
+            check_verdict: r.u8("check_verdict")?,
+            check_action: r.u8("check_action")?,
+            fallback_verdict: r.u8("fallback_verdict")?,
+            check_samples: r.u32("check_samples")?,
+            check_score: r.f64("check_score")?,
+            fallback_score: r.f64("fallback_score")?,
         })
     }
 }

@@ -1,7 +1,9 @@
 //! The node's processing stages that need no transport: pairing left, right and pose by
 //! timestamp ([`sync`]) and cutting the synchronised stream into bins ([`binner`]). The zenoh
-//! side feeds them and the worker consumes what they emit.
+//! side feeds them and the worker consumes what they emit, checking every bin's map
+//! against its own stereo pair ([`self_check`]).
 
 pub mod binner;
+pub mod self_check;
 pub mod sync;
 pub mod worker;

@@ -1,7 +1,9 @@
 //! The worker thread: it owns the reconstructor and the rasterizer, takes one bin's first
 //! stereo pair at a time from a bounded queue and hands back the bin's Gaussian map with its
 //! timings as soon as the model is done, then the map's render from the input view (so
-//! renders never delay the map). The async side
+//! renders never delay the map). Every map is checked against the bin's own stereo pair
+//! first, and a failing one is flagged, dimmed or replaced by SGM's ([`super::self_check`]).
+//! The async side
 //! never blocks on it: when the queue is full the oldest waiting bin is dropped and counted
 //! (keep newest), because a map of the road just driven is worth more than a late one. A panic
 //! inside the reconstructor is caught, reported on that bin, and the worker goes on.
@@ -18,6 +20,8 @@ use model::frame::{RgbImage, Side, StereoFrame, StereoRig};
 use model::reconstruct::{Reconstructor, StereoView};
 use renderer::gpu::GpuRasterizer;
 use renderer::{GaussianSet, RenderSettings};
+
+use super::self_check::{CheckOutcome, OnCheckFail, SelfCheck};
 
 /// Which rasterizer draws each bin's map from its input (left) view.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -72,7 +76,8 @@ pub struct Stamps {
     pub opened_ns: i64,
     /// The reconstructor started.
     pub model_start_ns: i64,
-    /// The reconstructor returned.
+    /// The reconstructor returned and the map was checked (and replaced, if it failed and
+    /// the policy says so).
     pub model_end_ns: i64,
     /// Renders of the bin (if any) were done.
     pub render_end_ns: i64,
@@ -102,6 +107,8 @@ pub struct Output {
     pub bin_to_world: DAffine3,
     /// The bin's map in the bin frame, or why there is none.
     pub result: Result<GaussianSet, String>,
+    /// The map's self-check and what was done about it.
+    pub check: CheckOutcome,
     /// A [`Rendered`] follows for this bin.
     pub render_follows: bool,
     /// Stamps up to the model's end.
@@ -149,11 +156,13 @@ pub struct Worker {
 
 impl Worker {
     /// Starts the worker with `reconstructor`, renders drawn `with` a rasterizer, a queue of
-    /// `capacity` bins, and `on_event` called on the worker thread for every map and render.
+    /// `capacity` bins, maps failing their self-check handled as `on_check_fail` says, and
+    /// `on_event` called on the worker thread for every map and render.
     pub fn spawn(
         mut reconstructor: Box<dyn Reconstructor + Send>,
         with: RenderWith,
         capacity: usize,
+        on_check_fail: OnCheckFail,
         mut on_event: impl FnMut(WorkerEvent) + Send + 'static,
     ) -> Self {
         let (tx, rx) = crossbeam_channel::bounded::<Job>(capacity.max(1));
@@ -162,9 +171,11 @@ impl Worker {
             .name("stereosplat-worker".into())
             .spawn(move || {
                 let mut raster = with.raster();
+                let mut self_check = SelfCheck::new(on_check_fail);
                 for job in rx.iter() {
                     run_job(
                         reconstructor.as_mut(),
+                        &mut self_check,
                         raster.as_mut(),
                         job,
                         rx.len(),
@@ -234,6 +245,7 @@ impl Drop for Worker {
 
 fn run_job(
     reconstructor: &mut dyn Reconstructor,
+    self_check: &mut SelfCheck,
     raster: Option<&mut Raster>,
     job: Job,
     queue_depth: usize,
@@ -249,17 +261,25 @@ fn run_job(
         right_camera: job.rig.local_camera(origin, origin, Side::Right),
     };
     stamps.model_start_ns = now_ns();
-    let result = match catch_unwind(AssertUnwindSafe(|| reconstructor.reconstruct(&[view]))) {
-        Ok(Ok(set)) => Ok(set),
-        Ok(Err(e)) => Err(e.to_string()),
-        Err(panic) => Err(format!(
-            "reconstructor panicked: {}",
-            panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("(no message)")
-        )),
+    let checked = catch_unwind(AssertUnwindSafe(|| {
+        match reconstructor.reconstruct(&[view]) {
+            Ok(set) => self_check.apply(reconstructor.name(), &view, set),
+            Err(e) => (Err(e.to_string()), CheckOutcome::default()),
+        }
+    }));
+    let (result, check) = match checked {
+        Ok(done) => done,
+        Err(panic) => (
+            Err(format!(
+                "reconstructor panicked: {}",
+                panic
+                    .downcast_ref::<String>()
+                    .map(String::as_str)
+                    .or_else(|| panic.downcast_ref::<&str>().copied())
+                    .unwrap_or("(no message)")
+            )),
+            CheckOutcome::default(),
+        ),
     };
     stamps.model_end_ns = now_ns();
     // The set goes out with the map; the render needs only a copy of what it draws.
@@ -271,6 +291,7 @@ fn run_job(
         bin_id: job.bin_id,
         bin_to_world: origin,
         result,
+        check,
         render_follows: to_render.is_some(),
         stamps,
         queue_depth,

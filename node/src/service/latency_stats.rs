@@ -16,6 +16,9 @@
 //! as soon as the bin opens, so its map is normally published before the frame that closes
 //! the bin (8 m later) arrives; a positive value means the worker was slower than the drive.
 //!
+//! Beside the stages it counts the bins' self-check verdicts and what the node did about
+//! failures ([`CheckCounts`]), so `monitor` shows how many maps were flagged or replaced.
+//!
 //! Percentiles are nearest-rank: the p-th percentile of n sorted values is the value at rank
 //! `ceil(p / 100 * n)` (1-based), so it is always one of the measured values; p100 is the
 //! maximum. Every duration is kept (8 bytes per stage and bin), so memory grows with the
@@ -34,7 +37,50 @@ pub struct LatencyStats {
     /// Durations in nanoseconds, one vector per stage in [`STAGES`] order.
     durations: [Vec<i64>; STAGES.len()],
     max_queue_depth: u32,
+    checks: CheckCounts,
     last: Option<BinLatency>,
+}
+
+/// Bins by self-check verdict (`BinLatency.check_verdict`) and by what the node did about a
+/// failure (`check_action`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct CheckCounts {
+    /// Checked and passed.
+    pub pass: u64,
+    /// Checked and failed.
+    pub fail: u64,
+    /// Too little texture to tell.
+    pub undetermined: u64,
+    /// Not checked (no map) or an unknown code.
+    pub not_run: u64,
+    /// Failed and published as they were.
+    pub flagged: u64,
+    /// Failed and published with opacity lowered.
+    pub lowered_opacity: u64,
+    /// Failed and replaced by SGM's map.
+    pub fallback_sgm: u64,
+    /// Replaced by SGM's map, which failed its check too.
+    pub fallback_sgm_failed: u64,
+}
+
+impl CheckCounts {
+    fn push(&mut self, l: &BinLatency) {
+        *match l.check_verdict {
+            1 => &mut self.pass,
+            2 => &mut self.fail,
+            3 => &mut self.undetermined,
+            _ => &mut self.not_run,
+        } += 1;
+        match l.check_action {
+            1 => self.flagged += 1,
+            2 => self.lowered_opacity += 1,
+            3 => {
+                self.fallback_sgm += 1;
+                self.fallback_sgm_failed += u64::from(l.fallback_verdict == 2);
+            }
+            _ => {}
+        }
+    }
 }
 
 /// The stamps `(from, to)` a stage runs between.
@@ -80,6 +126,7 @@ impl LatencyStats {
             durations.extend(duration);
         }
         self.max_queue_depth = self.max_queue_depth.max(latency.queue_depth);
+        self.checks.push(latency);
         self.last = Some(*latency);
     }
 
@@ -101,6 +148,7 @@ impl LatencyStats {
             max_queue_depth: self.max_queue_depth,
             drops: self.last.map_or(0, |l| l.drops),
             bad_messages: self.last.map_or(0, |l| l.bad_messages),
+            checks: self.checks,
         }
     }
 }
@@ -166,6 +214,8 @@ pub struct LatencySummary {
     pub drops: u64,
     /// Malformed input messages, as of the last bin pushed.
     pub bad_messages: u64,
+    /// The bins' self-check verdicts and fallbacks.
+    pub checks: CheckCounts,
 }
 
 impl LatencySummary {
@@ -200,10 +250,24 @@ impl fmt::Display for LatencySummary {
                 None => writeln!(f, "{name:<20} {:>6}", 0)?,
             }
         }
-        write!(
+        writeln!(
             f,
             "bins {}, max queue depth {}, drops {}, bad messages {}",
             self.bins, self.max_queue_depth, self.drops, self.bad_messages
+        )?;
+        let c = &self.checks;
+        write!(
+            f,
+            "self-check: pass {}, fail {}, undetermined {}, not run {}; failed bins flagged {}, \
+             opacity lowered {}, replaced by sgm {} (sgm failed too {})",
+            c.pass,
+            c.fail,
+            c.undetermined,
+            c.not_run,
+            c.flagged,
+            c.lowered_opacity,
+            c.fallback_sgm,
+            c.fallback_sgm_failed
         )
     }
 }
@@ -231,6 +295,7 @@ mod tests {
             queue_depth: id as u32 % 3,
             drops: id,
             bad_messages: 2 * id,
+            ..BinLatency::default()
         }
     }
 
@@ -316,6 +381,32 @@ mod tests {
                 ("close_to_publish", None),
             ]
         );
+    }
+
+    #[test]
+    fn check_verdicts_and_fallbacks_are_counted() {
+        let mut stats = LatencyStats::new();
+        // (verdict, action, fallback verdict)
+        for (v, a, fb) in [
+            (1, 0, 0),
+            (2, 3, 1),
+            (2, 3, 2),
+            (2, 1, 0),
+            (3, 0, 0),
+            (0, 0, 0),
+        ] {
+            let mut l = bin(0, 10, 1, 1, 1, 1);
+            (l.check_verdict, l.check_action, l.fallback_verdict) = (v, a, fb);
+            stats.push(&l);
+        }
+        let c = stats.summary().checks;
+        assert_eq!((c.pass, c.fail, c.undetermined, c.not_run), (1, 3, 1, 1));
+        assert_eq!((c.flagged, c.lowered_opacity), (1, 0));
+        assert_eq!((c.fallback_sgm, c.fallback_sgm_failed), (2, 1));
+        assert!(stats
+            .summary()
+            .to_string()
+            .contains("replaced by sgm 2 (sgm failed too 1)"));
     }
 
     #[test]

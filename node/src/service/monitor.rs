@@ -14,7 +14,7 @@ use crate::msg::Message;
 use crate::transport::TransportError;
 
 /// Something the monitor received.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum MonitorEvent {
     /// A bin's latency (already added to the statistics).
     Bin(BinLatency),

@@ -19,6 +19,7 @@ use crate::fusion::FusionConfig;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
 use crate::pipeline::binner::BinnerConfig;
+use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::{now_ns, RenderWith, Worker, WorkerEvent};
 use crate::transport::{open, Outlet, TransportConfig, TransportError};
@@ -38,6 +39,9 @@ pub struct NodeConfig {
     pub queue_capacity: usize,
     /// The reconstructor (see `model::methods`).
     pub method: String,
+    /// What to do with a bin whose map fails its self-check (see
+    /// [`crate::pipeline::self_check`]).
+    pub on_check_fail: OnCheckFail,
     /// The global map's settings.
     pub fusion: FusionConfig,
     /// Where the fused map (PLY, bird's-eye PNG, saved map) goes when the node stops, and
@@ -64,7 +68,8 @@ pub struct NodeConfig {
 }
 
 impl Default for NodeConfig {
-    /// Loopback peer, namespace `stereosplat`, the default method (the learned network), a
+    /// Loopback peer, namespace `stereosplat`, the default method (the learned network, with
+    /// bins failing the self-check replaced by SGM's), a
     /// snapshot every 10 bins, renders on, nothing exported (with an out folder: resume its
     /// checkpoint, checkpoint after every bin), diagnostics every second.
     fn default() -> Self {
@@ -75,6 +80,7 @@ impl Default for NodeConfig {
             binner: BinnerConfig::default(),
             queue_capacity: 4,
             method: model::methods::DEFAULT.into(),
+            on_check_fail: OnCheckFail::default(),
             fusion: FusionConfig::default(),
             out_dir: None,
             start_map: StartMap::Resume,
@@ -189,6 +195,7 @@ pub async fn run_announced(
         model::methods::by_name(&config.method)?,
         config.renders,
         config.queue_capacity,
+        config.on_check_fail,
         move |o| {
             let _ = out_tx.send(o);
         },

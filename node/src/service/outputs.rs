@@ -8,6 +8,11 @@
 //! first `map/update` is a snapshot of the restored map with the restored sequence number
 //! (a new map's first is increment 1), and the increments go on from there; the counter
 //! `map/epoch` in the diagnostics is the number of times the map was resumed.
+//!
+//! Every map's self-check goes out in the bin's latency message and is counted:
+//! `check/pass`, `check/fail`, `check/undetermined`, and what was done about failures,
+//! `check/flagged`, `check/lowered_opacity`, `check/fallback_sgm` (with
+//! `check/fallback_sgm_failed` when SGM's map failed too).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -27,6 +32,7 @@ use crate::msg::pose::pose_from_affine;
 use crate::msg::sensor_msgs::Image;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
+use crate::pipeline::self_check::{verdict_code, CheckAction, CheckOutcome};
 use crate::pipeline::worker::{now_ns, Output, Rendered, Stamps, WorkerEvent};
 use crate::transport::Outlet;
 
@@ -60,8 +66,8 @@ pub(super) struct Outputs<'a> {
     resume_pending: bool,
     /// Stamps of closed bins, until their map is published.
     closed_ns: BTreeMap<u64, i64>,
-    /// Stamps of published bins, until they close (and their render is out).
-    published: BTreeMap<u64, Stamps>,
+    /// Stamps and self-check of published bins, until they close (and their render is out).
+    published: BTreeMap<u64, (Stamps, CheckOutcome)>,
     /// Published bins whose render is still to come.
     awaiting_render: BTreeSet<u64>,
     /// Bad input, drops, errors.
@@ -158,19 +164,37 @@ impl<'a> Outputs<'a> {
             }
             Err(_) => self.counters.add("error/reconstruct", 1),
         }
+        self.count_check(&out.check);
         if out.render_follows {
             self.awaiting_render.insert(out.bin_id);
         }
-        self.published.insert(out.bin_id, stamps);
+        self.published.insert(out.bin_id, (stamps, out.check));
         self.counters.set("queue/depth", out.queue_depth as u64);
         self.flush_latency(drops).await
+    }
+
+    /// Counts a bin's self-check and what was done about it.
+    fn count_check(&mut self, check: &CheckOutcome) {
+        if let Some(r) = &check.primary {
+            self.counters.add(&format!("check/{}", r.verdict.name()), 1);
+        }
+        let action = match check.action {
+            CheckAction::None => return,
+            CheckAction::Flagged => "check/flagged",
+            CheckAction::LoweredOpacity => "check/lowered_opacity",
+            CheckAction::Sgm => "check/fallback_sgm",
+        };
+        self.counters.add(action, 1);
+        if check.action == CheckAction::Sgm && check.flagged() {
+            self.counters.add("check/fallback_sgm_failed", 1);
+        }
     }
 
     /// Publishes a bin's render (frame `bin_<id>`, stamped like its map) and then its
     /// latency if the bin has closed.
     async fn rendered(&mut self, r: Rendered, drops: u64) -> Result<(), ServiceError> {
         self.awaiting_render.remove(&r.bin_id);
-        let stamps = self.published.get_mut(&r.bin_id);
+        let stamps = self.published.get_mut(&r.bin_id).map(|(s, _)| s);
         let arrival_ns = stamps.as_ref().map_or(0, |s| s.arrival_ns);
         if let Some(s) = stamps {
             s.render_end_ns = r.render_end_ns;
@@ -273,7 +297,8 @@ impl<'a> Outputs<'a> {
             .copied()
             .collect();
         for id in ready {
-            let s = self.published.remove(&id).unwrap_or_default();
+            let (s, check) = self.published.remove(&id).unwrap_or_default();
+            let score = |r: Option<&model::consistency::CheckReport>| r.map_or(0.0, |r| r.score);
             let closed = self.closed_ns.remove(&id).unwrap_or_default();
             let msg = BinLatency {
                 bin_id: id,
@@ -286,6 +311,12 @@ impl<'a> Outputs<'a> {
                 queue_depth: self.counters.get("queue/depth") as u32,
                 drops,
                 bad_messages: self.counters.sum("bad_message/"),
+                check_verdict: verdict_code(check.primary.as_ref()),
+                check_action: check.action.code(),
+                fallback_verdict: verdict_code(check.fallback.as_ref()),
+                check_samples: check.primary.map_or(0, |r| r.samples),
+                check_score: score(check.primary.as_ref()) as f64,
+                fallback_score: score(check.fallback.as_ref()) as f64,
             };
             self.put(keys::LATENCY, msg.encode()).await?;
             let diagnostics = self.counters.diagnostics(now_ns());

@@ -52,10 +52,15 @@ impl Drive {
     /// The small, quick drive the load tests replay many times (40 frames at 272x72, no
     /// supersampling, seed 23).
     pub fn small(tag: &str) -> Self {
+        Self::small_of_seed(tag, 23)
+    }
+
+    /// A drive like [`Drive::small`] of another seed (another street).
+    pub fn small_of_seed(tag: &str, seed: u64) -> Self {
         Self::generate(
             tag,
             &SynthConfig {
-                seed: 23,
+                seed,
                 frames: 40,
                 width: 272,
                 height: 72,

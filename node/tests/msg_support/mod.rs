@@ -89,6 +89,12 @@ pub fn samples() -> Samples {
             queue_depth: 2,
             drops: 1,
             bad_messages: u64::MAX - 5,
+            check_verdict: 2,
+            check_action: 3,
+            fallback_verdict: 1,
+            check_samples: 1023,
+            check_score: 0.125,
+            fallback_score: 0.9375,
         },
         diagnostics: Diagnostics {
             stamp_ns: -42,

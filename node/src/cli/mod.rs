@@ -8,6 +8,7 @@ pub mod eval;
 pub mod launch;
 pub mod logs;
 pub mod progress;
+pub mod reconstruct;
 pub mod render;
 pub mod scene_source;
 pub mod shutdown;

@@ -7,6 +7,7 @@ pub mod demo;
 pub mod eval;
 pub mod launch;
 pub mod logs;
+pub mod method_args;
 pub mod progress;
 pub mod reconstruct;
 pub mod render;

@@ -6,6 +6,7 @@
 
 use std::path::PathBuf;
 
+use super::method_args::MethodArgs;
 use crate::pair::calib::CalibrationInput;
 use crate::pair::outputs::{write_all, Summary};
 use crate::pair::photometric::photometric;
@@ -48,18 +49,8 @@ pub struct ReconstructArgs {
     /// Output folder.
     #[arg(long, default_value = "out/reconstruct")]
     out: PathBuf,
-    /// The reconstructor (see `model::methods`).
-    #[arg(long, default_value = model::methods::DEFAULT)]
-    method: String,
-    /// Network preset of a learned method (tiny, small, paper; default tiny).
-    #[arg(long)]
-    preset: Option<String>,
-    /// Weights of a learned method (default: the preset's shipped file).
-    #[arg(long)]
-    weights: Option<PathBuf>,
-    /// Change a preset setting of a learned method, `KEY=VALUE` (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    settings: Vec<String>,
+    #[command(flatten)]
+    method: MethodArgs,
     /// Most pixels the reconstructor works at; larger pairs are area-averaged down.
     #[arg(long, default_value_t = DEFAULT_WORKING_PIXELS)]
     working_pixels: u64,
@@ -92,12 +83,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         .as_deref()
         .map(|path| TruthDisparity::load(path, args.truth_scale))
         .transpose()?;
-    let mut reconstructor = model::methods::build(
-        &args.method,
-        args.preset.as_deref(),
-        args.weights.as_deref(),
-        &args.settings,
-    )?;
+    let mut reconstructor = args.method.build()?;
     let options = PairOptions {
         working_pixels: args.working_pixels,
         max_vertical_px: args.max_vertical_disparity,

@@ -124,7 +124,7 @@ impl CalibrationInput {
                     "give intrinsics either as flags or as --camera-info, not both".into(),
                 ))
             }
-            Some(left) => self.from_files(left)?,
+            Some(left) => self.files_rig(left)?,
             None => {
                 if self.camera_info_right.is_some() {
                     return Err(PairError::MissingCalibration(
@@ -182,7 +182,7 @@ impl CalibrationInput {
     }
 
     /// Intrinsics from the left file and the baseline from the right file, if given.
-    fn from_files(&self, left: &Path) -> Result<(Intrinsics, Option<f64>), PairError> {
+    fn files_rig(&self, left: &Path) -> Result<(Intrinsics, Option<f64>), PairError> {
         let (k, _) = from_file(left)?;
         let Some(right) = &self.camera_info_right else {
             return Ok((k, None));

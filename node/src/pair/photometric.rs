@@ -85,3 +85,79 @@ pub fn photometric(
         errors,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use renderer::Intrinsics;
+
+    /// A 64x4 pair whose right image is the left moved 4 px to the left, fx * B = 40.
+    fn pair() -> (RgbImage, RgbImage, Calibration) {
+        let (w, h) = (64u32, 4u32);
+        let value = |x: i32| ((x * 37 % 11) as f32) / 10.0;
+        let image = |shift: i32| RgbImage {
+            width: w,
+            height: h,
+            data: (0..w * h)
+                .flat_map(|i| [value((i % w) as i32 + shift); 3])
+                .collect(),
+        };
+        let calib = Calibration {
+            intrinsics: Intrinsics {
+                fx: 40.0,
+                fy: 40.0,
+                cx: 32.0,
+                cy: 2.0,
+                width: w,
+                height: h,
+            },
+            baseline: 1.0,
+        };
+        (image(0), image(4), calib)
+    }
+
+    #[test]
+    fn the_right_depth_is_consistent_and_a_wrong_one_is_not() {
+        let (left, right, calib) = pair();
+        let depth = |z: f32| DepthMap {
+            width: 64,
+            height: 4,
+            data: vec![z; 256],
+        };
+        let good = photometric(&left, &right, &depth(10.0), &calib);
+        assert_eq!(good.mae, Some(0.0));
+        // Columns 0..3 match outside the right image.
+        assert!((good.scored_fraction - 60.0 / 64.0).abs() < 1e-9);
+        let bad = photometric(&left, &right, &depth(20.0), &calib);
+        assert!(bad.mae.unwrap() > 0.1, "{:?}", bad.mae);
+    }
+
+    #[test]
+    fn pixels_hidden_behind_a_nearer_surface_are_not_scored() {
+        let (left, right, calib) = pair();
+        // Background at 4 px disparity; columns 20..24 a near strip at 10 px, which covers
+        // the background pixels whose match falls at or right of its own matches.
+        let mut data = vec![10.0f32; 256];
+        for row in data.chunks_exact_mut(64) {
+            row[20..24].fill(4.0);
+        }
+        let depth = DepthMap {
+            width: 64,
+            height: 4,
+            data,
+        };
+        let p = photometric(&left, &right, &depth, &calib);
+        // Background columns 14..19 match at 10..15, behind the strip's 10..13: hidden.
+        for x in 14..20 {
+            assert!(p.errors[x].is_nan(), "column {x}");
+        }
+        assert!(p.errors[13].is_finite() && p.errors[20].is_finite());
+    }
+
+    #[test]
+    fn no_depth_scores_nothing() {
+        let (left, right, calib) = pair();
+        let p = photometric(&left, &right, &DepthMap::empty(64, 4), &calib);
+        assert_eq!((p.mae, p.scored_fraction), (None, 0.0));
+    }
+}

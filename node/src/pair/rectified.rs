@@ -141,3 +141,50 @@ pub fn vertical_disparity(left: &RgbImage, right: &RgbImage) -> VerticalDisparit
         search_rows: rows as u32,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Seeded noise, smoothed over 2x2 so patches correlate under sub-pixel shifts.
+    fn noise(width: u32, height: u32, dx: i64, dy: i64) -> RgbImage {
+        let hash = |x: i64, y: i64| {
+            let mut v = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) as u64;
+            v ^= v >> 13;
+            v = v.wrapping_mul(0x5bd1_e995);
+            (v >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let data = (0..height as i64)
+            .flat_map(|y| (0..width as i64).map(move |x| (x + dx, y + dy)))
+            .flat_map(|(x, y)| {
+                let v = (hash(x, y) + hash(x + 1, y) + hash(x, y + 1) + hash(x + 1, y + 1)) / 4.0;
+                [v; 3]
+            })
+            .collect();
+        RgbImage {
+            width,
+            height,
+            data,
+        }
+    }
+
+    #[test]
+    fn a_rectified_pair_has_none_and_a_shifted_one_its_shift() {
+        let left = noise(200, 96, 0, 0);
+        let rectified = vertical_disparity(&left, &noise(200, 96, 7, 0));
+        assert!(rectified.median_px.unwrap() < 0.1, "{rectified:?}");
+        assert!(rectified.patches >= MIN_PATCHES);
+        let shifted = vertical_disparity(&left, &noise(200, 96, 7, 5));
+        let v = shifted.median_px.unwrap();
+        assert!((v - 5.0).abs() < 0.25, "{shifted:?}");
+    }
+
+    #[test]
+    fn uniform_and_tiny_images_have_no_answer() {
+        let flat = RgbImage::new(120, 80);
+        assert_eq!(vertical_disparity(&flat, &flat).median_px, None);
+        let tiny = noise(5, 3, 0, 0);
+        let v = vertical_disparity(&tiny, &tiny);
+        assert_eq!((v.median_px, v.patches), (None, 0));
+    }
+}

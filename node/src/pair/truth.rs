@@ -121,3 +121,74 @@ pub fn score(
     };
     (scores, errors)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use renderer::Intrinsics;
+
+    fn calib(width: u32, height: u32) -> Calibration {
+        Calibration {
+            intrinsics: Intrinsics {
+                fx: 100.0,
+                fy: 100.0,
+                cx: 0.0,
+                cy: 0.0,
+                width,
+                height,
+            },
+            baseline: 0.5,
+        }
+    }
+
+    #[test]
+    fn a_missing_prediction_is_wrong_for_bad_n_and_absent_from_epe() {
+        // fx * B = 50: depths 5, 2.5, 10 m are disparities 10, 20, 5 px; the 4th has none.
+        let depth = DepthMap {
+            width: 4,
+            height: 1,
+            data: vec![5.0, 2.5, 10.0, 0.0],
+        };
+        let truth = TruthDisparity {
+            width: 4,
+            height: 1,
+            data: vec![10.5, 22.0, 0.0, 7.0],
+        };
+        let (s, errors) = score(&depth, &calib(4, 1), &truth);
+        assert_eq!(s.truth_pixels, 3);
+        assert!((s.bad1 - 100.0 * 2.0 / 3.0).abs() < 1e-9, "{s:?}");
+        assert!((s.bad3 - 100.0 / 3.0).abs() < 1e-9, "{s:?}");
+        assert!((s.epe.unwrap() - 1.25).abs() < 1e-6, "{s:?}");
+        assert!((s.density - 100.0 * 2.0 / 3.0).abs() < 1e-9);
+        assert_eq!(s.bad3_predicted, 0.0);
+        assert!(errors[2].is_nan() && errors[3].is_infinite());
+    }
+
+    #[test]
+    fn a_half_size_truth_halves_the_predicted_disparity() {
+        let depth = DepthMap {
+            width: 4,
+            height: 2,
+            data: vec![5.0; 8],
+        };
+        let truth = TruthDisparity {
+            width: 2,
+            height: 1,
+            data: vec![5.0, 5.0],
+        };
+        let (s, _) = score(&depth, &calib(4, 2), &truth);
+        assert_eq!((s.bad1, s.epe), (0.0, Some(0.0)));
+    }
+
+    #[test]
+    fn nothing_predicted_and_no_truth_give_no_nan() {
+        let depth = DepthMap::empty(3, 3);
+        let truth = TruthDisparity {
+            width: 3,
+            height: 3,
+            data: vec![0.0; 9],
+        };
+        let (s, _) = score(&depth, &calib(3, 3), &truth);
+        assert_eq!((s.bad1, s.bad3, s.density, s.epe), (0.0, 0.0, 0.0, None));
+    }
+}

@@ -6,7 +6,7 @@
 #
 #   bash scripts/real_pairs.sh [--weights W] [--preset P] [--out DIR] [--data DIR]
 #
-# Needs the pairs (bash scripts/real_data.sh) and the release binary (built if missing).
+# Needs the pairs (bash scripts/real_data.sh); builds the release binary (a no-op when fresh).
 # Calibrations passed (disparities are scored in pixels; the rig only sets the depth range):
 #   Aloe: fx 3740 px (Middlebury 2006's focal at full size), a 0.10 m baseline, principal
 #     point at the centre: the truth's 45..211 px become 8.3..1.8 m, inside the learned
@@ -15,21 +15,21 @@
 #     the truth's 7..60 px are 27..3.2 m.
 #   OAK-D: the pairs' own calibration (stereodemo_calibration.json).
 set -euo pipefail
-cd "$(dirname "$0")/.."
-command="bash scripts/real_pairs.sh $*"
+command="bash scripts/real_pairs.sh${*:+ $*}"
 weights=() preset=() out=results/real_pairs data=data/real
 while [ $# -gt 0 ]; do
   case "$1" in
-    --weights) weights=(--weights "$2"); shift 2 ;;
+    --weights) weights=(--weights "$(realpath -m "$2")"); shift 2 ;;
     --preset) preset=(--preset "$2"); shift 2 ;;
-    --out) out="$2"; shift 2 ;;
-    --data) data="$2"; shift 2 ;;
+    --out) out="$(realpath -m "$2")"; shift 2 ;;
+    --data) data="$(realpath -m "$2")"; shift 2 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
   esac
 done
+cd "$(dirname "$0")/.."
 [ -s "$data/aloe/aloeGT.png" ] || { echo "no real pairs in $data: run bash scripts/real_data.sh $data" >&2; exit 1; }
 bin=target/release/stereosplat
-[ -x "$bin" ] || cargo build --release --bin stereosplat
+cargo build --release --quiet --bin stereosplat
 runs=out/real_pairs
 rm -rf "$runs"
 

@@ -261,7 +261,7 @@ fn camera_info_yaml_and_every_bad_input_give_their_result() {
     let mut args = pair_args(&left, &small, &out);
     args.extend(strings(&["--fx", "300", "--baseline", "0.5"]));
     fails(args, "left and right images: 272x72 against 100x40");
-    camca_size_mismatch(&left, &right, &out, &dir, [fx, fy, cx, cy]);
+    calibration_size_mismatch(&left, &right, &out, &dir, [fx, fy, cx, cy]);
 
     // A right image shifted 6 rows down: not rectified, refused with the measured number.
     let shifted = dir.join("shifted.png");
@@ -284,7 +284,7 @@ fn camera_info_yaml_and_every_bad_input_give_their_result() {
 }
 
 /// A camera-info YAML for 544x144 against 272x72 images is a size mismatch.
-fn camca_size_mismatch(left: &Path, right: &Path, out: &Path, dir: &Path, k: [f64; 4]) {
+fn calibration_size_mismatch(left: &Path, right: &Path, out: &Path, dir: &Path, k: [f64; 4]) {
     let yaml = dir.join("big.yaml");
     camera_yaml(&yaml, (544, 144), [k[0], k[1], k[2], k[3], 0.0]);
     let mut args = pair_args(left, right, out);

@@ -6,6 +6,8 @@
 //!   messages and their rmw_zenoh type hashes.
 //! - [`pipeline`]: time sync, binning and the worker thread that owns the reconstructor.
 //! - [`fusion`]: the fused global map in the f64 world frame.
+//! - [`pair`]: one stereo pair from files reconstructed, checked and scored
+//!   (`stereosplat reconstruct`).
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
 
 pub mod bag;
@@ -13,6 +15,7 @@ pub mod cli;
 pub mod fusion;
 pub mod launch;
 pub mod msg;
+pub mod pair;
 pub mod pipeline;
 pub mod service;
 pub mod transport;

@@ -4,8 +4,8 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_model, bench_node, demo, eval, launch, logs, render, stream, synth,
-    train,
+    bench, bench_check, bench_model, bench_node, demo, eval, launch, logs, reconstruct, render,
+    stream, synth, train,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -29,6 +29,8 @@ enum Command {
     SynthHeldout(synth::HeldoutArgs),
     /// The paper's evaluation protocol on a data root: table, JSON, pictures.
     Eval(eval::EvalArgs),
+    /// One rectified stereo pair of image files in: a PLY, depth PNGs, a render, scores.
+    Reconstruct(reconstruct::ReconstructArgs),
     /// Train a network preset: checkpoints, resume, CSV log, loss curve, safetensors.
     Train(train::TrainArgs),
     /// Start a graph of processes from a launch file; stop them together.
@@ -66,6 +68,7 @@ fn main() -> Result<()> {
         Command::Synth(args) => synth::run(&args),
         Command::SynthHeldout(args) => synth::run_heldout(&args),
         Command::Eval(args) => eval::run(&args),
+        Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Train(args) => train::run(&args),
         Command::Launch(args) => launch::run(&args),
         Command::Run(args) => stream::run(&args),

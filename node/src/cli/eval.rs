@@ -14,6 +14,7 @@ use model::lpips::Lpips;
 use model::metrics::DepthFilter;
 use renderer::gpu::GpuRasterizer;
 
+use super::method_args::MethodArgs;
 use super::progress;
 
 /// Flags of `eval`.
@@ -25,19 +26,8 @@ pub struct EvalArgs {
     /// Only this sequence (default: every sequence under `data_2d_raw`).
     #[arg(long)]
     seq: Option<String>,
-    /// The reconstructor (see `model::methods`).
-    #[arg(long, default_value = model::methods::DEFAULT)]
-    method: String,
-    /// Network preset of a learned method (tiny, small, paper; default tiny).
-    #[arg(long)]
-    preset: Option<String>,
-    /// Weights of a learned method (default: the preset's shipped file).
-    #[arg(long)]
-    weights: Option<PathBuf>,
-    /// Change a preset setting of a learned method, `KEY=VALUE` (repeatable), e.g.
-    /// `--set pair_fusion_margin=null`.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    settings: Vec<String>,
+    #[command(flatten)]
+    method: MethodArgs,
     /// Output folder.
     #[arg(long, default_value = "out/eval")]
     out: PathBuf,
@@ -77,12 +67,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         None => Sequence::list(&args.data)
             .with_context(|| format!("listing sequences in {}", args.data.display()))?,
     };
-    let mut reconstructor = model::methods::build(
-        &args.method,
-        args.preset.as_deref(),
-        args.weights.as_deref(),
-        &args.settings,
-    )?;
+    let mut reconstructor = args.method.build()?;
     let mut raster = match args.gpu {
         true => Raster::Gpu(Box::new(GpuRasterizer::new().context("no wgpu adapter")?)),
         false => Raster::Cpu,

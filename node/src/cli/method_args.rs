@@ -1,0 +1,38 @@
+//! The flags that pick a reconstructor (`--method`, `--preset`, `--weights`, `--set`), shared
+//! by the commands that run one on files (`eval`, `reconstruct`).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use model::methods::MethodError;
+use model::reconstruct::Reconstructor;
+
+/// Which reconstructor, with which preset, weights and settings.
+#[derive(Args, Clone, Debug)]
+pub struct MethodArgs {
+    /// The reconstructor (see `model::methods`).
+    #[arg(long, default_value = model::methods::DEFAULT)]
+    pub method: String,
+    /// Network preset of a learned method (tiny, small, paper; default tiny).
+    #[arg(long)]
+    pub preset: Option<String>,
+    /// Weights of a learned method (default: the preset's shipped file).
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
+    /// Change a preset setting of a learned method, `KEY=VALUE` (repeatable), e.g.
+    /// `--set pair_fusion_margin=null`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub settings: Vec<String>,
+}
+
+impl MethodArgs {
+    /// The reconstructor these flags name ([`model::methods::build`]).
+    pub fn build(&self) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
+        model::methods::build(
+            &self.method,
+            self.preset.as_deref(),
+            self.weights.as_deref(),
+            &self.settings,
+        )
+    }
+}

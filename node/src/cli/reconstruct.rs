@@ -1,0 +1,151 @@
+//! `stereosplat reconstruct`: one rectified stereo pair of image files in (any size, grey
+//! or colour, PNG or JPEG), the calibration from flags or ROS camera-info YAML; a 3DGS PLY,
+//! a 16-bit KITTI-convention depth PNG, a colour-mapped depth PNG, a render and a JSON
+//! summary out (see `node::pair::outputs`). With `--truth-disparity` it also scores the
+//! disparity against a ground truth (bad-1, bad-3, end-point error, density).
+
+use std::path::PathBuf;
+
+use super::method_args::MethodArgs;
+use crate::pair::calib::CalibrationInput;
+use crate::pair::outputs::{write_all, Summary};
+use crate::pair::photometric::photometric;
+use crate::pair::run::DEFAULT_WORKING_PIXELS;
+use crate::pair::truth::{score, TruthDisparity};
+use crate::pair::{images, reconstruct_pair, PairOptions};
+use anyhow::{Context, Result};
+use clap::Args;
+
+/// Flags of `reconstruct`.
+#[derive(Args, Clone, Debug)]
+pub struct ReconstructArgs {
+    /// Left (reference) image of the rectified pair.
+    #[arg(long)]
+    left: PathBuf,
+    /// Right image, same size.
+    #[arg(long)]
+    right: PathBuf,
+    /// Focal length along x, pixels of the input images.
+    #[arg(long, conflicts_with = "camera_info")]
+    fx: Option<f64>,
+    /// Focal length along y (default: fx).
+    #[arg(long, conflicts_with = "camera_info")]
+    fy: Option<f64>,
+    /// Principal point x (default: the image centre).
+    #[arg(long, conflicts_with = "camera_info")]
+    cx: Option<f64>,
+    /// Principal point y (default: the image centre).
+    #[arg(long, conflicts_with = "camera_info")]
+    cy: Option<f64>,
+    /// Baseline in metres (or from --camera-info-right).
+    #[arg(long)]
+    baseline: Option<f64>,
+    /// The left camera's ROS camera_calibration YAML (rectified P is used).
+    #[arg(long)]
+    camera_info: Option<PathBuf>,
+    /// The right camera's YAML: its P[0,3] = -fx * baseline gives the baseline.
+    #[arg(long)]
+    camera_info_right: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long, default_value = "out/reconstruct")]
+    out: PathBuf,
+    #[command(flatten)]
+    method: MethodArgs,
+    /// Most pixels the reconstructor works at; larger pairs are area-averaged down.
+    #[arg(long, default_value_t = DEFAULT_WORKING_PIXELS)]
+    working_pixels: u64,
+    /// Refuse a pair whose median |vertical disparity| exceeds this many input pixels.
+    #[arg(long, default_value_t = PairOptions::default().max_vertical_px)]
+    max_vertical_disparity: f32,
+    /// Ground-truth disparity of the left image (8- or 16-bit grey PNG, 0 = unknown).
+    #[arg(long)]
+    truth_disparity: Option<PathBuf>,
+    /// Disparity per ground-truth PNG unit (Middlebury 8-bit: 1; KITTI 16-bit: 1/256).
+    #[arg(long, default_value_t = 1.0)]
+    truth_scale: f32,
+}
+
+/// Runs the reconstruction and writes the outputs.
+pub fn run(args: &ReconstructArgs) -> Result<()> {
+    let (left, right) = images::load_pair(&args.left, &args.right)?;
+    let calib = CalibrationInput {
+        fx: args.fx,
+        fy: args.fy,
+        cx: args.cx,
+        cy: args.cy,
+        baseline: args.baseline,
+        camera_info: args.camera_info.clone(),
+        camera_info_right: args.camera_info_right.clone(),
+    }
+    .resolve((left.width, left.height))?;
+    let truth = args
+        .truth_disparity
+        .as_deref()
+        .map(|path| TruthDisparity::load(path, args.truth_scale))
+        .transpose()?;
+    let mut reconstructor = args.method.build()?;
+    let options = PairOptions {
+        working_pixels: args.working_pixels,
+        max_vertical_px: args.max_vertical_disparity,
+        ..PairOptions::default()
+    };
+    let pair = reconstruct_pair(&left, &right, &calib, reconstructor.as_mut(), &options)?;
+    let consistency = photometric(&left, &right, &pair.depth, &calib);
+    let scored = truth.as_ref().map(|t| score(&pair.depth, &calib, t));
+    let summary = Summary::new(
+        reconstructor.name(),
+        &calib,
+        &pair,
+        consistency,
+        scored.as_ref().map(|(s, _)| s.clone()),
+    );
+    let truth_errors = scored
+        .as_ref()
+        .zip(truth.as_ref())
+        .map(|((_, e), t)| (e.as_slice(), (t.width, t.height)));
+    write_all(&args.out, &pair, &summary, truth_errors)
+        .with_context(|| format!("writing into {}", args.out.display()))?;
+    print(&summary);
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// Prints the summary's figures, one per line.
+fn print(s: &Summary) {
+    println!(
+        "{}: {}x{} input, worked at {}x{}, {} Gaussians in {:.2} s",
+        s.method,
+        s.input_size.0,
+        s.input_size.1,
+        s.working_size.0,
+        s.working_size.1,
+        s.gaussians,
+        s.reconstruct_s
+    );
+    match s.vertical_input_px {
+        Some(v) => println!(
+            "vertical disparity: median {v:.2} px over {} patches",
+            s.vertical.patches
+        ),
+        None => println!("vertical disparity: too little texture to measure"),
+    }
+    println!("depth: {:.1}% of pixels", s.depth_density);
+    if let Some([p5, p50, p95]) = s.depth_percentiles_m {
+        println!("depth percentiles 5/50/95: {p5:.2} / {p50:.2} / {p95:.2} m");
+    }
+    match s.photometric.mae {
+        Some(m) => println!(
+            "photometric error: {m:.4} on {:.1}% of pixels",
+            100.0 * s.photometric.scored_fraction
+        ),
+        None => println!("photometric error: no pixel scored"),
+    }
+    if let Some(t) = &s.truth {
+        let epe = t.epe.map_or("n/a".into(), |e| format!("{e:.2} px"));
+        println!(
+            "disparity vs truth: bad-1 {:.2}%, bad-3 {:.2}% (missing counts wrong), EPE {epe}, \
+             density {:.1}%, bad-3 on predicted {:.2}%",
+            t.bad1, t.bad3, t.density, t.bad3_predicted
+        );
+    }
+}

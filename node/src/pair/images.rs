@@ -1,0 +1,53 @@
+//! Reading a pair's image files: PNG or JPEG of any size and channel layout; grey (and grey
+//! with alpha, RGBA, 16-bit) becomes 8-bit RGB with values / 255, as the rest of the project
+//! holds images.
+
+use std::path::Path;
+
+use image::DynamicImage;
+use model::frame::RgbImage;
+
+use super::PairError;
+
+/// Decodes any image file the `image` crate reads (format guessed from the bytes).
+pub fn decode(path: &Path) -> Result<DynamicImage, PairError> {
+    let bytes = std::fs::read(path).map_err(|source| PairError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    image::load_from_memory(&bytes).map_err(|source| PairError::Decode {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The image at `path` as RGB in [0, 1].
+pub fn load_rgb(path: &Path) -> Result<RgbImage, PairError> {
+    let rgb = decode(path)?.to_rgb8();
+    Ok(RgbImage::from_rgb8(rgb.width(), rgb.height(), rgb.as_raw()))
+}
+
+/// The left and right images, which must have one size.
+pub fn load_pair(left: &Path, right: &Path) -> Result<(RgbImage, RgbImage), PairError> {
+    let (l, r) = (load_rgb(left)?, load_rgb(right)?);
+    same_size(
+        "left and right images",
+        (l.width, l.height),
+        (r.width, r.height),
+    )?;
+    Ok((l, r))
+}
+
+/// `a` and `b` are one size, else [`PairError::SizeMismatch`] naming `what`.
+pub fn same_size(what: &str, a: (u32, u32), b: (u32, u32)) -> Result<(), PairError> {
+    match a == b {
+        true => Ok(()),
+        false => Err(PairError::SizeMismatch {
+            what: what.to_string(),
+            a_w: a.0,
+            a_h: a.1,
+            b_w: b.0,
+            b_h: b.1,
+        }),
+    }
+}

@@ -1,0 +1,152 @@
+//! One pair through any reconstructor. The images are area-averaged down to the working size
+//! (the node's own rule, [`InputLimits::working_size`], with a pixel budget), the pair is
+//! checked for rectification there, the reconstructor runs on it with the intrinsics scaled
+//! to match, and its Gaussians are rendered from the left camera at the input size: the
+//! depth (and colour) of every method comes from the same rendering of its Gaussians, so
+//! methods are compared on what they reconstruct, not on how they store it.
+//!
+//! A pixel has depth where the rendered opacity reaches [`PairOptions::min_alpha`]: below it
+//! no surface covers the pixel and the alpha-normalised depth of a faint fringe would be a
+//! guess.
+
+use std::time::Instant;
+
+use glam::{Quat, Vec3};
+use model::frame::{DepthMap, RgbImage};
+use model::kitti360::resample::resample_area;
+use model::reconstruct::{Reconstructor, StereoView};
+use renderer::{cpu, Camera, GaussianSet, RenderOutput, RenderSettings};
+
+use super::images::same_size;
+use super::rectified::{vertical_disparity, VerticalDisparity};
+use super::{Calibration, PairError};
+use crate::service::InputLimits;
+
+/// The working pixel budget by default: a third of a KITTI-360 frame's 1408 x 376 (the
+/// node's own budget). Measured on Aloe (1282x1110, README "Your own stereo pair"): SGM's
+/// bad-3 is 18.4% at 100k px, 17.0% here, 36.5% at the node's 529k px and 56.0% at full size,
+/// where both methods' 200,000-Gaussian budget leaves a third of the pixels uncovered; the
+/// `tiny` network takes 0.7, 1.5, 4.5 and 13.4 s on 2 CPU cores at those sizes.
+pub const DEFAULT_WORKING_PIXELS: u64 = 1408 * 376 / 3;
+
+/// Settings of [`reconstruct_pair`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairOptions {
+    /// Most pixels the reconstructor is given; larger pairs are scaled down, aspect kept.
+    pub working_pixels: u64,
+    /// Largest median |vertical disparity| (input pixels) a pair may show.
+    pub max_vertical_px: f32,
+    /// Rendered opacity from which a pixel has depth.
+    pub min_alpha: f32,
+}
+
+impl Default for PairOptions {
+    fn default() -> Self {
+        Self {
+            working_pixels: DEFAULT_WORKING_PIXELS,
+            max_vertical_px: 2.0,
+            min_alpha: 0.5,
+        }
+    }
+}
+
+/// What [`reconstruct_pair`] made.
+pub struct PairReconstruction {
+    /// The Gaussians, in the left camera's frame (OpenCV axes, metres).
+    pub gaussians: GaussianSet,
+    /// The size the reconstructor worked at.
+    pub working: (u32, u32),
+    /// The rectification check, in working pixels.
+    pub vertical: VerticalDisparity,
+    /// The same in input pixels.
+    pub vertical_input_px: Option<f32>,
+    /// The Gaussians rendered from the left camera at the input size; its depth is zero
+    /// where the pixel has no depth.
+    pub render: RenderOutput,
+    /// Left-camera z-depth at the input size, metres; 0 where there is none.
+    pub depth: DepthMap,
+    /// Seconds the reconstructor took.
+    pub reconstruct_s: f64,
+}
+
+/// The left and right cameras of a rectified rig with intrinsics `k`.
+pub fn rig_cameras(k: renderer::Intrinsics, baseline: f64) -> (Camera, Camera) {
+    (
+        Camera::identity(k),
+        Camera::from_camera_to_world(k, Quat::IDENTITY, Vec3::X * baseline as f32),
+    )
+}
+
+/// Reconstructs the pair and renders it back (see the module documentation).
+pub fn reconstruct_pair(
+    left: &RgbImage,
+    right: &RgbImage,
+    calib: &Calibration,
+    reconstructor: &mut dyn Reconstructor,
+    options: &PairOptions,
+) -> Result<PairReconstruction, PairError> {
+    let size = (left.width, left.height);
+    same_size("left and right images", size, (right.width, right.height))?;
+    same_size(
+        "calibration and images",
+        (calib.intrinsics.width, calib.intrinsics.height),
+        size,
+    )?;
+    let limits = InputLimits {
+        max_working_width: u32::MAX,
+        max_working_pixels: options.working_pixels.max(1),
+        ..InputLimits::default()
+    };
+    let working = limits.working_size(size.0, size.1);
+    let (wl, wr) = (
+        resample_area(left, working.0, working.1),
+        resample_area(right, working.0, working.1),
+    );
+    let vertical = vertical_disparity(&wl, &wr);
+    let to_input = size.1 as f32 / working.1 as f32;
+    let vertical_input_px = vertical.median_px.map(|v| v * to_input);
+    if let Some(median_px) = vertical_input_px.filter(|v| *v > options.max_vertical_px) {
+        return Err(PairError::NotRectified {
+            median_px,
+            patches: vertical.patches,
+            limit_px: options.max_vertical_px,
+        });
+    }
+    let k_working = match working == size {
+        true => calib.intrinsics,
+        false => calib.intrinsics.scaled(working.0, working.1),
+    };
+    let (left_camera, right_camera) = rig_cameras(k_working, calib.baseline);
+    let started = Instant::now();
+    let gaussians = reconstructor
+        .reconstruct(&[StereoView {
+            left: &wl,
+            right: &wr,
+            left_camera,
+            right_camera,
+        }])
+        .map_err(PairError::Reconstruct)?;
+    let reconstruct_s = started.elapsed().as_secs_f64();
+    let view = gaussians
+        .view()
+        .map_err(|e| PairError::Gaussians(e.to_string()))?;
+    let camera = Camera::identity(calib.intrinsics);
+    let mut render = cpu::render(&view, &camera.params::<f32>(), &RenderSettings::default()).output;
+    let mut depth = DepthMap::empty(size.0, size.1);
+    for (i, out) in depth.data.iter_mut().enumerate() {
+        let d = render.depth[i];
+        match render.alpha[i] >= options.min_alpha && d.is_finite() && d > 0.0 {
+            true => *out = d,
+            false => render.depth[i] = 0.0,
+        }
+    }
+    Ok(PairReconstruction {
+        gaussians,
+        working,
+        vertical,
+        vertical_input_px,
+        render,
+        depth,
+        reconstruct_s,
+    })
+}

@@ -38,7 +38,9 @@ reconstruct() {
   local name="$1" method="$2"
   shift 2
   local extra=()
-  [ "$method" = stereosplat ] && extra=("${weights[@]}" "${preset[@]}")
+  # The learned model's own output is scored (flagged where it fails the self-check), not
+  # the SGM fallback that `reconstruct` writes by default.
+  [ "$method" = stereosplat ] && extra=("${weights[@]}" "${preset[@]}" --on-check-fail flag)
   "$bin" reconstruct --method "$method" "${extra[@]}" --out "$runs/$name/$method" "$@" >/dev/null
   echo "$name $method: $(python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); print(f"{s["reconstruct_s"]:.1f} s")' "$runs/$name/$method/summary.json")"
 }

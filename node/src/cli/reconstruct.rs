@@ -7,6 +7,7 @@
 use std::path::PathBuf;
 
 use super::method_args::MethodArgs;
+use super::stream::OnCheckFailArg;
 use crate::pair::calib::CalibrationInput;
 use crate::pair::outputs::{write_all, Summary};
 use crate::pair::photometric::photometric;
@@ -63,6 +64,11 @@ pub struct ReconstructArgs {
     /// Disparity per ground-truth PNG unit (Middlebury 8-bit: 1; KITTI 16-bit: 1/256).
     #[arg(long, default_value_t = 1.0)]
     truth_scale: f32,
+    /// What to do when the reconstruction fails the self-check (as the node per bin):
+    /// `sgm` writes SGM's reconstruction instead, `lower-opacity` dims it, `flag` keeps it
+    /// (the summary says it failed either way).
+    #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
+    on_check_fail: OnCheckFailArg,
 }
 
 /// Runs the reconstruction and writes the outputs.
@@ -87,6 +93,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
     let options = PairOptions {
         working_pixels: args.working_pixels,
         max_vertical_px: args.max_vertical_disparity,
+        on_check_fail: args.on_check_fail.into(),
         ..PairOptions::default()
     };
     let pair = reconstruct_pair(&left, &right, &calib, reconstructor.as_mut(), &options)?;
@@ -129,6 +136,17 @@ fn print(s: &Summary) {
         ),
         None => println!("vertical disparity: too little texture to measure"),
     }
+    let c = &s.check;
+    println!(
+        "self-check: {} (score {:.3}, coverage {:.3}), action {}{}",
+        c.verdict,
+        c.score,
+        c.coverage,
+        c.action,
+        c.fallback.map_or(String::new(), |(v, score)| format!(
+            ": SGM {v} (score {score:.3})"
+        ))
+    );
     println!("depth: {:.1}% of pixels", s.depth_density);
     if let Some([p5, p50, p95]) = s.depth_percentiles_m {
         println!("depth percentiles 5/50/95: {p5:.2} / {p50:.2} / {p95:.2} m");

@@ -24,6 +24,7 @@ use super::photometric::Photometric;
 use super::rectified::VerticalDisparity;
 use super::truth::DisparityScores;
 use super::{Calibration, PairError, PairReconstruction};
+use crate::pipeline::self_check::{CheckAction, CheckOutcome};
 
 /// Top of the photometric error map's scale (mean |difference| in [0, 1]).
 pub const PHOTOMETRIC_SCALE: f32 = 0.25;
@@ -65,6 +66,45 @@ pub struct Summary {
     pub photometric: Photometric,
     /// Scores against the ground truth, when one was given.
     pub truth: Option<DisparityScores>,
+    /// The self-check and what came of it.
+    pub check: CheckSummary,
+}
+
+/// The self-check of a pair's reconstruction, as `summary.json` holds it.
+#[derive(Clone, Debug, Serialize)]
+pub struct CheckSummary {
+    /// `pass`, `fail` or `undetermined`: the verdict on the method's own reconstruction.
+    pub verdict: &'static str,
+    /// Fraction of sampled patches that correlate between left and right, in [0, 1].
+    pub score: f32,
+    /// Fraction of the textured cells sampled.
+    pub coverage: f32,
+    /// What was done: `none`, `flagged`, `lowered_opacity` or `sgm` (SGM's map written).
+    pub action: &'static str,
+    /// SGM's verdict and score when it replaced the method's map.
+    pub fallback: Option<(&'static str, f32)>,
+    /// Whether the map written failed its check.
+    pub flagged: bool,
+}
+
+impl CheckSummary {
+    /// The summary of a check's outcome.
+    pub fn new(outcome: &CheckOutcome) -> Self {
+        let primary = outcome.primary;
+        Self {
+            verdict: primary.map_or("not run", |r| r.verdict.name()),
+            score: primary.map_or(0.0, |r| r.score),
+            coverage: primary.map_or(0.0, |r| r.coverage),
+            action: match outcome.action {
+                CheckAction::None => "none",
+                CheckAction::Flagged => "flagged",
+                CheckAction::LoweredOpacity => "lowered_opacity",
+                CheckAction::Sgm => "sgm",
+            },
+            fallback: outcome.fallback.map(|r| (r.verdict.name(), r.score)),
+            flagged: outcome.flagged(),
+        }
+    }
 }
 
 impl Summary {
@@ -103,6 +143,7 @@ impl Summary {
             depth_percentiles_m: (!valid.is_empty()).then(|| [at(0.05), at(0.5), at(0.95)]),
             photometric,
             truth,
+            check: CheckSummary::new(&pair.check),
         }
     }
 }

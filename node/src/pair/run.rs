@@ -5,6 +5,10 @@
 //! depth (and colour) of every method comes from the same rendering of its Gaussians, so
 //! methods are compared on what they reconstruct, not on how they store it.
 //!
+//! The reconstruction goes through the node's per-bin self-check ([`SelfCheck`]): a map that
+//! fails it is, by [`PairOptions::on_check_fail`], replaced by SGM's (the default), dimmed,
+//! or kept and flagged in the summary, exactly as the node treats a bin.
+//!
 //! A pixel has depth where the rendered opacity reaches [`PairOptions::min_alpha`]: below it
 //! no surface covers the pixel and the alpha-normalised depth of a faint fringe would be a
 //! guess.
@@ -14,12 +18,13 @@ use std::time::Instant;
 use glam::{Quat, Vec3};
 use model::frame::{DepthMap, RgbImage};
 use model::kitti360::resample::resample_area;
-use model::reconstruct::{Reconstructor, StereoView};
+use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
 use renderer::{cpu, Camera, GaussianSet, RenderOutput, RenderSettings};
 
 use super::images::same_size;
 use super::rectified::{vertical_disparity, VerticalDisparity};
 use super::{Calibration, PairError};
+use crate::pipeline::self_check::{CheckOutcome, OnCheckFail, SelfCheck};
 use crate::service::InputLimits;
 
 /// The working pixel budget by default: a third of a KITTI-360 frame's 1408 x 376 (the
@@ -38,6 +43,9 @@ pub struct PairOptions {
     pub max_vertical_px: f32,
     /// Rendered opacity from which a pixel has depth.
     pub min_alpha: f32,
+    /// What to do when the reconstruction fails the self-check (`model::consistency`), as
+    /// the node does per bin: by default SGM's reconstruction replaces it.
+    pub on_check_fail: OnCheckFail,
 }
 
 impl Default for PairOptions {
@@ -46,6 +54,7 @@ impl Default for PairOptions {
             working_pixels: DEFAULT_WORKING_PIXELS,
             max_vertical_px: 2.0,
             min_alpha: 0.5,
+            on_check_fail: OnCheckFail::default(),
         }
     }
 }
@@ -65,8 +74,10 @@ pub struct PairReconstruction {
     pub render: RenderOutput,
     /// Left-camera z-depth at the input size, metres; 0 where there is none.
     pub depth: DepthMap,
-    /// Seconds the reconstructor took.
+    /// Seconds the reconstructor took (with the self-check and any SGM fallback).
     pub reconstruct_s: f64,
+    /// The self-check of the reconstruction and what came of it.
+    pub check: CheckOutcome,
 }
 
 /// The left and right cameras of a rectified rig with intrinsics `k`.
@@ -118,14 +129,18 @@ pub fn reconstruct_pair(
     };
     let (left_camera, right_camera) = rig_cameras(k_working, calib.baseline);
     let started = Instant::now();
+    let stereo = StereoView {
+        left: &wl,
+        right: &wr,
+        left_camera,
+        right_camera,
+    };
     let gaussians = reconstructor
-        .reconstruct(&[StereoView {
-            left: &wl,
-            right: &wr,
-            left_camera,
-            right_camera,
-        }])
+        .reconstruct(&[stereo])
         .map_err(PairError::Reconstruct)?;
+    let (gaussians, check) =
+        SelfCheck::new(options.on_check_fail).apply(reconstructor.name(), &stereo, gaussians);
+    let gaussians = gaussians.map_err(|e| PairError::Reconstruct(ReconstructError::Backend(e)))?;
     let reconstruct_s = started.elapsed().as_secs_f64();
     let view = gaussians
         .view()
@@ -148,5 +163,6 @@ pub fn reconstruct_pair(
         render,
         depth,
         reconstruct_s,
+        check,
     })
 }

@@ -82,13 +82,13 @@ fn blur(image: &mut RgbImage, sigma: f64) {
                         (x, (y + o).clamp(0, h - 1))
                     };
                     let i = 3 * (sy * w + sx) as usize;
-                    for c in 0..3 {
-                        sum[c] += weight * src[i + c];
+                    for (s, v) in sum.iter_mut().zip(&src[i..i + 3]) {
+                        *s += weight * v;
                     }
                 }
                 let i = 3 * (y * w + x) as usize;
-                for c in 0..3 {
-                    image.data[i + c] = sum[c] / norm;
+                for (out, s) in image.data[i..i + 3].iter_mut().zip(sum) {
+                    *out = s / norm;
                 }
             }
         }

@@ -36,31 +36,40 @@ pub struct VerticalDisparity {
     pub search_rows: u32,
 }
 
-/// Grey patch at (x, y) as zero-mean values and their norm; `None` near the border.
-fn patch(grey: &Grey, x: i32, y: i32) -> Option<(Vec<f32>, f32)> {
+/// The rows of the patch at (x, y), left to right within a row; `None` near the border.
+fn window(grey: &Grey, x: i32, y: i32) -> Option<impl Iterator<Item = &[f32]> + Clone> {
     let (w, h) = (grey.width as i32, grey.height as i32);
     if x - HALF < 0 || y - HALF < 0 || x + HALF >= w || y + HALF >= h {
         return None;
     }
-    let mut values = Vec::with_capacity(((2 * HALF + 1) * (2 * HALF + 1)) as usize);
-    for yy in y - HALF..=y + HALF {
+    Some((y - HALF..=y + HALF).map(move |yy| {
         let row = &grey.data[(yy * w) as usize..][..w as usize];
-        values.extend_from_slice(&row[(x - HALF) as usize..=(x + HALF) as usize]);
-    }
+        &row[(x - HALF) as usize..=(x + HALF) as usize]
+    }))
+}
+
+/// Grey patch at (x, y) as zero-mean values and their norm; `None` near the border.
+fn patch(grey: &Grey, x: i32, y: i32) -> Option<(Vec<f32>, f32)> {
+    let mut values: Vec<f32> = window(grey, x, y)?.flatten().copied().collect();
     let mean = values.iter().sum::<f32>() / values.len() as f32;
     values.iter_mut().for_each(|v| *v -= mean);
     let norm = values.iter().map(|v| v * v).sum::<f32>().sqrt();
     Some((values, norm))
 }
 
-/// Correlation of a zero-mean patch with the right image's patch at (x, y).
+/// Correlation of a zero-mean patch with the right image's patch at (x, y), computed in
+/// place: this runs for every disparity and row searched, so it allocates nothing.
 fn ncc(reference: &(Vec<f32>, f32), right: &Grey, x: i32, y: i32) -> Option<f32> {
-    let (values, norm) = patch(right, x, y)?;
-    let denom = norm * reference.1;
-    (denom > 1e-3).then(|| {
-        let dot: f32 = values.iter().zip(&reference.0).map(|(a, b)| a * b).sum();
-        dot / denom
-    })
+    let rows = window(right, x, y)?;
+    let mean = rows.clone().flatten().sum::<f32>() / reference.0.len() as f32;
+    let (mut dot, mut energy) = (0.0f32, 0.0f32);
+    for (v, r) in rows.flatten().zip(&reference.0) {
+        let c = v - mean;
+        dot += c * r;
+        energy += c * c;
+    }
+    let denom = energy.sqrt() * reference.1;
+    (denom > 1e-3).then(|| dot / denom)
 }
 
 /// The sub-pixel vertical offset of one left patch, if it matches well and uniquely.

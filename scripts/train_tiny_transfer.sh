@@ -5,9 +5,9 @@
 # plain generated streets (seeds 0-7, as before) and domain-randomised drives (seeds 100-115:
 # photo textures, random lighting and colours, rigs of 45-100 degrees and 5-60 cm baselines at
 # six image sizes, exposure, white balance, noise, blur, vignetting, JPEG, grey cameras and
-# floating textured objects), so that the network transfers to real photographs while keeping
-# its street quality. Resumable: drives already written are kept, training resumes from its
-# checkpoint.
+# floating textured objects; `scripts/transfer_data.sh` writes them), so that the network
+# transfers to real photographs while keeping its street quality. Resumable: drives already
+# written are kept, training resumes from its checkpoint.
 #   bash scripts/train_tiny_transfer.sh [DATA_DIR] [RUN_DIR] [STEPS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,19 +16,7 @@ run="${2:-runs/tiny_transfer}"
 steps="${3:-6000}"
 base=results/stereosplat_tiny/train/checkpoint/weights.safetensors
 bin=target/release/stereosplat
-cargo build --release --bin stereosplat
-name() { printf "synth_drive_%07d_sync" "$1"; }
-for seed in 0 1 2 3 4 5 6 7; do
-  if [ ! -f "$data/plain/data_poses/$(name "$seed")/poses.txt" ]; then
-    "$bin" synth --out "$data/plain" --seed "$seed" --frames 300 --width 272 --height 72
-  fi
-done
-# Each randomised drive has its own rig, so its own KITTI-360 root (calibration/).
-for seed in $(seq 100 115); do
-  if [ ! -f "$data/rand_$seed/data_poses/$(name "$seed")/poses.txt" ]; then
-    "$bin" synth --out "$data/rand_$seed" --seed "$seed" --frames 250 --randomise
-  fi
-done
+bash scripts/transfer_data.sh "$data"
 flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --no-subsample --lr 5e-4
   --warmup 100 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5)
 if [ -f "$run/checkpoint/state.json" ]; then

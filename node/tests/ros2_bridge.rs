@@ -16,7 +16,7 @@
 //! to 127.0.0.1 (Cyclone's receive sockets: to any address, which Cyclone hard-codes; it
 //! sends only to 127.0.0.1). A domain id of its own keeps it apart from other DDS tests.
 //!
-//! Needs the bridge built (`bash scripts/ros2_bridge.sh`; CI does it in `.ci/run`) and the
+//! Needs the bridge built (`bash scripts/ros2_bridge.sh`, which `.ci/setup` runs) and the
 //! Python side of `.ci/setup`; without them it fails and says what to run.
 
 mod drive_support;
@@ -215,12 +215,10 @@ fn rclpy_node(domain: u32, args: &[&str]) -> Command {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
     python_support::require_ros2("rclpy, sensor_msgs.msg, stereosplat_msgs.msg, mcap");
-    let bridge = PathBuf::from(format!(
-        "{ROOT}/ros2_bridge/target/release/stereosplat-ros2-bridge"
-    ));
+    let bridge = PathBuf::from(format!("{ROOT}/target/release/stereosplat-ros2-bridge"));
     assert!(
         bridge.exists(),
-        "{} is missing: run `bash scripts/ros2_bridge.sh` (CI does it in .ci/run)",
+        "{} is missing: run `bash scripts/ros2_bridge.sh` (.ci/setup does)",
         bridge.display()
     );
     let drive = Drive::generate(

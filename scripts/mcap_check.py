@@ -8,7 +8,9 @@ Prints one JSON object on stdout:
 
 * `profile`, `library`: from the header record;
 * `channels`: one entry per channel in the summary, sorted by topic: `topic`,
-  `message_encoding`, `metadata`, `schema_name`, `schema_encoding`, `schema_text`, and
+  `message_encoding`, `metadata`, `offered_qos` (the `offered_qos_profiles` metadata parsed
+  as YAML, as rosbag2 reads it; null when absent or empty), `schema_name`,
+  `schema_encoding`, `schema_text`, and
   `message_count`, `first_log_time` / `last_log_time` (nanoseconds, null without messages)
   counted from the messages read;
 * `messages`: every message in log-time order: `topic`, `log_time`, `publish_time`,
@@ -72,6 +74,17 @@ class SchemaDecoder:
         }
 
 
+def parse_qos(metadata):
+    """The `offered_qos_profiles` YAML of a channel's metadata as plain values (None when
+    absent or empty), read with ruamel.yaml (installed with rosbags)."""
+    text = metadata.get("offered_qos_profiles", "")
+    if not text:
+        return None
+    from ruamel.yaml import YAML
+
+    return YAML(typ="safe").load(text)
+
+
 def describe(stream, decoder=None):
     """The JSON-ready description of the MCAP file open in binary `stream`; with a
     `SchemaDecoder`, every message is also deserialized."""
@@ -109,6 +122,7 @@ def describe(stream, decoder=None):
                 "topic": channel.topic,
                 "message_encoding": channel.message_encoding,
                 "metadata": channel.metadata,
+                "offered_qos": parse_qos(channel.metadata),
                 "schema_name": schema.name if schema else None,
                 "schema_encoding": schema.encoding if schema else None,
                 "schema_text": schema.data.decode("utf-8", "replace") if schema else None,

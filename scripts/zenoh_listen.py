@@ -10,7 +10,8 @@ in-process node and compares what it saw with what a Rust subscriber saw.
                                     [--count N] [--timeout S] [--until-eof]
 
 The zenoh session is a peer that connects to the endpoint only (multicast and gossip scouting
-off). It subscribes to the given keys (zenoh key expressions), or `<namespace>/**`, once
+off). It subscribes to the given keys (zenoh key expressions), or `<namespace>/**`, `tf` and
+`tf_static` (the transforms are absolute topics), once
 connected, prints one line `{"ready": true}`, and stops after N samples (`--count`), after
 S seconds (`--timeout`, default 60) or, with `--until-eof`, when stdin closes, whichever
 comes first. Then it prints one JSON line, a summary per key:
@@ -59,6 +60,8 @@ TOPIC_TYPES = {
     'map/update': f'{PACKAGE}/msg/MapUpdate',
     'latency': f'{PACKAGE}/msg/BinLatency',
     'diagnostics': f'{PACKAGE}/msg/Diagnostics',
+    'tf': 'tf2_msgs/msg/TFMessage',
+    'tf_static': 'tf2_msgs/msg/TFMessage',
 }
 
 # PointField datatype -> struct format character (little endian unless is_bigendian).
@@ -150,6 +153,13 @@ def summarize(typename, msg):
         return {'frame_id': msg.header.frame_id, 'stamp_ns': stamp_ns(msg.header),
                 'width': msg.width, 'height': msg.height, 'encoding': msg.encoding,
                 'step': msg.step, 'bytes': len(msg.data)}
+    if typename == 'tf2_msgs/msg/TFMessage':
+        return {'transforms': [
+            {'frame_id': t.header.frame_id, 'child_frame_id': t.child_frame_id,
+             'stamp_ns': stamp_ns(t.header),
+             'translation': [t.transform.translation.x, t.transform.translation.y,
+                             t.transform.translation.z]}
+            for t in msg.transforms]}
     if typename == 'sensor_msgs/msg/CameraInfo':
         return {'frame_id': msg.header.frame_id, 'width': msg.width, 'height': msg.height,
                 'k': [float(v) for v in msg.k]}
@@ -204,7 +214,7 @@ def main():
     deadline = time.monotonic() + 10.0
     while not list(session.info.peers_zid()) and time.monotonic() < deadline:
         time.sleep(0.05)
-    keys = args.keys or [f'{args.namespace.strip("/")}/**']
+    keys = args.keys or [f'{args.namespace.strip("/")}/**', 'tf', 'tf_static']
     subscribers = [session.declare_subscriber(k, on_sample) for k in keys]
     print(json.dumps({'ready': True, 'keys': keys}), flush=True)
 

@@ -20,6 +20,7 @@ use node::msg::map_update::MapUpdate;
 use node::msg::pose::pose_from_affine;
 use node::msg::schema::ros2msg;
 use node::msg::std_msgs::Header;
+use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::{Message, MessageKind};
 use renderer::{scene, GaussianSet, Intrinsics};
 
@@ -58,6 +59,14 @@ fn main() -> anyhow::Result<()> {
     }
     let pose_msg = pose_from_affine(&pose, Header::new(STAMP, "world"));
     seeds.put("cdr_pose", "far", &pose_msg.encode())?;
+    let tf = TfMessage {
+        transforms: vec![
+            world_to("bin_3", &pose, STAMP),
+            world_to("left", &DAffine3::IDENTITY, STAMP),
+        ],
+    };
+    seeds.put("cdr_tf", "two", &tf.encode())?;
+    seeds.put("cdr_tf", "empty", &TfMessage::default().encode())?;
     let bin_cloud = cloud_from_gaussians(&gaussians, Header::new(STAMP, "bin_3"), None)?;
     seeds.put("cdr_point_cloud", "bin", &bin_cloud.encode())?;
     seeds.put(
@@ -180,6 +189,7 @@ fn bag(dir: &Path, payloads: &[&[u8]; 2]) -> anyhow::Result<Vec<u8>> {
         schema_name: kind.ros_name().into(),
         schema_text: ros2msg(kind),
         message_encoding: CDR.into(),
+        offered_qos: String::new(),
     };
     let channels = [
         channel("/stereo/left/image_raw", MessageKind::Image),

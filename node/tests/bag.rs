@@ -32,6 +32,7 @@ fn channels() -> Vec<Arc<ChannelInfo>> {
             schema_name: name.into(),
             schema_text: text.into(),
             message_encoding: "cdr".into(),
+            offered_qos: String::new(),
         })
     };
     vec![

@@ -275,7 +275,7 @@ fn malformed_clouds_are_typed_errors() {
 
 /// Jazzy's values, as `ros2 topic info -v` prints them and rosidl's golden-hash tests and
 /// client libraries list them (e.g. the image_publisher docs of image_pipeline for Image).
-const PUBLISHED: [(MessageKind, &str); 10] = [
+const PUBLISHED: [(MessageKind, &str); 14] = [
     (
         MessageKind::Time,
         "b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197",
@@ -315,6 +315,24 @@ const PUBLISHED: [(MessageKind, &str); 10] = [
     (
         MessageKind::PointField,
         "5c6a4750728c2bcfbbf7037225b20b02d4429634732146b742dee1726637ef01",
+    ),
+    // geometry_msgs' installed type description (share/geometry_msgs/msg/TransformStamped.json).
+    (
+        MessageKind::TransformStamped,
+        "0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206",
+    ),
+    (
+        MessageKind::Transform,
+        "beb83fbe698636351461f6f35d1abb20010c43d55374d81bd041f1ba2581fddc",
+    ),
+    (
+        MessageKind::Vector3,
+        "cc12fe83e4c02719f1ce8070bfd14aecd40f75a96696a67a2a1f37f7dbb0765d",
+    ),
+    // rmw_zenoh's tests key /tf with this hash.
+    (
+        MessageKind::TfMessage,
+        "e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
     ),
 ];
 

@@ -10,16 +10,9 @@
 mod msg_support;
 mod python_support;
 
-use std::io::Write;
-use std::process::{Command, Stdio};
-
-use msg_support::{gaussians, samples, Samples, FAR};
-use node::msg::geometry_msgs::PoseStamped;
-use node::msg::latency::{BinLatency, Counter, Diagnostics};
-use node::msg::map_update::MapUpdate;
-use node::msg::sensor_msgs::{CameraInfo, Image, PointCloud2, PointField};
-use node::msg::std_msgs::Header;
-use node::msg::{type_hash, Message, MessageKind};
+use msg_support::values::{cases, decodes_to_case, hex, unhex};
+use msg_support::{gaussians, samples, FAR};
+use node::msg::{type_hash, MessageKind};
 use renderer::ply::SH_C0;
 use serde_json::{json, Value};
 
@@ -28,139 +21,7 @@ const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/cdr_decode
 /// Sends one request to the script and returns its reply.
 fn rosbags(request: &Value) -> Value {
     python_support::require("rosbags, numpy");
-    let mut child = Command::new("python3")
-        .arg(SCRIPT)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("python3 starts");
-    let body = serde_json::to_vec(request).expect("request serialises");
-    child
-        .stdin
-        .take()
-        .expect("stdin")
-        .write_all(&body)
-        .expect("request written");
-    let out = child.wait_with_output().expect("script runs");
-    assert!(
-        out.status.success(),
-        "cdr_decode.py failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("the script prints JSON")
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-fn unhex(s: &str) -> Vec<u8> {
-    (0..s.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).expect("hex"))
-        .collect()
-}
-
-fn header(h: &Header) -> Value {
-    json!({"stamp": {"sec": h.stamp.sec, "nanosec": h.stamp.nanosec}, "frame_id": h.frame_id})
-}
-
-fn image(m: &Image) -> Value {
-    json!({"header": header(&m.header), "height": m.height, "width": m.width,
-           "encoding": m.encoding, "is_bigendian": m.is_bigendian, "step": m.step,
-           "data": m.data})
-}
-
-fn camera_info(m: &CameraInfo) -> Value {
-    let r = m.roi;
-    json!({"header": header(&m.header), "height": m.height, "width": m.width,
-           "distortion_model": m.distortion_model, "d": m.d, "k": m.k, "r": m.r, "p": m.p,
-           "binning_x": m.binning_x, "binning_y": m.binning_y,
-           "roi": {"x_offset": r.x_offset, "y_offset": r.y_offset, "height": r.height,
-                   "width": r.width, "do_rectify": r.do_rectify}})
-}
-
-fn pose(m: &PoseStamped) -> Value {
-    let (p, q) = (m.pose.position, m.pose.orientation);
-    json!({"header": header(&m.header), "pose": {
-        "position": {"x": p.x, "y": p.y, "z": p.z},
-        "orientation": {"x": q.x, "y": q.y, "z": q.z, "w": q.w}}})
-}
-
-fn point_field(f: &PointField) -> Value {
-    json!({"name": f.name, "offset": f.offset, "datatype": f.datatype, "count": f.count})
-}
-
-fn cloud(m: &PointCloud2) -> Value {
-    let fields: Vec<_> = m.fields.iter().map(point_field).collect();
-    json!({"header": header(&m.header), "height": m.height, "width": m.width,
-           "fields": fields, "is_bigendian": m.is_bigendian, "point_step": m.point_step,
-           "row_step": m.row_step, "data": m.data, "is_dense": m.is_dense})
-}
-
-fn latency(m: &BinLatency) -> Value {
-    json!({"bin_id": m.bin_id, "first_frame_arrival_ns": m.first_frame_arrival_ns,
-           "bin_close_ns": m.bin_close_ns, "model_start_ns": m.model_start_ns,
-           "model_end_ns": m.model_end_ns, "render_end_ns": m.render_end_ns,
-           "publish_ns": m.publish_ns, "queue_depth": m.queue_depth, "drops": m.drops,
-           "bad_messages": m.bad_messages, "check_verdict": m.check_verdict,
-           "check_action": m.check_action, "fallback_verdict": m.fallback_verdict,
-           "check_samples": m.check_samples, "check_score": m.check_score,
-           "fallback_score": m.fallback_score})
-}
-
-fn diagnostics(m: &Diagnostics) -> Value {
-    let counters: Vec<_> = m
-        .counters
-        .iter()
-        .map(|c: &Counter| json!({"kind": c.kind, "count": c.count}))
-        .collect();
-    json!({"stamp_ns": m.stamp_ns, "counters": counters})
-}
-
-fn map_update(m: &MapUpdate) -> Value {
-    json!({"header": header(&m.header), "sequence": m.sequence, "snapshot": m.snapshot,
-           "bin_id": m.bin_id, "ids": m.ids, "source_bins": m.source_bins,
-           "removed_ids": m.removed_ids, "gaussians": cloud(&m.gaussians)})
-}
-
-/// Every sample as (ROS type name, our payload, the field values we mean).
-fn cases(s: &Samples) -> Vec<(&'static str, Vec<u8>, Value)> {
-    vec![
-        (Image::KIND.ros_name(), s.image.encode(), image(&s.image)),
-        (
-            CameraInfo::KIND.ros_name(),
-            s.camera_info.encode(),
-            camera_info(&s.camera_info),
-        ),
-        (PoseStamped::KIND.ros_name(), s.pose.encode(), pose(&s.pose)),
-        (
-            PointCloud2::KIND.ros_name(),
-            s.cloud.encode(),
-            cloud(&s.cloud),
-        ),
-        (
-            PointCloud2::KIND.ros_name(),
-            s.world_cloud.encode(),
-            cloud(&s.world_cloud),
-        ),
-        (
-            BinLatency::KIND.ros_name(),
-            s.latency.encode(),
-            latency(&s.latency),
-        ),
-        (
-            Diagnostics::KIND.ros_name(),
-            s.diagnostics.encode(),
-            diagnostics(&s.diagnostics),
-        ),
-        (
-            MapUpdate::KIND.ros_name(),
-            s.map_update.encode(),
-            map_update(&s.map_update),
-        ),
-    ]
+    python_support::run_json(&["python3", SCRIPT], request)
 }
 
 /// The node's own definitions, registered with rosbags.
@@ -276,16 +137,7 @@ fn rosbags_reads_what_we_write_and_we_read_what_it_writes() {
             "encapsulation of {i}"
         );
         let what = format!("{} from rosbags (payload {i})", cases[i % cases.len()].0);
-        match i % cases.len() {
-            0 => assert_eq!(Image::decode(&b).unwrap(), s.image, "{what}"),
-            1 => assert_eq!(CameraInfo::decode(&b).unwrap(), s.camera_info, "{what}"),
-            2 => assert_eq!(PoseStamped::decode(&b).unwrap(), s.pose, "{what}"),
-            3 => assert_eq!(PointCloud2::decode(&b).unwrap(), s.cloud, "{what}"),
-            4 => assert_eq!(PointCloud2::decode(&b).unwrap(), s.world_cloud, "{what}"),
-            5 => assert_eq!(BinLatency::decode(&b).unwrap(), s.latency, "{what}"),
-            6 => assert_eq!(Diagnostics::decode(&b).unwrap(), s.diagnostics, "{what}"),
-            _ => assert_eq!(MapUpdate::decode(&b).unwrap(), s.map_update, "{what}"),
-        }
+        decodes_to_case(i % cases.len(), &b, &s, &what);
         // Little-endian payloads are byte for byte ours, up to rosbags' end padding.
         if i < cases.len() {
             let ours = &cases[i].1;

@@ -2,7 +2,8 @@
 //! rmw_zenoh keys (with attachments) comes out as bin maps on rmw_zenoh keys, each sample
 //! carrying the 33-byte attachment with per-publisher sequence numbers 1, 2, 3, ..., and the
 //! node is in the ROS graph: liveliness tokens for the node, each output it publishes and
-//! each input it subscribes to, with the topic names and type hashes a ROS 2 node expects.
+//! each input it subscribes to, with the topic names, type hashes and QoS a ROS 2 node
+//! expects (`/tf_static` transient local, keep last 1, as tf2's static broadcaster).
 //! (No ROS 2 installation here: the formats are checked against rmw_zenoh's sources in
 //! `transport::ros2`'s own tests.)
 
@@ -18,7 +19,7 @@ use node::pipeline::worker::RenderWith;
 use node::service::keys::{Direction, KeyMode, TOPICS};
 use node::service::{replay, Keys, NodeConfig};
 use node::transport::open;
-use node::transport::ros2::{Attachment, EntityKind, Token};
+use node::transport::ros2::{qos_string, Attachment, EntityKind, Token};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {
@@ -71,7 +72,8 @@ async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {
             Direction::Input => EntityKind::Subscription,
             Direction::Output => EntityKind::Publisher,
         };
-        let name = format!("/robot_ns/{}", t.name);
+        // Namespaced topics under /robot_ns; /tf and /tf_static absolute.
+        let name = format!("/{}", keys.topic_name(t));
         let found = tokens
             .iter()
             .filter(|tok| tok.node.name == "mapper" && tok.kind == kind)
@@ -80,6 +82,7 @@ async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {
             .unwrap_or_else(|| panic!("no {kind:?} token for {name}"));
         assert_eq!(found.type_name, t.kind.dds_type_name());
         assert_eq!(found.type_hash, t.kind.type_hash());
+        assert_eq!(found.qos, qos_string(&t.qos), "{name}");
     }
 
     let player = open(&node.client()).await.unwrap();

@@ -2,7 +2,9 @@
 //! known messages on the node's topics (inputs and outputs) is recorded, the recording is
 //! replayed as fast as possible while a second recording runs, and both hold the same payloads
 //! on the same topics in the same order; the Python `mcap` package and rosbags (types from
-//! the file's schemas only) read the recording; the monitor's statistics of known latencies.
+//! the file's schemas only) read the recording, and a YAML reader reads each channel's
+//! `offered_qos_profiles` as the topic's QoS profile (tf2's for `/tf` and `/tf_static`); the
+//! monitor's statistics of known latencies.
 
 mod msg_support;
 mod net_support;
@@ -23,6 +25,7 @@ use node::service::{
     channel_of, monitor, record, replay_bag, BagReplayOptions, Keys, MonitorEvent, RecordLimits,
     RecordSummary,
 };
+use node::transport::ros2::{Durability, History};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use zenoh::qos::CongestionControl;
@@ -72,6 +75,7 @@ fn payload(kind: MessageKind, i: usize, rng: &mut ChaCha8Rng) -> Vec<u8> {
         MessageKind::PoseStamped => samples.pose.encode(),
         MessageKind::PointCloud2 => samples.cloud.encode(),
         MessageKind::MapUpdate => samples.map_update.encode(),
+        MessageKind::TfMessage => samples.tf.encode(),
         other => panic!("no topic carries {other:?}"),
     }
 }
@@ -160,10 +164,10 @@ async fn recorded_drive(
     assert_eq!(summary.messages, drive.len() as u64, "{summary:?}");
     let published: Vec<(String, Vec<u8>)> = drive
         .into_iter()
-        .map(|(t, p)| (format!("/{ns}/{}", t.name), p))
+        .map(|(t, p)| (channel_of(&keys, t).topic, p))
         .collect();
     for topic in TOPICS {
-        let name = format!("/{ns}/{}", topic.name);
+        let name = channel_of(&keys, topic).topic;
         let expected = published.iter().filter(|(t, _)| *t == name).count() as u64;
         assert_eq!(summary.per_topic.get(&name), Some(&expected), "{name}");
     }
@@ -183,7 +187,7 @@ async fn a_recording_replayed_as_fast_as_possible_records_again_bit_for_bit() {
     for channel in bag.channels() {
         let topic = TOPICS
             .into_iter()
-            .find(|t| channel.info.topic == format!("/rec_bits/{}", t.name))
+            .find(|&t| channel.info.topic == channel_of(&keys, t).topic)
             .unwrap();
         assert_eq!(*channel.info, channel_of(&keys, topic));
     }
@@ -245,11 +249,12 @@ async fn python_mcap_and_rosbags_read_a_recording_with_its_schemas() {
     assert_eq!(seen["profile"], "ros2");
     assert_eq!(seen["statistics_message_count"], published.len());
     let channels = seen["channels"].as_array().unwrap();
+    let keys = Keys::new("rec_py");
     let mut expected: Vec<Topic> = TOPICS.to_vec();
-    expected.sort_by_key(|t| t.name);
+    expected.sort_by_key(|&t| channel_of(&keys, t).topic);
     assert_eq!(channels.len(), expected.len());
     for (channel, topic) in channels.iter().zip(expected) {
-        let name = format!("/rec_py/{}", topic.name);
+        let name = channel_of(&keys, topic).topic;
         let count = published.iter().filter(|(t, _)| *t == name).count();
         assert_eq!(channel["topic"], name);
         assert_eq!(channel["message_encoding"], "cdr");
@@ -257,6 +262,24 @@ async fn python_mcap_and_rosbags_read_a_recording_with_its_schemas() {
         assert_eq!(channel["schema_name"], topic.kind.ros_name());
         assert_eq!(channel["schema_text"], ros2msg(topic.kind));
         assert_eq!(channel["message_count"], count, "{name}");
+        // rosbag2's QoS YAML, as a YAML reader parses it: the topic's profile.
+        let (history, depth) = match topic.qos.history {
+            History::KeepLast(n) => ("keep_last", n),
+            History::KeepAll => ("keep_all", 0),
+        };
+        let infinite = serde_json::json!({"sec": 9_223_372_036u64, "nsec": 854_775_807u64});
+        let want = serde_json::json!([{
+            "history": history, "depth": depth,
+            "reliability": "reliable",
+            "durability": match topic.qos.durability {
+                Durability::Volatile => "volatile",
+                Durability::TransientLocal => "transient_local",
+            },
+            "deadline": infinite, "lifespan": infinite, "liveliness": "automatic",
+            "liveliness_lease_duration": infinite,
+            "avoid_ros_namespace_conventions": false,
+        }]);
+        assert_eq!(channel["offered_qos"], want, "{name}");
         // rosbags, given nothing but this schema text, decodes every message.
         assert_eq!(channel["decode_error"], serde_json::Value::Null, "{name}");
         assert_eq!(channel["decoded"], count, "{name}");

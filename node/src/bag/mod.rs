@@ -17,6 +17,7 @@
 
 mod error;
 mod pacing;
+mod qos;
 mod reader;
 mod recover;
 mod summary;
@@ -24,6 +25,7 @@ mod writer;
 
 pub use error::BagError;
 pub use pacing::{Pacer, Rate};
+pub use qos::offered_qos_profiles;
 pub use reader::{BagReader, ChannelSummary, Messages};
 pub use recover::Recovery;
 pub use writer::BagWriter;
@@ -50,6 +52,9 @@ pub struct ChannelInfo {
     pub schema_text: String,
     /// How the payloads are encoded, normally [`CDR`].
     pub message_encoding: String,
+    /// The publishers' QoS profiles as rosbag2's YAML ([`offered_qos_profiles`]), stored as
+    /// the channel's `offered_qos_profiles` metadata; empty when unknown.
+    pub offered_qos: String,
 }
 
 /// One recorded message: its channel, the two timestamps and sequence number of the MCAP

@@ -217,5 +217,10 @@ fn channel_info(path: &Path, channel: &mcap::Channel) -> Result<ChannelInfo, Bag
         schema_name: schema.name.clone(),
         schema_text,
         message_encoding: channel.message_encoding.clone(),
+        offered_qos: channel
+            .metadata
+            .get(super::writer::QOS_KEY)
+            .cloned()
+            .unwrap_or_default(),
     })
 }

@@ -11,7 +11,7 @@ use mcap::{Compression, WriteOptions, Writer};
 use super::{BagError, ChannelInfo, PROFILE, SCHEMA_ENCODING};
 
 /// The channel metadata key under which the ros2 profile stores the publishers' QoS.
-const QOS_KEY: &str = "offered_qos_profiles";
+pub(super) const QOS_KEY: &str = "offered_qos_profiles";
 
 /// Writes messages to an MCAP file: zstd-compressed chunks of about 1 MiB, chunk and summary
 /// CRCs, message and chunk indexes and statistics (what `ros2 bag`, Foxglove and
@@ -111,7 +111,7 @@ impl BagWriter {
             .map_err(|source| format_error(&self.path, source))?;
         // The ros2 profile requires this key; empty means "publisher's QoS unknown", and
         // rosbag2 then replays with its default QoS.
-        let metadata = BTreeMap::from([(QOS_KEY.to_string(), String::new())]);
+        let metadata = BTreeMap::from([(QOS_KEY.to_string(), channel.offered_qos.clone())]);
         let id = self
             .mcap
             .add_channel(

@@ -91,6 +91,8 @@ pub const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
 #[derive(Debug)]
 pub struct CdrWriter {
     buf: Vec<u8>,
+    /// What alignment padding is filled with (0 unless [`CdrWriter::with_padding`]).
+    pad: u8,
 }
 
 impl Default for CdrWriter {
@@ -102,8 +104,16 @@ impl Default for CdrWriter {
 impl CdrWriter {
     /// A writer holding only the CDR_LE encapsulation header.
     pub fn new() -> Self {
+        Self::with_padding(0)
+    }
+
+    /// A writer that fills alignment padding with `pad` instead of zeros. Padding carries no
+    /// value and some implementations (Fast CDR under rclpy) leave it uninitialised; two
+    /// encodings with different padding bytes tell a test which bytes are padding.
+    pub fn with_padding(pad: u8) -> Self {
         Self {
             buf: CDR_LE_HEADER.to_vec(),
+            pad,
         }
     }
 
@@ -112,11 +122,12 @@ impl CdrWriter {
         self.buf
     }
 
-    /// Pads with zeros so the next field starts at a multiple of `n` (after the header).
+    /// Pads (with zeros, by default) so the next field starts at a multiple of `n` (after
+    /// the header).
     fn align(&mut self, n: usize) {
         let pos = self.buf.len() - CDR_LE_HEADER.len();
         let pad = (n - pos % n) % n;
-        self.buf.resize(self.buf.len() + pad, 0);
+        self.buf.resize(self.buf.len() + pad, self.pad);
     }
 
     /// One byte.

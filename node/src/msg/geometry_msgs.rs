@@ -115,3 +115,87 @@ impl Message for PoseStamped {
         })
     }
 }
+
+/// `geometry_msgs/msg/Vector3`: a vector (a translation, metres).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Vector3 {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+
+impl Message for Vector3 {
+    const KIND: MessageKind = MessageKind::Vector3;
+
+    fn write(&self, w: &mut CdrWriter) {
+        w.f64_array(&[self.x, self.y, self.z]);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        let [x, y, z] = r.f64_array("translation")?;
+        Ok(Self { x, y, z })
+    }
+}
+
+/// `geometry_msgs/msg/Transform`: translation then rotation, the child frame's pose in the
+/// parent frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Transform {
+    /// The child frame's origin in the parent frame, metres.
+    pub translation: Vector3,
+    /// The child frame's orientation in the parent frame.
+    pub rotation: Quaternion,
+}
+
+impl Message for Transform {
+    const KIND: MessageKind = MessageKind::Transform;
+
+    fn write(&self, w: &mut CdrWriter) {
+        self.translation.write(w);
+        self.rotation.write(w);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            translation: Vector3::read(r)?,
+            rotation: Quaternion::read(r)?,
+        })
+    }
+}
+
+/// `geometry_msgs/msg/TransformStamped`: the pose of `child_frame_id` in `header.frame_id`
+/// at `header.stamp` (what tf2 broadcasts).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TransformStamped {
+    /// Time and the parent frame.
+    pub header: Header,
+    /// The child frame.
+    pub child_frame_id: String,
+    /// Child to parent.
+    pub transform: Transform,
+}
+
+/// Fewest bytes one `TransformStamped` takes on the wire (no padding): stamp, frame_id
+/// length and NUL, child_frame_id length and NUL, seven `f64`.
+pub const TRANSFORM_STAMPED_MIN_BYTES: usize = 8 + 5 + 5 + 7 * 8;
+
+impl Message for TransformStamped {
+    const KIND: MessageKind = MessageKind::TransformStamped;
+
+    fn write(&self, w: &mut CdrWriter) {
+        self.header.write(w);
+        w.string(&self.child_frame_id);
+        self.transform.write(w);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            header: Header::read(r)?,
+            child_frame_id: r.string("child_frame_id")?,
+            transform: Transform::read(r)?,
+        })
+    }
+}

@@ -31,6 +31,14 @@ pub enum MessageKind {
     Pose,
     /// `geometry_msgs/msg/PoseStamped`.
     PoseStamped,
+    /// `geometry_msgs/msg/Vector3`.
+    Vector3,
+    /// `geometry_msgs/msg/Transform`.
+    Transform,
+    /// `geometry_msgs/msg/TransformStamped`.
+    TransformStamped,
+    /// `tf2_msgs/msg/TFMessage`.
+    TfMessage,
     /// `stereosplat_msgs/msg/BinLatency`.
     BinLatency,
     /// `stereosplat_msgs/msg/Counter`.
@@ -43,7 +51,7 @@ pub enum MessageKind {
 
 impl MessageKind {
     /// All kinds, in declaration order.
-    pub const ALL: [MessageKind; 15] = [
+    pub const ALL: [MessageKind; 19] = [
         Self::Time,
         Self::Header,
         Self::Image,
@@ -55,6 +63,10 @@ impl MessageKind {
         Self::Quaternion,
         Self::Pose,
         Self::PoseStamped,
+        Self::Vector3,
+        Self::Transform,
+        Self::TransformStamped,
+        Self::TfMessage,
         Self::BinLatency,
         Self::Counter,
         Self::Diagnostics,
@@ -75,6 +87,10 @@ impl MessageKind {
             Self::Quaternion => "geometry_msgs/msg/Quaternion",
             Self::Pose => "geometry_msgs/msg/Pose",
             Self::PoseStamped => "geometry_msgs/msg/PoseStamped",
+            Self::Vector3 => "geometry_msgs/msg/Vector3",
+            Self::Transform => "geometry_msgs/msg/Transform",
+            Self::TransformStamped => "geometry_msgs/msg/TransformStamped",
+            Self::TfMessage => "tf2_msgs/msg/TFMessage",
             Self::BinLatency => "stereosplat_msgs/msg/BinLatency",
             Self::Counter => "stereosplat_msgs/msg/Counter",
             Self::Diagnostics => "stereosplat_msgs/msg/Diagnostics",
@@ -123,6 +139,12 @@ impl MessageKind {
             Self::Quaternion => "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n",
             Self::Pose => "Point position\nQuaternion orientation\n",
             Self::PoseStamped => "std_msgs/Header header\nPose pose\n",
+            Self::Vector3 => "float64 x\nfloat64 y\nfloat64 z\n",
+            Self::Transform => "Vector3 translation\nQuaternion rotation\n",
+            Self::TransformStamped => {
+                "std_msgs/Header header\nstring child_frame_id\nTransform transform\n"
+            }
+            Self::TfMessage => "geometry_msgs/TransformStamped[] transforms\n",
             Self::BinLatency => BIN_LATENCY_MSG,
             Self::Counter => COUNTER_MSG,
             Self::Diagnostics => DIAGNOSTICS_MSG,

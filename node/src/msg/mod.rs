@@ -3,8 +3,9 @@
 //!
 //! * [`cdr`]: the plain-CDR (XCDR1) reader and writer and [`DecodeError`];
 //! * the messages, field for field as ROS 2 Jazzy defines them: [`std_msgs`] (Time, Header),
-//!   [`sensor_msgs`] (Image, CameraInfo, PointCloud2), [`geometry_msgs`] (PoseStamped), and the
-//!   node's own [`latency`] messages (BinLatency, Diagnostics);
+//!   [`sensor_msgs`] (Image, CameraInfo, PointCloud2), [`geometry_msgs`] (PoseStamped,
+//!   TransformStamped), [`tf2_msgs`] (TFMessage, the `/tf` transforms), and the node's own
+//!   [`latency`] messages (BinLatency, Diagnostics);
 //! * conversions to and from the project's types: [`image`] (RgbImage, Intrinsics),
 //!   [`pose`] (DAffine3), [`gaussians`] (GaussianSet as a PointCloud2 in the 3DGS PLY
 //!   convention), failing with [`ConvertError`];
@@ -25,6 +26,7 @@ pub mod pose;
 pub mod schema;
 pub mod sensor_msgs;
 pub mod std_msgs;
+pub mod tf2_msgs;
 pub mod type_hash;
 
 pub use cdr::{CdrReader, CdrWriter, DecodeError};

@@ -67,9 +67,14 @@ pub fn now_ns() -> i64 {
         .map_or(0, |d| d.as_nanos() as i64)
 }
 
-/// Latency stamps of one bin (ns, [`now_ns`]'s clock; 0 = not reached).
+/// Latency stamps of one bin (ns, [`now_ns`]'s clock; 0 = not reached), and the source
+/// stamp every output derived from the bin carries.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stamps {
+    /// The `header.stamp` of the bin's first frame (its left image's), in the inputs' clock:
+    /// the stamp of the bin's map, pose, render and map update, so a subscriber pairs them
+    /// with the frame they came from.
+    pub source_ns: i64,
     /// The bin's first frame's last part arrived (the frame was complete).
     pub arrival_ns: i64,
     /// The binner opened the bin (the frame entered the worker queue).

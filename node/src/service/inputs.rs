@@ -36,13 +36,30 @@ pub(super) enum Step {
     Submit(Box<Job>),
     /// A bin closed (its last frame arrived).
     Closed(u64),
+    /// A frame entered the binner: where its left camera was when it was taken.
+    Camera(CameraPose),
 }
+
+/// The left camera's pose at one frame, for `/tf`.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct CameraPose {
+    /// The frame's stamp (its left image's `header.stamp`), ns.
+    pub stamp_ns: i64,
+    /// The left image's `header.frame_id`, the camera's frame name.
+    pub frame_id: String,
+    /// Left camera to world.
+    pub left_to_world: DAffine3,
+}
+
+/// A left image as the synchroniser holds it: the image, when it arrived (ns, the node's
+/// clock) and its `header.frame_id`.
+type Left = (RgbImage, i64, String);
 
 type Frame = (StereoFrame, Stamps);
 
-/// What the synchroniser emits: the left image with its arrival time, the right image, the
-/// pose.
-type SyncedFrame = Synced<(RgbImage, i64), RgbImage, DAffine3>;
+/// What the synchroniser emits: the left image with its arrival time and frame name, the
+/// right image, the pose.
+type SyncedFrame = Synced<Left, RgbImage, DAffine3>;
 
 /// Why an input sample was not used.
 #[derive(Debug, thiserror::Error)]
@@ -60,13 +77,14 @@ enum Unusable {
 
 /// Decoders, synchroniser, camera model and binner.
 pub(super) struct Inputs {
-    sync: Synchronizer<(RgbImage, i64), RgbImage, DAffine3>,
+    sync: Synchronizer<Left, RgbImage, DAffine3>,
     binner: Binner<Frame>,
     left_info: Option<CameraInfo>,
     right_info: Option<CameraInfo>,
     rig: Option<StereoRig>,
-    /// Synchronised frames (with their reset marks) waiting for the camera infos.
-    waiting_for_rig: VecDeque<(Frame, bool)>,
+    /// Synchronised frames (with their reset marks and left camera frame names) waiting for
+    /// the camera infos.
+    waiting_for_rig: VecDeque<(Frame, bool, String)>,
     next_index: u32,
     limits: InputLimits,
 }
@@ -120,11 +138,11 @@ impl Inputs {
         counters.set("sync/reset", c.reset);
         for f in synced {
             let reset = f.reset;
-            let frame = self.frame(f);
-            self.waiting_for_rig.push_back((frame, reset));
+            let (frame, frame_id) = self.frame(f);
+            self.waiting_for_rig.push_back((frame, reset, frame_id));
             if self.waiting_for_rig.len() > MAX_WAITING_FOR_RIG {
                 // A reset still applies to the frames after the dropped one.
-                let (_, dropped_reset) = self.waiting_for_rig.pop_front().expect("not empty");
+                let (_, dropped_reset, _) = self.waiting_for_rig.pop_front().expect("not empty");
                 if let Some(next) = self.waiting_for_rig.front_mut() {
                     next.1 |= dropped_reset;
                 }
@@ -135,7 +153,7 @@ impl Inputs {
             return Vec::new();
         };
         let mut steps = Vec::new();
-        while let Some((frame, reset)) = self.waiting_for_rig.pop_front() {
+        while let Some((frame, reset, frame_id)) = self.waiting_for_rig.pop_front() {
             // A new timeline: the open bin ends with the old one (its latency still goes out).
             if let Some(bin_id) = reset.then(|| self.binner.reset()).flatten() {
                 steps.push(Step::Closed(bin_id));
@@ -145,6 +163,11 @@ impl Inputs {
                 continue;
             }
             let pose = frame.0.left_to_world;
+            steps.push(Step::Camera(CameraPose {
+                stamp_ns: frame.1.source_ns,
+                frame_id,
+                left_to_world: pose,
+            }));
             let job = |bin_id: u64, (frame, stamps): Frame| {
                 Box::new(Job {
                     bin_id,
@@ -179,10 +202,12 @@ impl Inputs {
     ) -> Result<Vec<SyncedFrame>, Unusable> {
         let limits = self.limits;
         match topic {
-            keys::LEFT_IMAGE => image(payload, &limits, counters)
-                .map(|(t, img)| self.sync.push_left(t, weight(&img), (img, arrival_ns))),
+            keys::LEFT_IMAGE => image(payload, &limits, counters).map(|(t, img, frame_id)| {
+                self.sync
+                    .push_left(t, weight(&img), (img, arrival_ns, frame_id))
+            }),
             keys::RIGHT_IMAGE => image(payload, &limits, counters)
-                .map(|(t, img)| self.sync.push_right(t, weight(&img), img)),
+                .map(|(t, img, _)| self.sync.push_right(t, weight(&img), img)),
             keys::POSE => pose(payload, &limits)
                 .map(|(t, p)| self.sync.push_pose(t, std::mem::size_of::<DAffine3>(), p)),
             keys::LEFT_INFO | keys::RIGHT_INFO => {
@@ -211,9 +236,9 @@ impl Inputs {
         Ok(())
     }
 
-    /// A synchronised frame with its stamps.
-    fn frame(&mut self, f: Synced<(RgbImage, i64), RgbImage, DAffine3>) -> Frame {
-        let ((left, arrival_ns), right, left_to_world) = (f.left, f.right, f.pose);
+    /// A synchronised frame with its stamps, and its left camera's frame name.
+    fn frame(&mut self, f: SyncedFrame) -> (Frame, String) {
+        let ((left, arrival_ns, frame_id), right, left_to_world) = (f.left, f.right, f.pose);
         let frame = StereoFrame {
             index: self.next_index,
             left,
@@ -222,31 +247,33 @@ impl Inputs {
         };
         self.next_index += 1;
         let stamps = Stamps {
+            source_ns: f.stamp_ns,
             arrival_ns,
             opened_ns: now_ns(),
             ..Stamps::default()
         };
-        (frame, stamps)
+        ((frame, stamps), frame_id)
     }
 }
 
-/// A stamped image at the working size. Its declared size is checked against the limits
-/// before anything is copied; a larger image than the working size is area-averaged down
-/// and counted as `input/downscaled`.
+/// A stamped image at the working size, with its frame name. Its declared size is checked
+/// against the limits before anything is copied; a larger image than the working size is
+/// area-averaged down and counted as `input/downscaled`.
 fn image(
     payload: &[u8],
     limits: &InputLimits,
     counters: &mut Counters,
-) -> Result<(i64, RgbImage), Unusable> {
+) -> Result<(i64, RgbImage, String), Unusable> {
     limits.check_image(&ImageLayout::peek(payload)?)?;
     let msg = Image::decode(payload)?;
     let rgb = rgb_from_image(&msg)?;
+    let stamp = msg.header.stamp.to_nanos();
     let (w, h) = limits.working_size(rgb.width, rgb.height);
     if (w, h) == (rgb.width, rgb.height) {
-        return Ok((msg.header.stamp.to_nanos(), rgb));
+        return Ok((stamp, rgb, msg.header.frame_id));
     }
     counters.add("input/downscaled", 1);
-    Ok((msg.header.stamp.to_nanos(), resample_area(&rgb, w, h)))
+    Ok((stamp, resample_area(&rgb, w, h), msg.header.frame_id))
 }
 
 /// The bytes a decoded image holds (what the synchroniser's byte budget counts).

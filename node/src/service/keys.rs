@@ -6,8 +6,15 @@
 //!   `<domain_id>/<namespace>/<topic>/<pkg>::msg::dds_::<Name>_/<RIHS01 type hash>`, e.g.
 //!   `0/stereosplat/left/image/sensor_msgs::msg::dds_::Image_/RIHS01_d31d…`. In this mode
 //!   every sample carries rmw_zenoh's attachment ([`crate::transport::ros2`]).
+//!
+//! `/tf` and `/tf_static` are absolute (a name starting with `/`): ROS tools read them there
+//! whatever the node's namespace, so their keys are `tf` and `tf_static` (ros2:
+//! `<domain_id>/tf/...`). Each topic has the QoS profile ROS 2 publishers of it use
+//! (tf2's for the transforms, rclcpp's default for the rest), announced in rmw_zenoh's
+//! liveliness tokens and recorded in MCAP channel metadata.
 
 use crate::msg::MessageKind;
+use crate::transport::ros2::{Durability, History, Qos, Reliability};
 
 /// Which way a topic flows, seen from the node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,15 +25,17 @@ pub enum Direction {
     Output,
 }
 
-/// One of the node's topics: its name under the namespace and its message type.
+/// One of the node's topics: its name under the namespace, its message type and QoS.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Topic {
-    /// The name under the namespace, e.g. `left/image`.
+    /// The name under the namespace, e.g. `left/image`, or an absolute name, e.g. `/tf`.
     pub name: &'static str,
     /// The message it carries.
     pub kind: MessageKind,
     /// Subscribed or published by the node.
     pub direction: Direction,
+    /// The QoS profile of its publishers and subscriptions.
+    pub qos: Qos,
 }
 
 const fn topic(name: &'static str, kind: MessageKind, direction: Direction) -> Topic {
@@ -34,6 +43,7 @@ const fn topic(name: &'static str, kind: MessageKind, direction: Direction) -> T
         name,
         kind,
         direction,
+        qos: Qos::NODE,
     }
 }
 
@@ -70,9 +80,34 @@ pub const MAP_UPDATE: Topic = topic("map/update", MessageKind::MapUpdate, Direct
 pub const LATENCY: Topic = topic("latency", MessageKind::BinLatency, Direction::Output);
 /// stereosplat_msgs/Diagnostics, the node's counters (output).
 pub const DIAGNOSTICS: Topic = topic("diagnostics", MessageKind::Diagnostics, Direction::Output);
+/// tf2_msgs/TFMessage on `/tf`: world -> the left camera at every frame (output). QoS as
+/// tf2's `TransformBroadcaster`: reliable, volatile, keep last 100.
+pub const TF: Topic = Topic {
+    name: "/tf",
+    kind: MessageKind::TfMessage,
+    direction: Direction::Output,
+    qos: Qos {
+        reliability: Reliability::Reliable,
+        durability: Durability::Volatile,
+        history: History::KeepLast(100),
+    },
+};
+/// tf2_msgs/TFMessage on `/tf_static`: world -> `bin_<id>` for every bin so far, the whole
+/// set in each message (output). QoS as tf2's `StaticTransformBroadcaster`: reliable,
+/// transient local, keep last 1.
+pub const TF_STATIC: Topic = Topic {
+    name: "/tf_static",
+    kind: MessageKind::TfMessage,
+    direction: Direction::Output,
+    qos: Qos {
+        reliability: Reliability::Reliable,
+        durability: Durability::TransientLocal,
+        history: History::KeepLast(1),
+    },
+};
 
 /// Every topic of the node, inputs first.
-pub const TOPICS: [Topic; 12] = [
+pub const TOPICS: [Topic; 14] = [
     LEFT_IMAGE,
     RIGHT_IMAGE,
     LEFT_INFO,
@@ -85,6 +120,8 @@ pub const TOPICS: [Topic; 12] = [
     MAP_UPDATE,
     LATENCY,
     DIAGNOSTICS,
+    TF,
+    TF_STATIC,
 ];
 
 /// How topic names become zenoh keys.
@@ -136,10 +173,13 @@ impl Keys {
         }
     }
 
-    /// The topic's name without a leading slash, `<namespace>/<topic>` (what ROS 2 calls
-    /// the topic is this with a leading slash).
+    /// The topic's name without a leading slash, `<namespace>/<topic>`, or an absolute
+    /// topic's name without its slash (what ROS 2 calls the topic is this with a leading
+    /// slash).
     pub fn topic_name(&self, topic: Topic) -> String {
-        if self.namespace.is_empty() {
+        if let Some(absolute) = topic.name.strip_prefix('/') {
+            absolute.to_string()
+        } else if self.namespace.is_empty() {
             topic.name.to_string()
         } else {
             format!("{}/{}", self.namespace, topic.name)
@@ -256,6 +296,8 @@ mod tests {
         assert_eq!(keys.left_image(), "robot/ss/left/image");
         assert_eq!(keys.topic_of("robot/ss/latency"), Some(LATENCY));
         assert_eq!(keys.topic_of("robot/ss/nothing"), None);
+        assert_eq!(keys.key(TF_STATIC), "tf_static");
+        assert_eq!(keys.topic_of("tf"), Some(TF));
     }
 
     #[test]
@@ -267,6 +309,10 @@ mod tests {
                 "7/stereosplat/left/image/sensor_msgs::msg::dds_::Image_/{}",
                 MessageKind::Image.type_hash()
             )
+        );
+        assert_eq!(
+            keys.key(TF),
+            "7/tf/tf2_msgs::msg::dds_::TFMessage_/RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
         );
         let all = keys.all();
         assert_eq!(all.len(), TOPICS.len());

@@ -16,7 +16,6 @@ use super::map_files::{export, start_map, RestoreError, StartMap};
 use super::outputs::{Checkpoints, Outputs};
 use super::snapshot_gate::SnapshotGate;
 use crate::fusion::FusionConfig;
-use crate::msg::std_msgs::Header;
 use crate::msg::Message;
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
@@ -246,8 +245,7 @@ pub async fn run_announced(
                     q.reply_err(refused.to_string()).await.map_err(zenoh_err)?;
                     continue;
                 }
-                let header = Header::new(now_ns(), "world");
-                match outputs.snapshot(header) {
+                match outputs.snapshot(outputs.snapshot_header()) {
                     Ok(m) => q.reply(q.key_expr().clone(), m.encode()).await.map_err(zenoh_err)?,
                     Err(_) => outputs.counters.add("error/encode_map_update", 1),
                 }
@@ -257,6 +255,7 @@ pub async fn run_announced(
                 outputs.counters.set("dropped/worker_queue", worker.drops());
                 let msg = outputs.counters.diagnostics(now_ns());
                 outlet.put(DIAGNOSTICS, msg.encode()).await?;
+                outputs.put_static_tf().await?;
             },
         }
         for step in todo {
@@ -265,6 +264,7 @@ pub async fn run_announced(
                     worker.submit(*job);
                 }
                 Step::Closed(bin_id) => outputs.bin_closed(bin_id, worker.drops()).await?,
+                Step::Camera(camera) => outputs.camera_moved(camera).await?,
             }
         }
         outputs.counters.set("dropped/worker_queue", worker.drops());

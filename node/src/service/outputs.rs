@@ -9,6 +9,13 @@
 //! (a new map's first is increment 1), and the increments go on from there; the counter
 //! `map/epoch` in the diagnostics is the number of times the map was resumed.
 //!
+//! Derived data keeps its source's stamp: a bin's map, pose, render, map update and
+//! bird's-eye view carry the `header.stamp` of the bin's first frame (the node's own times
+//! go out in the latency message). Transforms for ROS tools: `/tf_static` holds world ->
+//! `bin_<id>` for every bin so far (the whole set in each message, as tf2's static
+//! broadcaster sends it, again with every bin and every diagnostics period so late joiners
+//! get it), `/tf` world -> the left camera per frame.
+//!
 //! Every map's self-check goes out in the bin's latency message and is counted:
 //! `check/pass`, `check/fail`, `check/undetermined`, and what was done about failures,
 //! `check/flagged`, `check/lowered_opacity`, `check/fallback_sgm` (with
@@ -20,17 +27,20 @@ use std::path::PathBuf;
 use glam::DVec2;
 
 use super::counters::Counters;
+use super::inputs::CameraPose;
 use super::keys::{self, Topic};
 use super::map_files::checkpoint;
 use super::node::{NodeSummary, ServiceError};
 use crate::fusion::{bev_image, increment_message, snapshot_message, BevView, GlobalMap};
 use crate::msg::gaussians::cloud_from_gaussians;
+use crate::msg::geometry_msgs::TransformStamped;
 use crate::msg::image::image_from_rgb;
 use crate::msg::latency::BinLatency;
 use crate::msg::map_update::MapUpdate;
 use crate::msg::pose::pose_from_affine;
 use crate::msg::sensor_msgs::Image;
 use crate::msg::std_msgs::Header;
+use crate::msg::tf2_msgs::{world_to, TfMessage, WORLD};
 use crate::msg::Message;
 use crate::pipeline::self_check::{verdict_code, CheckAction, CheckOutcome};
 use crate::pipeline::worker::{now_ns, Output, Rendered, Stamps, WorkerEvent};
@@ -70,6 +80,11 @@ pub(super) struct Outputs<'a> {
     published: BTreeMap<u64, (Stamps, CheckOutcome)>,
     /// Published bins whose render is still to come.
     awaiting_render: BTreeSet<u64>,
+    /// World -> `bin_<id>` of every bin published, what `/tf_static` carries.
+    static_tf: Vec<TransformStamped>,
+    /// The source stamp of the latest bin fused (what a snapshot of the map is stamped
+    /// with; 0 before the first).
+    latest_source_ns: i64,
     /// Bad input, drops, errors.
     pub counters: Counters,
     /// What the run did.
@@ -99,6 +114,8 @@ impl<'a> Outputs<'a> {
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
             awaiting_render: BTreeSet::new(),
+            static_tf: Vec::new(),
+            latest_source_ns: 0,
             counters,
             summary: NodeSummary::default(),
         }
@@ -118,17 +135,19 @@ impl<'a> Outputs<'a> {
     }
 
     /// Fuses one finished bin and checkpoints the map when due, then publishes the bin:
-    /// map, pose, map increment (after a resumed map's snapshot, and with a snapshot when
-    /// due), bird's-eye view, then its latency if the bin has closed and needs no render.
+    /// map, its static transform, pose, map increment (after a resumed map's snapshot, and
+    /// with a snapshot when due), bird's-eye view, then its latency if the bin has closed and
+    /// needs no render. All stamped with the bin's source stamp.
     async fn bin_done(&mut self, out: Output, drops: u64) -> Result<(), ServiceError> {
         let mut stamps = out.stamps;
-        let header = |frame: &str| Header::new(stamps.arrival_ns, frame);
+        let header = |frame: &str| Header::new(stamps.source_ns, frame);
         match out.result {
             Ok(set) => {
                 if std::mem::take(&mut self.resume_pending) {
-                    self.put_update(self.snapshot(header("world"))).await?;
+                    self.put_update(self.snapshot(header(WORLD))).await?;
                 }
                 let fused = self.map.insert_bin(out.bin_id, &set, out.bin_to_world);
+                self.latest_source_ns = stamps.source_ns;
                 if fused.is_ok() {
                     self.checkpoint_if_due();
                 }
@@ -137,15 +156,18 @@ impl<'a> Outputs<'a> {
                     Ok(cloud) => self.put(keys::BIN_MAP, cloud.encode()).await?,
                     Err(_) => self.counters.add("error/encode_map", 1),
                 }
+                let placed = world_to(frame, &out.bin_to_world, stamps.source_ns);
+                self.static_tf.push(placed);
+                self.put_static_tf().await?;
                 // The pose last: a subscriber holding map and pose has the whole bin.
-                let pose = pose_from_affine(&out.bin_to_world, header("world"));
+                let pose = pose_from_affine(&out.bin_to_world, header(WORLD));
                 self.put(keys::BIN_POSE, pose.encode()).await?;
                 stamps.publish_ns = now_ns();
                 self.summary.bins_published += 1;
                 match fused {
                     Ok(inc) => {
                         let sequence = self.map.increments();
-                        let msg = increment_message(&inc, sequence, header("world"));
+                        let msg = increment_message(&inc, sequence, header(WORLD));
                         self.put_update(msg).await?;
                         let due = self.snapshot_every > 0
                             && self
@@ -153,13 +175,13 @@ impl<'a> Outputs<'a> {
                                 .bins_published
                                 .is_multiple_of(self.snapshot_every);
                         if due {
-                            self.put_update(self.snapshot(header("world"))).await?;
+                            self.put_update(self.snapshot(header(WORLD))).await?;
                         }
                     }
                     Err(_) => self.counters.add("error/fusion", 1),
                 }
                 if self.bev {
-                    self.put_bev(header("world")).await?;
+                    self.put_bev(header(WORLD)).await?;
                 }
             }
             Err(_) => self.counters.add("error/reconstruct", 1),
@@ -195,13 +217,13 @@ impl<'a> Outputs<'a> {
     async fn rendered(&mut self, r: Rendered, drops: u64) -> Result<(), ServiceError> {
         self.awaiting_render.remove(&r.bin_id);
         let stamps = self.published.get_mut(&r.bin_id).map(|(s, _)| s);
-        let arrival_ns = stamps.as_ref().map_or(0, |s| s.arrival_ns);
+        let source_ns = stamps.as_ref().map_or(0, |s| s.source_ns);
         if let Some(s) = stamps {
             s.render_end_ns = r.render_end_ns;
         }
         match r.image {
             Ok(img) => {
-                let header = Header::new(arrival_ns, format!("bin_{}", r.bin_id));
+                let header = Header::new(source_ns, format!("bin_{}", r.bin_id));
                 let msg = image_from_rgb(&img, header);
                 self.put(keys::BIN_RENDER, msg.encode()).await?;
             }
@@ -219,6 +241,36 @@ impl<'a> Outputs<'a> {
     /// The whole map as a MapUpdate snapshot at the current sequence number.
     pub fn snapshot(&self, header: Header) -> Result<MapUpdate, crate::msg::ConvertError> {
         snapshot_message(&self.map.snapshot(), self.map.increments(), header)
+    }
+
+    /// The header of a snapshot answering a query: the world frame at the latest fused
+    /// bin's source stamp (0 before any).
+    pub fn snapshot_header(&self) -> Header {
+        Header::new(self.latest_source_ns, WORLD)
+    }
+
+    /// Publishes world -> the left camera of a frame that entered the binner on `/tf`.
+    pub async fn camera_moved(&mut self, camera: CameraPose) -> Result<(), ServiceError> {
+        let msg = TfMessage {
+            transforms: vec![world_to(
+                camera.frame_id,
+                &camera.left_to_world,
+                camera.stamp_ns,
+            )],
+        };
+        self.put(keys::TF, msg.encode()).await
+    }
+
+    /// Publishes the static transforms of every bin so far on `/tf_static` (nothing before
+    /// the first bin), so a subscriber that joined late gets them all.
+    pub async fn put_static_tf(&mut self) -> Result<(), ServiceError> {
+        if self.static_tf.is_empty() {
+            return Ok(());
+        }
+        let msg = TfMessage {
+            transforms: self.static_tf.clone(),
+        };
+        self.put(keys::TF_STATIC, msg.encode()).await
     }
 
     /// Saves the map when `every` bins were fused since the last save. A failed save is

@@ -1,6 +1,7 @@
 //! Recording the node's topics (inputs and outputs) to an MCAP file that ROS 2 tools open:
-//! channel topic `/<namespace>/<topic>`, the message type's complete `ros2msg` definition as
-//! schema, payloads stored verbatim as `cdr`.
+//! channel topic `/<namespace>/<topic>` (`/tf`, `/tf_static`), the message type's complete
+//! `ros2msg` definition as schema, the QoS profile as rosbag2's `offered_qos_profiles`,
+//! payloads stored verbatim as `cdr`.
 
 use std::collections::BTreeMap;
 use std::future::Future;
@@ -12,7 +13,7 @@ use zenoh::sample::Sample;
 use zenoh::Session;
 
 use super::keys::{Keys, Topic};
-use crate::bag::{BagError, BagWriter, ChannelInfo, CDR};
+use crate::bag::{offered_qos_profiles, BagError, BagWriter, ChannelInfo, CDR};
 use crate::msg::schema::ros2msg;
 use crate::transport::TransportError;
 
@@ -56,13 +57,14 @@ pub struct RecordSummary {
 
 /// The MCAP channel a topic of the node is recorded on: topic `/` + its name under the
 /// namespace, schema the message type's ROS 2 name and complete `ros2msg` definition, `cdr`
-/// payloads.
+/// payloads, the topic's QoS profile as rosbag2's `offered_qos_profiles`.
 pub fn channel_of(keys: &Keys, topic: Topic) -> ChannelInfo {
     ChannelInfo {
         topic: format!("/{}", keys.topic_name(topic)),
         schema_name: topic.kind.ros_name().to_string(),
         schema_text: ros2msg(topic.kind),
         message_encoding: CDR.to_string(),
+        offered_qos: offered_qos_profiles(&topic.qos),
     }
 }
 

@@ -26,7 +26,7 @@ use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::Session;
 
-use super::ros2::{self, Attachment, NodeInfo, Qos, TopicInfo, GID_LEN};
+use super::ros2::{self, Attachment, NodeInfo, TopicInfo, GID_LEN};
 use crate::service::keys::{KeyMode, Keys, Topic};
 
 /// Why an outlet could not be declared or could not publish.
@@ -189,14 +189,13 @@ impl Outlet {
     }
 }
 
-/// What a token says about `topic`: its fully qualified name, DDS type, type hash, the
-/// node's QoS.
+/// What a token says about `topic`: its fully qualified name, DDS type, type hash, QoS.
 fn topic_info(keys: &Keys, topic: Topic) -> TopicInfo {
     TopicInfo {
         name: format!("/{}", keys.topic_name(topic)),
         type_name: topic.kind.dds_type_name(),
         type_hash: topic.kind.type_hash().to_string(),
-        qos: ros2::qos_string(&Qos::NODE),
+        qos: ros2::qos_string(&topic.qos),
     }
 }
 

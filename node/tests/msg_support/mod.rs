@@ -2,6 +2,8 @@
 //! a part of it, hence the `dead_code` allowance).
 #![allow(dead_code)]
 
+pub mod values;
+
 use glam::{DAffine3, DQuat, DVec3, Quat, Vec3};
 use node::msg::gaussians::cloud_from_gaussians;
 use node::msg::geometry_msgs::PoseStamped;
@@ -11,6 +13,7 @@ use node::msg::map_update::MapUpdate;
 use node::msg::pose::pose_from_affine;
 use node::msg::sensor_msgs::{CameraInfo, Image, PointCloud2};
 use node::msg::std_msgs::Header;
+use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::{DecodeError, Message};
 use renderer::{Gaussian, GaussianSet, Intrinsics};
 
@@ -27,6 +30,7 @@ pub struct Samples {
     pub latency: BinLatency,
     pub diagnostics: Diagnostics,
     pub map_update: MapUpdate,
+    pub tf: TfMessage,
 }
 
 /// Three Gaussians with distinct values in every channel.
@@ -120,6 +124,12 @@ pub fn samples() -> Samples {
             gaussians: cloud_from_gaussians(&gaussians(), Header::new(stamp, "world"), Some(FAR))
                 .expect("lengths agree"),
         },
+        tf: TfMessage {
+            transforms: vec![
+                world_to("bin_7", &far_pose(), stamp),
+                world_to("cam_left", &DAffine3::IDENTITY, -1),
+            ],
+        },
     }
 }
 
@@ -169,6 +179,11 @@ pub fn encoded() -> Vec<(&'static str, Vec<u8>, Decoder)> {
             MapUpdate::KIND.ros_name(),
             s.map_update.encode(),
             decoder::<MapUpdate>(),
+        ),
+        (
+            TfMessage::KIND.ros_name(),
+            s.tf.encode(),
+            decoder::<TfMessage>(),
         ),
     ]
 }

@@ -62,6 +62,10 @@ enum BenchCommand {
 }
 
 fn main() -> Result<()> {
+    // Before any thread or wgpu/Mesa start: a private runtime folder when the environment
+    // has none, so Mesa does not print its XDG_RUNTIME_DIR error lines.
+    #[cfg(unix)]
+    node::cli::runtime_dir::ensure_runtime_dir();
     match Cli::parse().command {
         Command::Demo(args) => demo::run(&args),
         Command::Render(args) => render::run(&args),

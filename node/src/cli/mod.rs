@@ -12,6 +12,8 @@ pub mod method_args;
 pub mod progress;
 pub mod reconstruct;
 pub mod render;
+#[cfg(unix)]
+pub mod runtime_dir;
 pub mod scene_source;
 pub mod shutdown;
 pub mod stream;

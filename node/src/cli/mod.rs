@@ -19,3 +19,4 @@ pub mod shutdown;
 pub mod stream;
 pub mod synth;
 pub mod train;
+pub mod view;

@@ -79,14 +79,20 @@ function placeOpenCv(cam, rows, p) {
   cam.updateMatrixWorld(true);
 }
 
-// Follow mode: behind and above the latest bin's camera, looking down the road.
-function follow(bin) {
+// Follow mode: just behind the latest bin's input camera, looking where it looked, with its
+// vertical field of view (the map was made from this view; from far above, the sky's
+// splats hide the street).
+function follow(bin, k) {
   const r = bin.rotation_rows;
   const fwd = new THREE.Vector3(r[0][2], r[1][2], r[2][2]);
   const p = new THREE.Vector3(...bin.position);
   const cam = viewer.camera;
-  cam.position.copy(p).addScaledVector(fwd, -8).add(new THREE.Vector3(0, 0, 4));
-  const target = p.clone().addScaledVector(fwd, 12);
+  if (k && cam.isPerspectiveCamera) {
+    cam.fov = THREE.MathUtils.radToDeg(2 * Math.atan(k.height / 2 / k.fy));
+    cam.updateProjectionMatrix();
+  }
+  cam.position.copy(p).addScaledVector(fwd, -1);
+  const target = p.clone().addScaledVector(fwd, 15);
   if (viewer.controls) viewer.controls.target.copy(target);
   cam.lookAt(target);
 }
@@ -218,7 +224,7 @@ async function poll() {
       const latest = s.bins[s.bins.length - 1];
       if (latest && $('follow').checked && followedBin !== latest.position.join()) {
         followedBin = latest.position.join();
-        follow(latest);
+        follow(latest, s.intrinsics);
       }
       setPicture($('render'), 'render', s.pictures.render);
       setPicture($('input'), 'input', s.pictures.input);

@@ -309,3 +309,87 @@ pub fn rgb_png(width: u32, height: u32, rgb: Vec<u8>) -> Option<Vec<u8>> {
     img.write_to(&mut out, image::ImageFormat::Png).ok()?;
     Some(out.into_inner())
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::{Quat, Vec3};
+
+    use super::*;
+    use crate::fusion::{GaussianId, Increment, Snapshot, WorldGaussian};
+
+    fn gaussian(x: f64) -> WorldGaussian {
+        WorldGaussian {
+            position: DVec3::new(x, 2.0, 3.0),
+            log_scale: Vec3::splat(-2.0),
+            rotation: Quat::IDENTITY,
+            opacity: 0.8,
+            color: Vec3::new(0.2, 0.4, 0.6),
+            confidence: 0.9,
+            bin_id: 0,
+        }
+    }
+
+    fn increment(bin_id: u64, ids: &[u64]) -> Update {
+        Update::Increment(Increment {
+            bin_id,
+            added: ids
+                .iter()
+                .map(|&i| (GaussianId(i), gaussian(i as f64)))
+                .collect(),
+            ..Increment::default()
+        })
+    }
+
+    #[test]
+    fn increments_apply_in_sequence_and_a_gap_asks_for_a_snapshot() {
+        let mut st = ViewState::default();
+        assert!(st.map_ply().is_none(), "no map yet");
+        assert_eq!(st.map_update(1, increment(0, &[0, 1])), MapSync::InSync);
+        assert_eq!(st.map_update(2, increment(1, &[2])), MapSync::InSync);
+        assert_eq!(
+            st.map_update(2, increment(1, &[2])),
+            MapSync::InSync,
+            "a repeat"
+        );
+        assert_eq!(st.map_update(4, increment(3, &[4])), MapSync::NeedsSnapshot);
+        let snapshot = Snapshot {
+            last_bin_id: Some(3),
+            gaussians: (0..5)
+                .map(|i| (GaussianId(i), gaussian(i as f64)))
+                .collect(),
+        };
+        assert_eq!(
+            st.map_update(4, Update::Snapshot(snapshot)),
+            MapSync::InSync
+        );
+        assert_eq!(st.map_update(5, increment(4, &[5])), MapSync::InSync);
+        let json = st.to_json();
+        assert_eq!(json["map"]["gaussians"], 6);
+        assert_eq!(json["map"]["sequence"], 5);
+        // The PLY is relative to the first Gaussian seen (x = 0), built once per version.
+        let (version, ply) = st.map_ply().unwrap();
+        let set = renderer::ply::read_ply(ply.as_slice()).unwrap();
+        assert_eq!(set.len(), 6);
+        assert_eq!(st.map_ply().unwrap().0, version);
+        assert!(Arc::ptr_eq(&st.map_ply().unwrap().1, &ply), "cached");
+    }
+
+    #[test]
+    fn a_late_view_waits_for_a_snapshot_and_input_images_stay_within_their_budget() {
+        let mut st = ViewState::default();
+        assert_eq!(st.map_update(7, increment(6, &[9])), MapSync::NeedsSnapshot);
+        let image = |n: usize| Image {
+            data: vec![0; n],
+            ..Image::default()
+        };
+        for i in 0..100 {
+            st.input_image(i, image(1 << 20));
+        }
+        assert!(st.input_bytes <= MAX_INPUT_BYTES);
+        assert_eq!(st.inputs.len(), MAX_INPUT_BYTES >> 20);
+        assert_eq!(
+            st.inputs.front().map(|(t, _)| *t),
+            Some(100 - (MAX_INPUT_BYTES >> 20) as i64)
+        );
+    }
+}

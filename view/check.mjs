@@ -2,7 +2,8 @@
 // Debian's Chromium through playwright-core (never a downloaded browser), watches the
 // latency charts grow as bins arrive, screenshots the page, then opens the splat viewer
 // alone at the first bin's camera and screenshots its canvas, saving the state and the map
-// PLY it showed. Prints one JSON line; exits non-zero with a message when something fails.
+// PLY it showed. Prints `page loaded` once the page polls the node, then one JSON line;
+// exits non-zero with a message when something fails.
 //
 //   node view/check.mjs --url http://127.0.0.1:PORT/ --out DIR --bins N [--timeout S]
 import { chromium } from 'playwright-core';
@@ -66,7 +67,12 @@ const plotted = [];
 let last = -1;
 while (left() > 0) {
   const n = await page.evaluate(() => window.__view.plottedBins);
-  if (n !== last) { plotted.push([Date.now() - started, n]); last = n; }
+  if (n !== last) {
+    plotted.push([Date.now() - started, n]);
+    // The caller starts feeding the node once the page is up.
+    if (last < 0) console.log('page loaded');
+    last = n;
+  }
   if (n >= wantBins) break;
   await sleep(200);
 }

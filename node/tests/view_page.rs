@@ -166,7 +166,7 @@ fn the_live_view_shows_the_map_as_splats_and_charts_bins_as_they_arrive() {
     );
 
     // The browser opens the page before the first frame, so it sees the bins arrive.
-    let check = Command::new("node")
+    let mut check = Command::new("node")
         .arg(repo().join("view/check.mjs"))
         .args(["--url", &url, "--out", checked.to_str().unwrap()])
         .args(["--bins", &closed_bins.to_string(), "--timeout", "300"])
@@ -174,7 +174,20 @@ fn the_live_view_shows_the_map_as_splats_and_charts_bins_as_they_arrive() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("node view/check.mjs starts");
-    std::thread::sleep(Duration::from_secs(4));
+    let (lines_tx, lines) = mpsc::channel();
+    let stdout = BufReader::new(check.stdout.take().unwrap());
+    let reader = std::thread::spawn(move || {
+        let mut all = Vec::new();
+        for line in stdout.lines().map_while(Result::ok) {
+            let _ = lines_tx.send(line.clone());
+            all.push(line);
+        }
+        all
+    });
+    match lines.recv_timeout(Duration::from_secs(120)) {
+        Ok(line) if line == "page loaded" => {}
+        other => panic!("the page did not load: {other:?}"),
+    }
     let replay = stereosplat(&[
         "replay",
         "--data",
@@ -190,6 +203,7 @@ fn the_live_view_shows_the_map_as_splats_and_charts_bins_as_they_arrive() {
         String::from_utf8_lossy(&replay.stderr)
     );
     let checked_out = check.wait_with_output().expect("the check ends");
+    let printed = reader.join().expect("stdout read").join("\n");
 
     // `stereosplat view` started after the drive: it joins through the snapshot queryable.
     let late_port = free_port();
@@ -212,7 +226,6 @@ fn the_live_view_shows_the_map_as_splats_and_charts_bins_as_they_arrive() {
         (state["map"]["gaussians"].as_u64()? > 0).then(|| state["map"].clone())
     });
     drop(node);
-    let printed = String::from_utf8_lossy(&checked_out.stdout);
     assert!(
         checked_out.status.success(),
         "view/check.mjs failed: {printed}\n{}",

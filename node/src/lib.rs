@@ -8,6 +8,7 @@
 //! - [`fusion`]: the fused global map in the f64 world frame.
 //! - [`pair`]: one stereo pair from files reconstructed, checked and scored
 //!   (`stereosplat reconstruct`).
+//! - [`view`]: the live page on loopback (splats, renders, latency charts).
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
 
 pub mod bag;
@@ -19,3 +20,4 @@ pub mod pair;
 pub mod pipeline;
 pub mod service;
 pub mod transport;
+pub mod view;

@@ -5,7 +5,7 @@ use clap::{Parser, Subcommand};
 
 use node::cli::{
     bench, bench_check, bench_model, bench_node, demo, eval, launch, logs, reconstruct, render,
-    stream, synth, train,
+    stream, synth, train, view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -44,6 +44,9 @@ enum Command {
     Record(logs::RecordArgs),
     /// Print the node's per-bin latency live, with percentiles.
     Monitor(logs::MonitorArgs),
+    /// A live page on loopback for a running node: the fused map as splats, renders,
+    /// latency charts.
+    View(view::ViewArgs),
     /// Benchmarks that print JSON on stdout.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -62,6 +65,10 @@ enum BenchCommand {
 }
 
 fn main() -> Result<()> {
+    // Before any thread or wgpu/Mesa start: a private runtime folder when the environment
+    // has none, so Mesa does not print its XDG_RUNTIME_DIR error lines.
+    #[cfg(unix)]
+    node::cli::runtime_dir::ensure_runtime_dir();
     match Cli::parse().command {
         Command::Demo(args) => demo::run(&args),
         Command::Render(args) => render::run(&args),
@@ -75,6 +82,7 @@ fn main() -> Result<()> {
         Command::Replay(args) => stream::replay(&args),
         Command::Record(args) => logs::record(&args),
         Command::Monitor(args) => logs::monitor(&args),
+        Command::View(args) => view::run(&args),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),

@@ -256,7 +256,7 @@ async fn mutual_tls_and_access_control_admit_only_the_allowed_peers() {
             async {
                 let _ = stop_rx.await;
             },
-            move || {
+            move |_: &zenoh::Session| {
                 let _ = ready_tx.send(());
             },
         ));

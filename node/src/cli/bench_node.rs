@@ -105,6 +105,7 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
             Duration::from_secs(20),
             &mut progress::hook(&bar),
             &mut |_| {},
+            |_| {},
         ))?;
         bar.finish_and_clear();
         let mut stats = LatencyStats::default();

@@ -14,8 +14,10 @@ use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 
 use super::progress;
+use super::shutdown::shutdown_signal;
 use super::stream::{rate_of, OnCheckFailArg, RenderArg};
 use super::synth::{cached_drive, first_sequence};
+use super::view::{self, ViewFlags};
 use crate::service::latency_stats::LatencyStats;
 use crate::service::loopback::{run_loopback, Received, ReceivedBin};
 use crate::service::{NodeConfig, StartMap};
@@ -53,6 +55,8 @@ pub struct DemoArgs {
     /// Rasterizer of the per-bin renders.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
+    #[command(flatten)]
+    view: ViewFlags,
 }
 
 /// Runs the demo and prints where its outputs are.
@@ -86,6 +90,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         checkpoint_every: 0,
         ..NodeConfig::default()
     };
+    let keys = config.keys.clone();
     let bar = progress::bar(sequence.frames().len(), "replay");
     let mut write_error = None;
     let mut on_bin = |received: Received| {
@@ -101,14 +106,20 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         }
     };
     let runtime = tokio::runtime::Runtime::new()?;
-    let report = runtime.block_on(run_loopback(
-        config,
-        &sequence,
-        rate_of(args.rate)?,
-        Duration::from_secs(60),
-        &mut progress::hook(&bar),
-        &mut on_bin,
-    ))?;
+    let (report, view) = runtime.block_on(async {
+        let (start_view, view) = view::beside(&args.view, keys).await?;
+        let report = run_loopback(
+            config,
+            &sequence,
+            rate_of(args.rate)?,
+            Duration::from_secs(60),
+            &mut progress::hook(&bar),
+            &mut on_bin,
+            start_view,
+        )
+        .await?;
+        anyhow::Ok((report, view))
+    })?;
     bar.finish_and_clear();
     if let Some(e) = write_error {
         return Err(e.context("writing a bin's files"));
@@ -151,6 +162,14 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         )?;
     }
     writeln!(out, "latency:       {}", latency_path.display())?;
+    drop(out);
+    if let Some(view) = view::take(&view) {
+        eprintln!("view: still serving {} (Ctrl-C to stop)", view.url());
+        runtime.block_on(async {
+            shutdown_signal().await;
+            view.stop().await;
+        });
+    }
     Ok(())
 }
 

@@ -12,8 +12,11 @@ pub mod method_args;
 pub mod progress;
 pub mod reconstruct;
 pub mod render;
+#[cfg(unix)]
+pub mod runtime_dir;
 pub mod scene_source;
 pub mod shutdown;
 pub mod stream;
 pub mod synth;
 pub mod train;
+pub mod view;

@@ -19,6 +19,7 @@ use model::kitti360::Sequence;
 use super::logs::{self, BagReplayArgs};
 use super::progress;
 use super::shutdown::shutdown_signal;
+use super::view::{self, ViewFlags};
 
 /// zenoh flags shared by the node's commands. Default: peer mode, loopback only.
 #[derive(Args, Clone, Debug)]
@@ -211,6 +212,8 @@ pub struct RunArgs {
     sync_mib_per_stream: usize,
     #[command(flatten)]
     limits: LimitsArgs,
+    #[command(flatten)]
+    view: ViewFlags,
 }
 
 /// The input limits a user may change (`node::service::InputLimits`; the rest keep their
@@ -285,9 +288,19 @@ pub fn run(args: &RunArgs) -> Result<()> {
     };
     let runtime = tokio::runtime::Runtime::new()?;
     let namespace = config.keys.namespace.clone();
-    let summary = runtime.block_on(service::run_announced(config, shutdown_signal(), || {
-        eprintln!("node ready: {namespace}")
-    }))?;
+    let keys = config.keys.clone();
+    let summary = runtime.block_on(async {
+        let (start_view, view) = view::beside(&args.view, keys).await?;
+        let summary = service::run_announced(config, shutdown_signal(), |session| {
+            eprintln!("node ready: {namespace}");
+            start_view(session);
+        })
+        .await;
+        if let Some(view) = view::take(&view) {
+            view.stop().await;
+        }
+        anyhow::Ok(summary?)
+    })?;
     println!(
         "{}",
         serde_json::json!({

@@ -13,7 +13,7 @@ use model::kitti360::Sequence;
 use renderer::GaussianSet;
 
 use super::keys::Keys;
-use super::node::{run, NodeConfig, NodeSummary, ServiceError};
+use super::node::{run_announced, NodeConfig, NodeSummary, ServiceError};
 use super::replay::replay;
 use crate::bag::Rate;
 use crate::msg::gaussians::gaussians_from_cloud;
@@ -86,7 +86,8 @@ pub enum LoopbackError {
 /// Replays `sequence` at `rate` into a node configured by `config` (its transport is
 /// replaced by a fresh loopback endpoint), hands every bin and render the listener receives
 /// to `on_bin`, waits until every expected bin is published or nothing has come for `idle`,
-/// then stops the node and reports.
+/// then stops the node and reports. `on_ready` gets the node's session once it is up (the
+/// live view subscribes on it).
 pub async fn run_loopback(
     mut config: NodeConfig,
     sequence: &Sequence,
@@ -94,6 +95,7 @@ pub async fn run_loopback(
     idle: Duration,
     progress: &mut dyn FnMut(usize, usize),
     on_bin: &mut dyn FnMut(Received),
+    on_ready: impl FnOnce(&zenoh::Session) + Send + 'static,
 ) -> Result<LoopbackReport, LoopbackError> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())
@@ -113,9 +115,13 @@ pub async fn run_loopback(
     let bins_expected = make_bins(&poses, &bins).len() as u64 + u64::from(!poses.is_empty());
 
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let node = tokio::spawn(run(config, async {
-        let _ = stop_rx.await;
-    }));
+    let node = tokio::spawn(run_announced(
+        config,
+        async {
+            let _ = stop_rx.await;
+        },
+        on_ready,
+    ));
     let client = TransportConfig {
         connect: vec![endpoint],
         ..TransportConfig::default()

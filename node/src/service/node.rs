@@ -137,15 +137,17 @@ pub async fn run(
     config: NodeConfig,
     stop: impl Future<Output = ()>,
 ) -> Result<NodeSummary, ServiceError> {
-    run_announced(config, stop, || {}).await
+    run_announced(config, stop, |_| {}).await
 }
 
-/// [`run`], calling `ready` once the session is open (its endpoints bound) and the inputs are
-/// subscribed: a node that cannot bind fails before it says it is ready.
+/// [`run`], calling `ready` with the node's session once it is open (its endpoints bound) and
+/// the inputs are subscribed: a node that cannot bind fails before it says it is ready. A
+/// subscriber declared on that session (the live view's) hears the node's outputs and
+/// every peer connected to the node, its inputs too.
 pub async fn run_announced(
     config: NodeConfig,
     stop: impl Future<Output = ()>,
-    ready: impl FnOnce(),
+    ready: impl FnOnce(&zenoh::Session),
 ) -> Result<NodeSummary, ServiceError> {
     let start = start_map(config.out_dir.as_deref(), config.fusion, config.start_map)?;
     if let Some(path) = &start.resumed_from {
@@ -217,7 +219,7 @@ pub async fn run_announced(
     if exposed > 0 {
         outputs.counters.set("warning/exposed_listen", exposed);
     }
-    ready();
+    ready(&session);
     tokio::pin!(stop);
     let diagnostics_on = !config.diagnostics_every.is_zero();
     let mut diagnostics = tokio::time::interval(

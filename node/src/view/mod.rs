@@ -1,0 +1,168 @@
+//! The live view: a page served over HTTP on loopback that shows a running node at work —
+//! the fused global map as Gaussian splats to fly through (the npm package
+//! `@mkkellogg/gaussian-splats-3d` on three.js, served from `view/node_modules`), the
+//! latest bin's render beside its input image, the bird's-eye view, and per-stage latency
+//! charts with the counters. The page polls `/api/state`; the server is fed by a zenoh
+//! session that listens to the node's topics like `monitor` does ([`watch`]), so it works
+//! beside any node: `stereosplat view`, or `--view` on `run` and `demo`.
+
+mod http;
+mod routes;
+mod state;
+mod watch;
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use tokio::net::TcpListener;
+use tokio::task::JoinHandle;
+
+use crate::service::Keys;
+
+pub use state::{ViewState, MAX_LATENCY_ROWS};
+
+/// Where the view listens and where its browser libraries are.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ViewConfig {
+    /// HTTP address (loopback by default; another address prints a warning).
+    pub bind: SocketAddr,
+    /// The `node_modules` folder `npm ci` filled in `view/`.
+    pub node_modules: PathBuf,
+}
+
+impl Default for ViewConfig {
+    /// `127.0.0.1:8090` and the checkout's `view/node_modules`.
+    fn default() -> Self {
+        Self {
+            bind: SocketAddr::from(([127, 0, 0, 1], 8090)),
+            node_modules: default_node_modules(),
+        }
+    }
+}
+
+/// `view/node_modules` of the checkout this binary was built from.
+pub fn default_node_modules() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../view/node_modules"))
+}
+
+/// Why the view did not start.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewError {
+    /// The browser libraries are not installed.
+    #[error("the live view's libraries are missing ({0}): run `bash .ci/setup` (npm ci in view/)")]
+    MissingLibrary(PathBuf),
+    /// The HTTP address could not be bound.
+    #[error("binding the view to {addr}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// The system's error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// The view's HTTP address, bound, with its libraries checked: what can fail is done before
+/// the node starts. [`Bound::serve`] then starts it on a session.
+pub struct Bound {
+    listener: TcpListener,
+    node_modules: PathBuf,
+}
+
+impl Bound {
+    /// Checks the libraries and binds `config.bind`. Must be called inside a tokio runtime.
+    pub async fn bind(config: &ViewConfig) -> Result<Self, ViewError> {
+        if let Some(missing) = routes::missing_library(&config.node_modules) {
+            return Err(ViewError::MissingLibrary(missing));
+        }
+        if !config.bind.ip().is_loopback() {
+            eprintln!(
+                "warning: the live view listens on {}, which other machines may reach",
+                config.bind
+            );
+        }
+        let listener = TcpListener::bind(config.bind)
+            .await
+            .map_err(|source| ViewError::Bind {
+                addr: config.bind,
+                source,
+            })?;
+        Ok(Self {
+            listener,
+            node_modules: config.node_modules.clone(),
+        })
+    }
+
+    /// The bound address.
+    pub fn addr(&self) -> Result<SocketAddr, ViewError> {
+        self.listener
+            .local_addr()
+            .map_err(|source| ViewError::Bind {
+                addr: SocketAddr::from(([127, 0, 0, 1], 0)),
+                source,
+            })
+    }
+
+    /// Serves the page and watches the node's topics under `keys` on `session` (a clone is
+    /// kept): the node's own session (`run --view`, `demo --view`: it hears the node's
+    /// inputs too) or one connected to the node (`view`). Spawns tokio tasks; a failed
+    /// subscription is printed on stderr and leaves the page without updates.
+    pub fn serve(self, session: &zenoh::Session, keys: Keys) -> View {
+        let addr = self
+            .listener
+            .local_addr()
+            .unwrap_or_else(|_| SocketAddr::from(([127, 0, 0, 1], 0)));
+        let state = Arc::new(Mutex::new(ViewState::default()));
+        let (stop, stopped) = tokio::sync::watch::channel(false);
+        let until_stop = move || {
+            let mut rx = stopped.clone();
+            async move {
+                let _ = rx.wait_for(|s| *s).await;
+            }
+        };
+        let handler = Arc::new(routes::handler(state.clone(), self.node_modules));
+        let server = tokio::spawn(http::serve(self.listener, handler, until_stop()));
+        let session = session.clone();
+        let watcher = tokio::spawn({
+            let stop = until_stop();
+            async move {
+                if let Err(e) = watch::watch(&session, &keys, state, stop).await {
+                    eprintln!("view: {e}");
+                }
+            }
+        });
+        View {
+            addr,
+            stop,
+            tasks: vec![server, watcher],
+        }
+    }
+}
+
+/// A running view: its address, and its tasks until [`View::stop`].
+pub struct View {
+    addr: SocketAddr,
+    stop: tokio::sync::watch::Sender<bool>,
+    tasks: Vec<JoinHandle<()>>,
+}
+
+impl View {
+    /// The address the page is served on.
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// The page's URL.
+    pub fn url(&self) -> String {
+        format!("http://{}/", self.addr)
+    }
+
+    /// Stops serving and watching, and waits for both.
+    pub async fn stop(self) {
+        let _ = self.stop.send(true);
+        for t in self.tasks {
+            let _ = t.await;
+        }
+    }
+}

@@ -1,0 +1,173 @@
+//! The live view's zenoh side: subscribes to the node's outputs (map updates, bin poses,
+//! renders, bird's-eye views, latency, diagnostics) and to its left input images and camera
+//! info, decodes them and updates the [`ViewState`]. A view that starts after the node, or
+//! misses an update, asks the node's snapshot queryable for the whole map (at most every
+//! two seconds; the node rate-limits it too).
+
+use std::future::Future;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use tokio::sync::mpsc;
+use zenoh::Session;
+
+use super::state::{rgb_png, MapSync, ViewState};
+use crate::fusion::decode_update;
+use crate::msg::geometry_msgs::PoseStamped;
+use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
+use crate::msg::latency::{BinLatency, Diagnostics};
+use crate::msg::map_update::MapUpdate;
+use crate::msg::pose::affine_from_pose;
+use crate::msg::sensor_msgs::{CameraInfo, Image};
+use crate::msg::Message;
+use crate::pipeline::worker::now_ns;
+use crate::service::keys::{self, Keys, Topic};
+use crate::transport::TransportError;
+
+/// Least time between two snapshot queries.
+const SNAPSHOT_RETRY: Duration = Duration::from_secs(2);
+
+/// Messages waiting to be taken in at most (beyond it they are dropped).
+const QUEUE: usize = 256;
+
+/// The topics the view listens to.
+const WATCHED: [Topic; 8] = [
+    keys::MAP_UPDATE,
+    keys::BIN_POSE,
+    keys::BIN_RENDER,
+    keys::MAP_BEV,
+    keys::LATENCY,
+    keys::DIAGNOSTICS,
+    keys::LEFT_IMAGE,
+    keys::LEFT_INFO,
+];
+
+/// Feeds `state` from the node's topics under `keys` until `stop` completes.
+pub async fn watch(
+    session: &Session,
+    keys: &Keys,
+    state: Arc<Mutex<ViewState>>,
+    stop: impl Future<Output = ()>,
+) -> Result<(), TransportError> {
+    let (tx, mut rx) = mpsc::channel::<(Topic, Vec<u8>)>(QUEUE);
+    let mut subscribers = Vec::new();
+    for topic in WATCHED {
+        let tx = tx.clone();
+        let subscriber = session
+            .declare_subscriber(keys.key(topic))
+            .callback(move |sample| {
+                // Full: the message is dropped (a map update's gap then asks for a
+                // snapshot); closed: watching stopped.
+                let _ = tx.try_send((topic, sample.payload().to_bytes().into_owned()));
+            })
+            .await
+            .map_err(|e| TransportError::Zenoh(e.to_string()))?;
+        subscribers.push(subscriber);
+    }
+    drop(tx);
+    let mut last_query: Option<Instant> = None;
+    let mut want_snapshot = true;
+    tokio::pin!(stop);
+    loop {
+        if want_snapshot && last_query.is_none_or(|t| t.elapsed() >= SNAPSHOT_RETRY) {
+            last_query = Some(Instant::now());
+            want_snapshot = !query_snapshot(session, keys, &state).await;
+        }
+        let (topic, payload) = tokio::select! {
+            _ = &mut stop => break,
+            _ = tokio::time::sleep(SNAPSHOT_RETRY), if want_snapshot => continue,
+            received = rx.recv() => match received {
+                Some(r) => r,
+                None => break,
+            },
+        };
+        let mut st = state.lock().unwrap_or_else(|e| e.into_inner());
+        if take(&mut st, topic, &payload) == Some(MapSync::NeedsSnapshot) {
+            want_snapshot = true;
+        }
+    }
+    Ok(())
+}
+
+/// Asks the node for a snapshot and applies it; true when one was applied.
+async fn query_snapshot(session: &Session, keys: &Keys, state: &Mutex<ViewState>) -> bool {
+    let Ok(replies) = session
+        .get(keys.snapshot_request())
+        .timeout(Duration::from_secs(2))
+        .await
+    else {
+        return false;
+    };
+    while let Ok(reply) = replies.recv_async().await {
+        let Ok(sample) = reply.result() else {
+            continue;
+        };
+        let payload = sample.payload().to_bytes();
+        let mut st = state.lock().unwrap_or_else(|e| e.into_inner());
+        if take(&mut st, keys::MAP_UPDATE, &payload) == Some(MapSync::InSync) {
+            return true;
+        }
+    }
+    false
+}
+
+/// Decodes one message of `topic` into the state. Returns how the map fared for map
+/// updates, `None` for other topics. A message that does not decode is counted.
+fn take(st: &mut ViewState, topic: Topic, payload: &[u8]) -> Option<MapSync> {
+    let ok = match topic {
+        t if t == keys::MAP_UPDATE => {
+            let update = MapUpdate::decode(payload)
+                .ok()
+                .and_then(|m| Some((m.sequence, decode_update(&m).ok()?)));
+            match update {
+                Some((sequence, update)) => return Some(st.map_update(sequence, update)),
+                None => false,
+            }
+        }
+        t if t == keys::BIN_POSE => PoseStamped::decode(payload)
+            .ok()
+            .and_then(|m| Some((m.header.stamp.to_nanos(), affine_from_pose(&m).ok()?)))
+            .map(|(stamp, pose)| st.bin_pose(stamp, pose))
+            .is_some(),
+        t if t == keys::BIN_RENDER => Image::decode(payload)
+            .ok()
+            .and_then(|m| {
+                let bin_id = bin_of(&m.header.frame_id)?;
+                let rgb = rgb_from_image(&m).ok()?;
+                let png = rgb_png(rgb.width, rgb.height, rgb.to_rgb8())?;
+                Some((bin_id, m.header.stamp.to_nanos(), png))
+            })
+            .map(|(bin_id, stamp, png)| st.render(bin_id, stamp, png))
+            .is_some(),
+        t if t == keys::MAP_BEV => Image::decode(payload)
+            .ok()
+            .and_then(|m| {
+                let rgb = rgb_from_image(&m).ok()?;
+                rgb_png(rgb.width, rgb.height, rgb.to_rgb8())
+            })
+            .map(|png| st.bev(png))
+            .is_some(),
+        t if t == keys::LATENCY => BinLatency::decode(payload).map(|l| st.latency(l)).is_ok(),
+        t if t == keys::DIAGNOSTICS => Diagnostics::decode(payload)
+            .map(|d| st.diagnostics(&d))
+            .is_ok(),
+        t if t == keys::LEFT_IMAGE => Image::decode(payload)
+            .map(|m| st.input_image(now_ns(), m))
+            .is_ok(),
+        t if t == keys::LEFT_INFO => CameraInfo::decode(payload)
+            .ok()
+            .and_then(|m| intrinsics_from_camera_info(&m).ok())
+            .map(|(k, _)| st.intrinsics(k))
+            .is_some(),
+        _ => true,
+    };
+    if !ok {
+        st.undecodable();
+    }
+    None
+}
+
+/// The bin id in a `bin_<id>` frame name.
+fn bin_of(frame_id: &str) -> Option<u64> {
+    frame_id.strip_prefix("bin_")?.parse().ok()
+}

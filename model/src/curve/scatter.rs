@@ -227,7 +227,7 @@ fn draw_points(img: &mut RgbImage, f: &Frame, panel: &Panel) {
             (x - DOT - 1 - w, y + DOT),
         ];
         let inside = |&(lx, ly): &(i64, i64)| {
-            lx >= f.left + 1 && lx + w < f.right && ly > f.top && ly + h < f.bottom
+            lx > f.left && lx + w < f.right && ly > f.top && ly + h < f.bottom
         };
         let rect = |(lx, ly): (i64, i64)| (lx - 1, ly - 1, lx + w + 1, ly + h + 1);
         let spot = candidates
@@ -339,7 +339,10 @@ mod tests {
             log_x: false,
             points: vec![point("ONE", 3.0, 3.0, true)],
         };
-        assert_eq!(render(&[empty.clone()], 100, 60).dimensions(), (100, 60));
+        assert_eq!(
+            render(std::slice::from_ref(&empty), 100, 60).dimensions(),
+            (100, 60)
+        );
         assert_eq!(render(&[], 10, 10).dimensions(), (10, 10));
         assert_eq!(tick_text(2.500), "2.5");
         assert_eq!(tick_text(-0.0001), "0");

@@ -126,7 +126,7 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
             scores.mean.psnr,
             scores.mean.abs_rel.unwrap_or(f64::NAN)
         );
-        if setting == "default" || setting == "range inf" {
+        if setting == "default" || setting.starts_with("range") {
             pictures(args, &map, &sequence, &mut raster, &config, &setting)?;
         }
         rows.push(Row {

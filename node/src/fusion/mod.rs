@@ -138,7 +138,7 @@ impl FusionConfig {
             "cell_size must be finite and positive"
         } else if !(0.0..=1.0).contains(&self.opacity_floor) {
             "opacity_floor must be in [0, 1]"
-        } else if !(self.keep.max_range_m > 0.0) {
+        } else if self.keep.max_range_m.is_nan() || self.keep.max_range_m <= 0.0 {
             "keep.max_range_m must be positive"
         } else if !(0.0..=1.0).contains(&self.keep.min_confidence) {
             "keep.min_confidence must be in [0, 1]"

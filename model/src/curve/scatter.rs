@@ -216,16 +216,20 @@ fn draw_points(img: &mut RgbImage, f: &Frame, panel: &Panel) {
         let Some((x, y)) = at(p) else { continue };
         let w = glyphs::width(&p.label);
         let h = GLYPH.1;
-        let candidates = [
+        // Beside the dot first, then above or below it, then stepping away up and down on
+        // either side, so crowded clusters still get every label apart.
+        let mut candidates = vec![
             (x + DOT + 1, y - h / 2),
             (x - DOT - 1 - w, y - h / 2),
             (x - w / 2, y - DOT - 1 - h),
             (x - w / 2, y + DOT + 1),
-            (x + DOT + 1, y - h - DOT),
-            (x + DOT + 1, y + DOT),
-            (x - DOT - 1 - w, y - h - DOT),
-            (x - DOT - 1 - w, y + DOT),
         ];
+        for k in 1..=8 {
+            for dy in [-k * (h + 2), k * (h + 2)] {
+                candidates.push((x + DOT + 1, y - h / 2 + dy));
+                candidates.push((x - DOT - 1 - w, y - h / 2 + dy));
+            }
+        }
         let inside = |&(lx, ly): &(i64, i64)| {
             lx > f.left && lx + w < f.right && ly > f.top && ly + h < f.bottom
         };

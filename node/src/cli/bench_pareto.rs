@@ -104,10 +104,12 @@ pub fn run(args: &BenchParetoArgs) -> Result<()> {
         let inner = match build(point) {
             Ok(r) => r,
             Err(e) => {
-                eprintln!("bench pareto: skipping `{}`: {e:#}", point.name);
+                // The first line: a backend error may carry a backtrace after it.
+                let reason = format!("{e:#}").lines().next().unwrap_or("").to_string();
+                eprintln!("bench pareto: skipping `{}`: {reason}", point.name);
                 report.skipped.push(SkippedPoint {
                     name: point.name.clone(),
-                    reason: format!("{e:#}"),
+                    reason,
                 });
                 continue;
             }
@@ -151,9 +153,11 @@ pub fn run(args: &BenchParetoArgs) -> Result<()> {
         report.points.push(result);
     }
     report.peak_memory = match reset_everywhere {
-        true => "peak resident memory (VmHWM) of the process during one bin's path, reset \
-                 before every bin through /proc/self/clear_refs; includes what the process \
-                 holds besides (data, LPIPS, the point's weights)"
+        true => "the process's peak resident memory (VmHWM) during one bin's path, reset to \
+                 the resident memory before every bin through /proc/self/clear_refs; it \
+                 includes what the process holds besides (data, LPIPS, the point's weights) \
+                 and what the allocator kept from earlier points, so only a rise over the \
+                 points before is a point's own (one point per process measures it alone)"
             .into(),
         false => "the process's peak resident memory since its start (the kernel refused \
                   the per-bin reset): only growth between points is the point's own"

@@ -2,10 +2,14 @@
 //! one or more named series of (step, value) points drawn on a white canvas inside an axes
 //! box, the value on a log10 axis (losses fall over decades), with tick marks (a long one per
 //! decade and per round step, short ones at 2..9 times a decade) and a legend of coloured
-//! squares in series order. No text is drawn; the legend's order is the series' order.
-//! [`plot_csv`] draws chosen columns of a CSV log whose first column is `step` ([`csv`]).
+//! squares in series order. No text is drawn on loss curves; the legend's order is the
+//! series' order. [`plot_csv`] draws chosen columns of a CSV log whose first column is
+//! `step` ([`csv`]). [`scatter`] draws labelled trade-off charts (with a Pareto front) on
+//! the same primitives, writing text with the bitmap font in [`glyphs`].
 
 pub mod csv;
+pub mod glyphs;
+pub mod scatter;
 
 use std::path::{Path, PathBuf};
 

@@ -5,18 +5,22 @@
 //! - [`transport`]: zenoh sessions (loopback peers by default); [`msg`]: the ROS 2 CDR wire
 //!   messages and their rmw_zenoh type hashes.
 //! - [`pipeline`]: time sync, binning and the worker thread that owns the reconstructor.
-//! - [`fusion`]: the fused global map in the f64 world frame.
+//! - [`fusion`]: the fused global map in the f64 world frame; [`map_eval`]: its own quality
+//!   on a drive (`stereosplat eval-map`).
 //! - [`pair`]: one stereo pair from files reconstructed, checked and scored
 //!   (`stereosplat reconstruct`).
 //! - [`view`]: the live page on loopback (splats, renders, latency charts).
+//! - [`pareto`]: operating points measured side by side (`stereosplat bench pareto`).
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
 
 pub mod bag;
 pub mod cli;
 pub mod fusion;
 pub mod launch;
+pub mod map_eval;
 pub mod msg;
 pub mod pair;
+pub mod pareto;
 pub mod pipeline;
 pub mod service;
 pub mod transport;

@@ -4,8 +4,8 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_model, bench_node, demo, eval, launch, logs, reconstruct, render,
-    stream, synth, train, view,
+    bench, bench_check, bench_model, bench_node, bench_pareto, demo, eval, eval_map, launch, logs,
+    reconstruct, render, stream, synth, train, view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -29,6 +29,8 @@ enum Command {
     SynthHeldout(synth::HeldoutArgs),
     /// The paper's evaluation protocol on a data root: table, JSON, pictures.
     Eval(eval::EvalArgs),
+    /// The fused global map's own quality on a drive, swept over the fusion's settings.
+    EvalMap(eval_map::EvalMapArgs),
     /// One rectified stereo pair of image files in: a PLY, depth PNGs, a render, scores.
     Reconstruct(reconstruct::ReconstructArgs),
     /// Train a network preset: checkpoints, resume, CSV log, loss curve, safetensors.
@@ -62,6 +64,9 @@ enum BenchCommand {
     Model(bench_model::BenchModelArgs),
     /// The per-bin self-check on generated drives and bad pairs: scores, verdicts, cost.
     Check(bench_check::BenchCheckArgs),
+    /// Operating points from a TOML list on the same held-out bins: latency, memory,
+    /// Gaussians and quality side by side, the Pareto front, a chart.
+    Pareto(bench_pareto::BenchParetoArgs),
 }
 
 fn main() -> Result<()> {
@@ -75,6 +80,7 @@ fn main() -> Result<()> {
         Command::Synth(args) => synth::run(&args),
         Command::SynthHeldout(args) => synth::run_heldout(&args),
         Command::Eval(args) => eval::run(&args),
+        Command::EvalMap(args) => eval_map::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Train(args) => train::run(&args),
         Command::Launch(args) => launch::run(&args),
@@ -87,5 +93,6 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
         Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),
+        Command::Bench(BenchCommand::Pareto(args)) => bench_pareto::run(&args),
     }
 }

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use glam::{DAffine3, DMat3, DQuat, DVec2, DVec3, Quat, Vec3};
 use node::fusion::{
     bev_image, local_set, save_bev_png, BevView, FusionConfig, FusionError, GaussianId, GlobalMap,
-    MapReplica, StoreError,
+    Keep, MapReplica, StoreError,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -31,11 +31,14 @@ fn set_of(gs: &[Gaussian]) -> GaussianSet {
     set
 }
 
+/// A map that fuses every distance and confidence (the keep rule has its own tests in
+/// `fusion_keep.rs`).
 fn map_with(cell_size: f64, opacity_floor: f32, max_gaussians: usize) -> GlobalMap {
     GlobalMap::new(FusionConfig {
         cell_size,
         opacity_floor,
         max_gaussians,
+        keep: Keep::ALL,
     })
     .unwrap()
 }

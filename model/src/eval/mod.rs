@@ -11,4 +11,4 @@ pub mod run;
 
 pub use raster::Raster;
 pub use report::{BinReport, EvalReport, FrameScore, MeanScores, SkippedBin, Summary};
-pub use run::{evaluate, EvalConfig, EvalError};
+pub use run::{evaluate, score_frame, EvalConfig, EvalError};

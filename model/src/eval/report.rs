@@ -89,7 +89,7 @@ pub struct MeanScores {
 
 impl MeanScores {
     /// The means over `scores` (each bin weighs by its own frames; callers average bins).
-    fn of<'a>(scores: impl IntoIterator<Item = &'a MeanScores>) -> Self {
+    pub fn of<'a>(scores: impl IntoIterator<Item = &'a MeanScores>) -> Self {
         let scores: Vec<_> = scores.into_iter().collect();
         let mean = |v: Vec<f64>| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
         Self {

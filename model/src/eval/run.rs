@@ -222,9 +222,10 @@ fn evaluate_bin(
     Ok((report, renders))
 }
 
-/// Scores one render. Missing LiDAR (no file, an empty scan, no point inside the depth
-/// range) leaves the depth scores empty rather than failing the bin.
-fn score_frame(
+/// Scores one render against the recorded image and LiDAR with `config`'s metrics (also
+/// used to score the node's fused map). Missing LiDAR (no file, an empty scan, no point
+/// inside the depth range) leaves the depth scores empty rather than failing the bin.
+pub fn score_frame(
     frame: u32,
     side: Side,
     role: Option<crate::bins::Role>,

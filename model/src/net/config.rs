@@ -62,6 +62,11 @@ pub struct Config {
     pub opacity_floor: f32,
     /// At most this many Gaussians per reconstruction (the most opaque are kept).
     pub max_gaussians: usize,
+    /// Merge redundant Gaussians (2x2 blocks whose relative depth and colour agree within
+    /// this tolerance, see `merge`) so flat regions take fewer; `None` keeps one per
+    /// `gaussian_stride` pixels everywhere. Inference only.
+    #[serde(default)]
+    pub merge_tolerance: Option<f32>,
 }
 
 /// The preset names [`Config::preset`] knows.
@@ -147,6 +152,7 @@ impl Config {
             gaussian_stride: 2,
             opacity_floor: 0.02,
             max_gaussians: 200_000,
+            merge_tolerance: None,
         }
     }
 

@@ -5,7 +5,8 @@
 //!
 //! [`StereoSplat::forward`] returns every Gaussian with its features (the interface the
 //! triplane branch will plug into); [`LearnedReconstructor`] prunes them to what the scene
-//! needs and implements the project's `Reconstructor`.
+//! needs (opacity floor, budget, pair fusion, [`merge`] of redundant Gaussians) and implements
+//! the project's `Reconstructor`.
 
 mod blocks;
 mod config;
@@ -14,6 +15,7 @@ mod depth_head;
 mod encoders;
 mod gaussian_head;
 mod geometry;
+pub mod merge;
 pub mod pair_fusion;
 mod reconstructor;
 mod stereosplat;

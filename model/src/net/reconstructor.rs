@@ -9,6 +9,7 @@ use candle_nn::VarBuilder;
 use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
+use super::merge::merge_redundant;
 use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
@@ -150,13 +151,19 @@ impl Reconstructor for LearnedReconstructor {
             }
             _ => None,
         };
-        to_set(
+        let set = to_set(
             &prediction.splats,
             surviving.as_deref(),
             cfg.opacity_floor,
             cfg.max_gaussians,
         )
-        .map_err(backend)
+        .map_err(backend)?;
+        Ok(match (cfg.merge_tolerance, cameras.first()) {
+            (Some(tolerance), Some(reference)) => {
+                merge_redundant(&set, reference, cfg.gaussian_stride, tolerance)
+            }
+            _ => set,
+        })
     }
 }
 

@@ -144,12 +144,13 @@ struct State {
 }
 
 /// Whether two presets build the same network and train it alike: the settings of inference
-/// alone (opacity floor, budget, pair fusion, joint pairs) do not count.
+/// alone (opacity floor, budget, pair fusion, joint pairs, merging) do not count.
 fn same_network(a: &Config, b: &Config) -> bool {
     let training = |c: &Config| Config {
         opacity_floor: 0.0,
         max_gaussians: 0,
         pair_fusion_margin: None,
+        merge_tolerance: None,
         joint_pairs: false,
         ..c.clone()
     };

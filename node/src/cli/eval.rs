@@ -68,16 +68,10 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             .with_context(|| format!("listing sequences in {}", args.data.display()))?,
     };
     let mut reconstructor = args.method.build()?;
-    let mut raster = match args.gpu {
-        true => Raster::Gpu(Box::new(GpuRasterizer::new().context("no wgpu adapter")?)),
-        false => Raster::Cpu,
-    };
+    let mut raster = raster_for(args.gpu)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    let lpips = match args.no_lpips {
-        true => None,
-        false => Some(Lpips::load_default().context("loading the LPIPS weights")?),
-    };
+    let lpips = lpips_unless(args.no_lpips)?;
     let config = EvalConfig {
         bins: BinConfig {
             length_m: args.bin_length,
@@ -136,4 +130,22 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The rasterizer of the scoring renders: wgpu when `gpu`, else the CPU reference.
+pub fn raster_for(gpu: bool) -> Result<Raster> {
+    Ok(match gpu {
+        true => Raster::Gpu(Box::new(GpuRasterizer::new().context("no wgpu adapter")?)),
+        false => Raster::Cpu,
+    })
+}
+
+/// The LPIPS network, unless `skip` (LPIPS is the slowest metric).
+pub fn lpips_unless(skip: bool) -> Result<Option<Lpips>> {
+    match skip {
+        true => Ok(None),
+        false => Ok(Some(
+            Lpips::load_default().context("loading the LPIPS weights")?,
+        )),
+    }
 }

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::bag::Rate;
-use crate::fusion::FusionConfig;
+use crate::fusion::{FusionConfig, Keep, DEFAULT_MAX_RANGE_M};
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
@@ -210,6 +210,11 @@ pub struct RunArgs {
     /// MiB of decoded images the synchroniser holds per stream at most.
     #[arg(long, default_value_t = 64)]
     sync_mib_per_stream: usize,
+    /// Gaussians of a bin map farther than this from the bin's camera, metres, are
+    /// published with the bin but not fused into the global map (sky and far, weakly
+    /// supported depth; `inf` fuses everything). README, "The fused map's own quality".
+    #[arg(long, default_value_t = DEFAULT_MAX_RANGE_M)]
+    map_keep_range: f32,
     #[command(flatten)]
     limits: LimitsArgs,
     #[command(flatten)]
@@ -274,7 +279,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
         queue_capacity: args.queue,
         method: args.method.clone(),
         on_check_fail: args.on_check_fail.into(),
-        fusion: FusionConfig::default(),
+        fusion: FusionConfig {
+            keep: Keep {
+                max_range_m: args.map_keep_range,
+                ..Keep::default()
+            },
+            ..FusionConfig::default()
+        },
         out_dir: Some(args.out.clone()),
         start_map: match args.fresh {
             true => StartMap::Fresh,

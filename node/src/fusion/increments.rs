@@ -14,6 +14,9 @@ pub struct InsertStats {
     pub skipped_invalid: usize,
     /// Gaussians skipped for an opacity below the floor.
     pub pruned_opacity: usize,
+    /// Gaussians kept out of the map by the keep rule ([`super::Keep`]): farther from
+    /// their bin's camera than the range, or less confident than the floor.
+    pub not_kept: usize,
     /// Gaussians dropped because their cell already held Gaussians of equal or higher
     /// confidence.
     pub dropped_lower_confidence: usize,

@@ -10,8 +10,12 @@
 //! - otherwise (equal or lower) the bin's Gaussians of that cell are dropped.
 //!
 //! So every cell holds the Gaussians of exactly one bin. Gaussians with a NaN or infinite
-//! field, or with an opacity below `opacity_floor`, are skipped before the rule (and
-//! counted). Budget: after a bin is fused, while the map holds more than `max_gaussians`,
+//! field, with an opacity below `opacity_floor`, or outside the keep rule ([`Keep`]: farther
+//! than `keep.max_range_m` from their bin's camera, or less confident than
+//! `keep.min_confidence`) are skipped before the rule (and counted). The keep rule exists for
+//! the map's consumers: a bin map's far Gaussians (sky placed at the network's farthest depth,
+//! distant matches with little support) render the bin's own views well but, fused into the
+//! world, float above the road that later bins see from close by. Budget: after a bin is fused, while the map holds more than `max_gaussians`,
 //! whole cells are evicted, farthest (cell centre) from the latest bin's origin first, ties
 //! by cell key. Ids are u64, assigned in increasing order in the bin's input order, never
 //! reused.
@@ -62,6 +66,47 @@ pub struct WorldGaussian {
     pub bin_id: u64,
 }
 
+/// Which of a bin map's Gaussians the global map takes in (the rest stay in the bin map,
+/// published with it, but are not fused).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Keep {
+    /// Gaussians farther than this from their bin's camera (the bin frame's origin), metres,
+    /// are not fused: sky and far, weakly supported depth. Infinity keeps every distance.
+    pub max_range_m: f32,
+    /// Gaussians less confident than this are not fused (0 keeps all).
+    pub min_confidence: f32,
+}
+
+impl Default for Keep {
+    /// Within 40 m of the bin's camera, any confidence: chosen on the held-out drive of
+    /// `results/fused_map/README.md`, where it clears most of the sky over the road in the
+    /// bird's-eye view and every score of the fused map improves (20-30 m clears all of it
+    /// but loses the renders' sky).
+    fn default() -> Self {
+        Self {
+            max_range_m: DEFAULT_MAX_RANGE_M,
+            min_confidence: 0.0,
+        }
+    }
+}
+
+/// [`Keep::max_range_m`]'s default, metres.
+pub const DEFAULT_MAX_RANGE_M: f32 = 40.0;
+
+impl Keep {
+    /// Everything is fused (the map before the keep rule existed).
+    pub const ALL: Keep = Keep {
+        max_range_m: f32::INFINITY,
+        min_confidence: 0.0,
+    };
+
+    /// Whether a Gaussian at bin-frame position `mean` with `confidence` is fused. A NaN
+    /// distance or confidence is not.
+    pub fn keeps(&self, mean: Vec3, confidence: f32) -> bool {
+        mean.length() <= self.max_range_m && confidence >= self.min_confidence
+    }
+}
+
 /// The map's settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FusionConfig {
@@ -71,15 +116,18 @@ pub struct FusionConfig {
     pub opacity_floor: f32,
     /// The most Gaussians the map holds (memory budget); see the module doc for eviction.
     pub max_gaussians: usize,
+    /// Which Gaussians of a bin map are fused at all.
+    pub keep: Keep,
 }
 
 impl Default for FusionConfig {
-    /// 0.2 m cells, opacity floor 0.01, two million Gaussians.
+    /// 0.2 m cells, opacity floor 0.01, two million Gaussians, [`Keep::default`].
     fn default() -> Self {
         Self {
             cell_size: 0.2,
             opacity_floor: 0.01,
             max_gaussians: 2_000_000,
+            keep: Keep::default(),
         }
     }
 }
@@ -91,6 +139,10 @@ impl FusionConfig {
             "cell_size must be finite and positive"
         } else if !(0.0..=1.0).contains(&self.opacity_floor) {
             "opacity_floor must be in [0, 1]"
+        } else if self.keep.max_range_m.is_nan() || self.keep.max_range_m <= 0.0 {
+            "keep.max_range_m must be positive"
+        } else if !(0.0..=1.0).contains(&self.keep.min_confidence) {
+            "keep.min_confidence must be in [0, 1]"
         } else {
             return Ok(());
         };
@@ -339,6 +391,10 @@ impl GlobalMap {
             }
             if l.opacity < self.config.opacity_floor {
                 stats.pruned_opacity += 1;
+                continue;
+            }
+            if !self.config.keep.keeps(l.mean, l.confidence) {
+                stats.not_kept += 1;
                 continue;
             }
             let local_rotation = l.rotation.as_dquat();

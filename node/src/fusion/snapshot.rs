@@ -1,8 +1,9 @@
 //! Saving the global map to a file and restoring it, so a restarted node continues with
 //! the same Gaussians and ids it had published.
 //!
-//! Format (all little endian): magic `SSGMAP\0\n`, version u32 (2), cell size f64, opacity
-//! floor f32, budget u64, next id u64, increments u64 (the sequence number of the last
+//! Format (all little endian): magic `SSGMAP\0\n`, version u32 (3), cell size f64, opacity
+//! floor f32, budget u64, keep range f32 and keep confidence f32 (version 3; a version-2
+//! file has neither and gets [`super::Keep::default`]), next id u64, increments u64 (the sequence number of the last
 //! published increment), epoch u64 (times resumed), last bin flag u8 + id u64, latest
 //! origin flag u8 +
 //! 3 x f64, count u64, then per Gaussian: id u64, bin id u64, position 3 x f64, log scale
@@ -17,10 +18,12 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Quat, Vec3};
 
-use super::{FusionConfig, GaussianId, GlobalMap, Stored, WorldGaussian};
+use super::{FusionConfig, GaussianId, GlobalMap, Keep, Stored, WorldGaussian};
 
 const MAGIC: &[u8; 8] = b"SSGMAP\0\n";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
+/// The oldest version still read (without the keep rule).
+const OLDEST_VERSION: u32 = 2;
 /// Bytes per stored Gaussian.
 const RECORD_BYTES: usize = 88;
 
@@ -93,6 +96,8 @@ impl GlobalMap {
         b.extend_from_slice(&self.config.cell_size.to_le_bytes());
         b.extend_from_slice(&self.config.opacity_floor.to_le_bytes());
         b.extend_from_slice(&(self.config.max_gaussians as u64).to_le_bytes());
+        b.extend_from_slice(&self.config.keep.max_range_m.to_le_bytes());
+        b.extend_from_slice(&self.config.keep.min_confidence.to_le_bytes());
         b.extend_from_slice(&self.next_id.to_le_bytes());
         b.extend_from_slice(&self.increments.to_le_bytes());
         b.extend_from_slice(&self.epoch.to_le_bytes());
@@ -154,7 +159,7 @@ impl GlobalMap {
             });
         }
         let version = r.u32()?;
-        if version != VERSION {
+        if !(OLDEST_VERSION..=VERSION).contains(&version) {
             return Err(StoreError::UnsupportedVersion {
                 path: path.to_path_buf(),
                 version,
@@ -175,6 +180,13 @@ impl GlobalMap {
             cell_size: r.f64()?,
             opacity_floor: r.f32()?,
             max_gaussians: usize::try_from(r.u64()?).unwrap_or(usize::MAX),
+            keep: match version {
+                2 => Keep::default(),
+                _ => Keep {
+                    max_range_m: r.f32()?,
+                    min_confidence: r.f32()?,
+                },
+            },
         };
         config
             .validate()

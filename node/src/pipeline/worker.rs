@@ -248,6 +248,39 @@ impl Drop for Worker {
     }
 }
 
+/// A bin's map from its stereo pairs (the worker gives it the first), as the worker makes
+/// it: the reconstructor, then the self-check on the first pair and what its policy does
+/// with a failing map; a panic in the reconstructor
+/// is caught and returned as the error. `bench pareto` and `eval-map` time and score
+/// exactly this path.
+pub fn bin_map(
+    reconstructor: &mut dyn Reconstructor,
+    self_check: &mut SelfCheck,
+    views: &[StereoView<'_>],
+) -> (Result<GaussianSet, String>, CheckOutcome) {
+    let checked = catch_unwind(AssertUnwindSafe(|| {
+        match (reconstructor.reconstruct(views), views.first()) {
+            (Ok(set), Some(first)) => self_check.apply(reconstructor.name(), first, set),
+            (Ok(set), None) => (Ok(set), CheckOutcome::default()),
+            (Err(e), _) => (Err(e.to_string()), CheckOutcome::default()),
+        }
+    }));
+    match checked {
+        Ok(done) => done,
+        Err(panic) => (
+            Err(format!(
+                "reconstructor panicked: {}",
+                panic
+                    .downcast_ref::<String>()
+                    .map(String::as_str)
+                    .or_else(|| panic.downcast_ref::<&str>().copied())
+                    .unwrap_or("(no message)")
+            )),
+            CheckOutcome::default(),
+        ),
+    }
+}
+
 fn run_job(
     reconstructor: &mut dyn Reconstructor,
     self_check: &mut SelfCheck,
@@ -266,26 +299,7 @@ fn run_job(
         right_camera: job.rig.local_camera(origin, origin, Side::Right),
     };
     stamps.model_start_ns = now_ns();
-    let checked = catch_unwind(AssertUnwindSafe(|| {
-        match reconstructor.reconstruct(&[view]) {
-            Ok(set) => self_check.apply(reconstructor.name(), &view, set),
-            Err(e) => (Err(e.to_string()), CheckOutcome::default()),
-        }
-    }));
-    let (result, check) = match checked {
-        Ok(done) => done,
-        Err(panic) => (
-            Err(format!(
-                "reconstructor panicked: {}",
-                panic
-                    .downcast_ref::<String>()
-                    .map(String::as_str)
-                    .or_else(|| panic.downcast_ref::<&str>().copied())
-                    .unwrap_or("(no message)")
-            )),
-            CheckOutcome::default(),
-        ),
-    };
+    let (result, check) = bin_map(reconstructor, self_check, &[view]);
     stamps.model_end_ns = now_ns();
     // The set goes out with the map; the render needs only a copy of what it draws.
     let to_render = match (&raster, &result) {

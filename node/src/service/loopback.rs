@@ -281,6 +281,13 @@ pub fn peak_rss_bytes() -> u64 {
     proc_status_kib("VmHWM:") * 1024
 }
 
+/// Resets the peak [`peak_rss_bytes`] reports to the present resident memory (Linux:
+/// writing 5 to `/proc/self/clear_refs`), so a later reading is the peak since now. False
+/// where the kernel does not allow it (then the peak stays the process's since its start).
+pub fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", b"5").is_ok()
+}
+
 fn proc_status_kib(field: &str) -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()

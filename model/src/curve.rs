@@ -265,8 +265,12 @@ pub fn write_png(
     width: u32,
     height: u32,
 ) -> Result<(), CurveError> {
-    render(series, width, height)
-        .save_with_format(path, image::ImageFormat::Png)
+    save_png(&render(series, width, height), path)
+}
+
+/// Saves a drawn chart as PNG, naming the file in the error (every chart of this module).
+fn save_png(img: &RgbImage, path: &Path) -> Result<(), CurveError> {
+    img.save_with_format(path, image::ImageFormat::Png)
         .map_err(|source| CurveError::Image {
             path: path.to_path_buf(),
             source,

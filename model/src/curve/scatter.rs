@@ -9,7 +9,7 @@ use std::path::Path;
 use image::{Rgb, RgbImage};
 
 use super::glyphs::{self, GLYPH};
-use super::{colour, extent, line, round_step, square, CurveError, BLACK, WHITE};
+use super::{colour, extent, line, round_step, save_png, square, CurveError, BLACK, WHITE};
 
 /// One labelled point.
 #[derive(Clone, Debug, PartialEq)]
@@ -270,12 +270,7 @@ pub fn write_png(
     panel_width: u32,
     height: u32,
 ) -> Result<(), CurveError> {
-    render(panels, panel_width, height)
-        .save_with_format(path, image::ImageFormat::Png)
-        .map_err(|source| CurveError::Image {
-            path: path.to_path_buf(),
-            source,
-        })
+    save_png(&render(panels, panel_width, height), path)
 }
 
 #[cfg(test)]

@@ -108,7 +108,8 @@ fn extent(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     })
 }
 
-/// The axes box on the canvas and the data ranges it spans (x in steps, y in log10 value).
+/// The axes box on the canvas and the data ranges it spans (here x in steps, y in log10
+/// value; [`scatter`] fills it with its own ranges).
 struct Axes {
     left: i64,
     right: i64,
@@ -142,13 +143,13 @@ impl Axes {
         }
     }
 
-    /// Column of step `s`.
+    /// Column of x value `s`.
     fn col(&self, s: f64) -> i64 {
         let t = (s - self.x.0) / (self.x.1 - self.x.0);
         self.left + (t * (self.right - self.left) as f64).round() as i64
     }
 
-    /// Row of log10 value `y` (larger values higher up).
+    /// Row of y value `y` (larger values higher up).
     fn row(&self, y: f64) -> i64 {
         let t = (y - self.y.0) / (self.y.1 - self.y.0);
         self.bottom - (t * (self.bottom - self.top) as f64).round() as i64

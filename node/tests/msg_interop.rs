@@ -10,7 +10,7 @@
 mod msg_support;
 mod python_support;
 
-use msg_support::values::{cases, decodes_to_case, hex, unhex};
+use msg_support::values::{cases, decode_requests, decodes_to_case, unhex};
 use msg_support::{gaussians, samples, FAR};
 use node::msg::{type_hash, MessageKind};
 use renderer::ply::SH_C0;
@@ -91,10 +91,7 @@ fn check_points(points: &Value, origin: glam::DVec3) {
 fn rosbags_reads_what_we_write_and_we_read_what_it_writes() {
     let s = samples();
     let cases = cases(&s);
-    let decode: Vec<_> = cases
-        .iter()
-        .map(|(t, b, _)| json!({"type": t, "hex": hex(b)}))
-        .collect();
+    let decode = decode_requests(&cases);
     let encode: Vec<_> = [true, false]
         .iter()
         .flat_map(|&le| {

@@ -21,7 +21,7 @@ mod msg_support;
 mod python_support;
 
 use msg_support::samples;
-use msg_support::values::{cases, decodes_to_case, hex, padded_cases, unhex};
+use msg_support::values::{cases, decode_requests, decodes_to_case, padded_cases, unhex};
 use node::msg::{type_hash, MessageKind};
 use serde_json::{json, Value};
 
@@ -47,10 +47,7 @@ fn rclpy(request: &Value) -> Value {
 fn rclpy_reads_our_bytes_and_writes_the_same_bytes() {
     let s = samples();
     let cases = cases(&s);
-    let decode: Vec<_> = cases
-        .iter()
-        .map(|(t, b, _)| json!({"type": t, "hex": hex(b)}))
-        .collect();
+    let decode = decode_requests(&cases);
     let encode: Vec<_> = cases
         .iter()
         .map(|(t, _, v)| json!({"type": t, "value": v}))

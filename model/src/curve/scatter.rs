@@ -9,7 +9,7 @@ use std::path::Path;
 use image::{Rgb, RgbImage};
 
 use super::glyphs::{self, GLYPH};
-use super::{colour, extent, line, round_step, save_png, square, CurveError, BLACK, WHITE};
+use super::{colour, extent, line, round_step, save_png, square, Axes, CurveError, BLACK, WHITE};
 
 /// One labelled point.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,15 +44,10 @@ const MARGIN_BOTTOM: i64 = 36;
 const TICK: i64 = 5;
 const DOT: i64 = 5;
 
-/// A panel's axes box on the canvas and the data ranges it spans (x already log10 on a log
-/// axis).
+/// A panel's axes box on the canvas and the data ranges it spans (the loss curve's [`Axes`],
+/// x already log10 on a log axis), and whether x is on a log axis.
 struct Frame {
-    left: i64,
-    right: i64,
-    top: i64,
-    bottom: i64,
-    x: (f64, f64),
-    y: (f64, f64),
+    axes: Axes,
     log_x: bool,
 }
 
@@ -79,25 +74,18 @@ impl Frame {
         };
         let x = extent(xs()).map_or((0.0, 1.0), |r| pad(r, if panel.log_x { 0.3 } else { 1.0 }));
         let y = extent(ys()).map_or((0.0, 1.0), |r| pad(r, 1e-3 + 0.05 * r.1.abs()));
-        Self {
+        let axes = Axes {
             left: x0 + MARGIN_LEFT,
             right: (x0 + width - 1 - MARGIN_RIGHT).max(x0 + MARGIN_LEFT + 1),
             top: MARGIN_TOP,
             bottom: (height - 1 - MARGIN_BOTTOM).max(MARGIN_TOP + 1),
             x,
             y,
+        };
+        Self {
+            axes,
             log_x: panel.log_x,
         }
-    }
-
-    fn col(&self, x: f64) -> i64 {
-        let t = (x - self.x.0) / (self.x.1 - self.x.0);
-        self.left + (t * (self.right - self.left) as f64).round() as i64
-    }
-
-    fn row(&self, y: f64) -> i64 {
-        let t = (y - self.y.0) / (self.y.1 - self.y.0);
-        self.bottom - (t * (self.bottom - self.top) as f64).round() as i64
     }
 }
 
@@ -121,7 +109,7 @@ fn tick_text(v: f64) -> String {
 }
 
 fn draw_frame(img: &mut RgbImage, f: &Frame, panel: &Panel) {
-    let (l, r, t, b) = (f.left, f.right, f.top, f.bottom);
+    let (l, r, t, b) = (f.axes.left, f.axes.right, f.axes.top, f.axes.bottom);
     for (p, q) in [
         ((l, t), (r, t)),
         ((r, t), (r, b)),
@@ -132,14 +120,14 @@ fn draw_frame(img: &mut RgbImage, f: &Frame, panel: &Panel) {
     }
     // x ticks: 1, 2, 5 per decade on a log axis, round steps on a linear one.
     let ticks: Vec<f64> = match f.log_x {
-        true => (f.x.0.floor() as i64..=f.x.1.ceil() as i64)
+        true => (f.axes.x.0.floor() as i64..=f.axes.x.1.ceil() as i64)
             .flat_map(|d| [1.0, 2.0, 5.0].map(|m| (m * 10f64.powi(d as i32)).log10()))
-            .filter(|v| (f.x.0..=f.x.1).contains(v))
+            .filter(|v| (f.axes.x.0..=f.axes.x.1).contains(v))
             .collect(),
-        false => steps(f.x),
+        false => steps(f.axes.x),
     };
     for v in ticks {
-        let x = f.col(v);
+        let x = f.axes.col(v);
         line(img, (x, b), (x, b + TICK), BLACK);
         let label = tick_text(if f.log_x { 10f64.powf(v) } else { v });
         glyphs::text(
@@ -150,8 +138,8 @@ fn draw_frame(img: &mut RgbImage, f: &Frame, panel: &Panel) {
             BLACK,
         );
     }
-    for v in steps(f.y) {
-        let y = f.row(v);
+    for v in steps(f.axes.y) {
+        let y = f.axes.row(v);
         line(img, (l - TICK, y), (l, y), BLACK);
         let label = tick_text(v);
         glyphs::text(
@@ -191,7 +179,7 @@ fn overlaps(a: (i64, i64, i64, i64), b: (i64, i64, i64, i64)) -> bool {
 fn draw_points(img: &mut RgbImage, f: &Frame, panel: &Panel) {
     let at = |p: &ScatterPoint| {
         let x = fx(f.log_x, p.x).filter(|_| p.y.is_finite())?;
-        Some((f.col(x), f.row(p.y)))
+        Some((f.axes.col(x), f.axes.row(p.y)))
     };
     let mut front: Vec<(i64, i64)> = panel
         .points
@@ -231,7 +219,7 @@ fn draw_points(img: &mut RgbImage, f: &Frame, panel: &Panel) {
             }
         }
         let inside = |&(lx, ly): &(i64, i64)| {
-            lx > f.left && lx + w < f.right && ly > f.top && ly + h < f.bottom
+            lx > f.axes.left && lx + w < f.axes.right && ly > f.axes.top && ly + h < f.axes.bottom
         };
         let rect = |(lx, ly): (i64, i64)| (lx - 1, ly - 1, lx + w + 1, ly + h + 1);
         let spot = candidates

@@ -23,7 +23,7 @@ use super::progress;
 use super::synth::first_sequence;
 use crate::fusion::{bev_image, save_bev_png, BevView, FusionConfig, GlobalMap, Keep};
 use crate::map_eval::{bin_maps, fuse, score_map, side_view, MapScores};
-use crate::pareto::{front, Better};
+use crate::pareto::{front, front_mark, table_cell, Better};
 use crate::pipeline::self_check::OnCheckFail;
 
 /// Flags of `eval-map`.
@@ -258,13 +258,7 @@ fn pictures(
 ) -> Result<()> {
     let tag = setting.replace(' ', "_");
     if let Some(origin) = map.latest_origin() {
-        let view = BevView {
-            centre: DVec2::new(origin.x, origin.y),
-            width: 512,
-            height: 512,
-            metres_per_pixel: 0.25,
-            background: [0, 0, 0],
-        };
+        let view = BevView::export(DVec2::new(origin.x, origin.y));
         let img = bev_image(map.gaussians().map(|(_, g)| g), &view)?;
         save_bev_png(&img, args.out.join(format!("bev_{tag}.png")))?;
     }
@@ -288,8 +282,6 @@ fn markdown(
     args: &EvalMapArgs,
     rows: &[Row],
 ) -> String {
-    let opt = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
-    let star = |b: bool| if b { "*" } else { "" };
     let mut s = format!(
         "# The fused map's own quality\n\n`{name}`: {bins} bins of {} m over {length_m:.0} m, \
          bin maps by `{}`{}; the fused map rendered at every {} frame's left camera. \
@@ -316,11 +308,11 @@ fn markdown(
             r.gaussians_per_metre,
             m.psnr,
             m.ssim,
-            opt(m.lpips, 3),
-            opt(m.abs_rel, 4),
-            opt(m.sq_rel, 3),
-            star(r.front_psnr),
-            star(r.front_abs_rel),
+            table_cell(m.lpips, 3),
+            table_cell(m.abs_rel, 4),
+            table_cell(m.sq_rel, 3),
+            front_mark(r.front_psnr),
+            front_mark(r.front_abs_rel),
         ));
     }
     s

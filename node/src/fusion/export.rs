@@ -87,6 +87,24 @@ pub struct BevView {
 }
 
 impl BevView {
+    /// A square view of `side` pixels at `metres_per_pixel` around `centre`, black where no
+    /// Gaussian lies (the published `map/bev` and the exported files).
+    pub fn square(centre: DVec2, side: u32, metres_per_pixel: f64) -> Self {
+        Self {
+            centre,
+            width: side,
+            height: side,
+            metres_per_pixel,
+            background: [0, 0, 0],
+        }
+    }
+
+    /// The view of the exported `global_map_bev.png`: 512 px at 0.25 m around `centre`
+    /// (`eval-map` draws its bird's-eye views the same way, so they compare).
+    pub fn export(centre: DVec2) -> Self {
+        Self::square(centre, 512, 0.25)
+    }
+
     fn validate(&self) -> Result<(), ExportError> {
         let what = if self.width == 0 || self.height == 0 {
             "width and height must be positive"

@@ -12,4 +12,4 @@ pub mod report;
 pub use front::{front, Better};
 pub use path::WorkerPath;
 pub use points::{load_points, parse_points, Availability, OperatingPoint, PointsError};
-pub use report::{ParetoReport, PointResult, SkippedPoint};
+pub use report::{front_mark, table_cell, ParetoReport, PointResult, SkippedPoint};

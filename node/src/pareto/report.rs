@@ -144,8 +144,6 @@ impl ParetoReport {
 
     /// The table: one row per point, `*` on the fronts.
     pub fn markdown(&self) -> String {
-        let opt = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
-        let star = |b: bool| if b { "*" } else { "" };
         let mut s = format!(
             "# Speed against accuracy\n\n{} bins of `{}` ({}, {}x{}, a bin every {} frames), \
              renders on {}, {} threads. Latency: stereo pair to published bin map (the \
@@ -178,12 +176,12 @@ impl ParetoReport {
                 p.gaussians_per_bin,
                 p.psnr,
                 p.ssim,
-                opt(p.lpips, 3),
-                opt(p.abs_rel, 4),
-                opt(p.sq_rel, 3),
+                table_cell(p.lpips, 3),
+                table_cell(p.abs_rel, 4),
+                table_cell(p.sq_rel, 3),
                 p.replaced_by_sgm,
-                star(p.front_psnr),
-                star(p.front_abs_rel),
+                front_mark(p.front_psnr),
+                front_mark(p.front_abs_rel),
             ));
         }
         for k in &self.skipped {
@@ -220,6 +218,20 @@ impl ParetoReport {
                 (p.abs_rel.unwrap_or(f64::NAN), p.front_abs_rel)
             }),
         ]
+    }
+}
+
+/// A markdown table cell of an optional score: `-` when it was not measured.
+pub fn table_cell(v: Option<f64>, decimals: usize) -> String {
+    v.map_or("-".into(), |v| format!("{v:.decimals$}"))
+}
+
+/// The table's mark of a point on a front.
+pub fn front_mark(on_front: bool) -> &'static str {
+    if on_front {
+        "*"
+    } else {
+        ""
     }
 }
 

@@ -138,13 +138,7 @@ pub fn export(map: &GlobalMap, dir: &Path) -> Result<(), ServiceError> {
     let origin_file = dir.join("global_map_origin.json");
     renderer::atomic::write_bytes_atomic(&origin_file, json.as_bytes())
         .map_err(|e| err(&format!("{}: {e}", origin_file.display())))?;
-    let view = BevView {
-        centre: DVec2::new(origin.x, origin.y),
-        width: 512,
-        height: 512,
-        metres_per_pixel: 0.25,
-        background: [0, 0, 0],
-    };
+    let view = BevView::export(DVec2::new(origin.x, origin.y));
     let image = bev_image(map.gaussians().map(|(_, g)| g), &view).map_err(|e| err(&e))?;
     let bev = dir.join("global_map_bev.png");
     save_bev_png(&image, &bev).map_err(|e| err(&format!("{}: {e}", bev.display())))

@@ -312,13 +312,7 @@ impl<'a> Outputs<'a> {
         let Some(origin) = self.map.latest_origin() else {
             return Ok(());
         };
-        let view = BevView {
-            centre: DVec2::new(origin.x, origin.y),
-            width: BEV.0,
-            height: BEV.0,
-            metres_per_pixel: BEV.1,
-            background: [0, 0, 0],
-        };
+        let view = BevView::square(DVec2::new(origin.x, origin.y), BEV.0, BEV.1);
         match bev_image(self.map.gaussians().map(|(_, g)| g), &view) {
             Ok(img) => {
                 let msg = Image {

@@ -111,6 +111,14 @@ pub fn tf(m: &TfMessage) -> Value {
     json!({ "transforms": transforms })
 }
 
+/// The reader scripts' "decode" requests for `cases`: each type with its payload in hex.
+pub fn decode_requests(cases: &[(&'static str, Vec<u8>, Value)]) -> Vec<Value> {
+    cases
+        .iter()
+        .map(|(t, b, _)| json!({"type": t, "hex": hex(b)}))
+        .collect()
+}
+
 /// Every sample as (ROS type name, our payload, the field values we mean).
 pub fn cases(s: &Samples) -> Vec<(&'static str, Vec<u8>, Value)> {
     vec![

@@ -143,6 +143,19 @@ impl Axes {
         }
     }
 
+    /// Draws the box's four sides in black.
+    fn draw_box(&self, img: &mut RgbImage) {
+        let (l, r, t, b) = (self.left, self.right, self.top, self.bottom);
+        for (p, q) in [
+            ((l, t), (r, t)),
+            ((r, t), (r, b)),
+            ((r, b), (l, b)),
+            ((l, b), (l, t)),
+        ] {
+            line(img, p, q, BLACK);
+        }
+    }
+
     /// Column of x value `s`.
     fn col(&self, s: f64) -> i64 {
         let t = (s - self.x.0) / (self.x.1 - self.x.0);
@@ -206,15 +219,8 @@ fn round_step(span: f64) -> f64 {
 /// The axes box and its ticks: on the left a long tick per decade and short ones at 2..9
 /// times it, below a long tick per round step.
 fn draw_axes(img: &mut RgbImage, ax: &Axes) {
-    let (l, r, t, b) = (ax.left, ax.right, ax.top, ax.bottom);
-    for (p, q) in [
-        ((l, t), (r, t)),
-        ((r, t), (r, b)),
-        ((r, b), (l, b)),
-        ((l, b), (l, t)),
-    ] {
-        line(img, p, q, BLACK);
-    }
+    ax.draw_box(img);
+    let (l, b) = (ax.left, ax.bottom);
     let (lowest, highest) = (ax.y.0 as i64, ax.y.1 as i64);
     for decade in lowest..=highest {
         let y = ax.row(decade as f64);

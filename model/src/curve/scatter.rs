@@ -109,15 +109,8 @@ fn tick_text(v: f64) -> String {
 }
 
 fn draw_frame(img: &mut RgbImage, f: &Frame, panel: &Panel) {
+    f.axes.draw_box(img);
     let (l, r, t, b) = (f.axes.left, f.axes.right, f.axes.top, f.axes.bottom);
-    for (p, q) in [
-        ((l, t), (r, t)),
-        ((r, t), (r, b)),
-        ((r, b), (l, b)),
-        ((l, b), (l, t)),
-    ] {
-        line(img, p, q, BLACK);
-    }
     // x ticks: 1, 2, 5 per decade on a log axis, round steps on a linear one.
     let ticks: Vec<f64> = match f.log_x {
         true => (f.axes.x.0.floor() as i64..=f.axes.x.1.ceil() as i64)

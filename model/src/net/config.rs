@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::volume::VolumeConfig;
+
 /// Sizes and ranges of the StereoSplat cost-volume network.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Config {
@@ -67,6 +69,20 @@ pub struct Config {
     /// `gaussian_stride` pixels everywhere. Inference only.
     #[serde(default)]
     pub merge_tolerance: Option<f32>,
+    /// Whether the cost-volume branch's Gaussians are part of the output (its features
+    /// still guide the volume branch when it is off: the paper's Branch_3D row).
+    #[serde(default = "yes")]
+    pub cost_volume_branch: bool,
+    /// Whether the 3D-volume (triplane) branch runs and adds its Gaussians.
+    #[serde(default)]
+    pub volume_branch: bool,
+    /// Sizes of the volume branch (`--set volume.top_k=2000` changes one).
+    #[serde(default)]
+    pub volume: VolumeConfig,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// The preset names [`Config::preset`] knows.
@@ -110,20 +126,20 @@ impl Config {
                 .ok_or_else(|| SettingError::Malformed(setting.to_string()))?;
             let (key, value) = (key.trim(), value.trim());
             let mut fields = match serde_json::to_value(&cfg) {
-                Ok(serde_json::Value::Object(map)) => map,
+                Ok(map @ serde_json::Value::Object(_)) => map,
                 _ => unreachable!("Config serialises to a JSON object"),
             };
-            let slot = fields
-                .get_mut(key)
+            let slot = key
+                .split('.')
+                .try_fold(&mut fields, |node, part| node.get_mut(part))
+                .filter(|_| !key.is_empty())
                 .ok_or_else(|| SettingError::UnknownKey(key.to_string()))?;
             *slot = serde_json::from_str(value)
                 .unwrap_or_else(|_| serde_json::Value::String(value.to_string()));
-            serde_json::from_value(serde_json::Value::Object(fields)).map_err(|e| {
-                SettingError::Invalid {
-                    key: key.to_string(),
-                    value: value.to_string(),
-                    reason: e.to_string(),
-                }
+            serde_json::from_value(fields).map_err(|e| SettingError::Invalid {
+                key: key.to_string(),
+                value: value.to_string(),
+                reason: e.to_string(),
             })
         })
     }
@@ -153,6 +169,9 @@ impl Config {
             opacity_floor: 0.02,
             max_gaussians: 200_000,
             merge_tolerance: None,
+            cost_volume_branch: true,
+            volume_branch: false,
+            volume: VolumeConfig::tiny(),
         }
     }
 
@@ -171,6 +190,7 @@ impl Config {
             candidates: 64,
             unet_channels: 48,
             head_channels: 48,
+            volume: VolumeConfig::small(),
             ..Self::tiny()
         }
     }
@@ -194,6 +214,7 @@ impl Config {
             head_channels: 64,
             gaussian_stride: 1,
             max_gaussians: 2_000_000,
+            volume: VolumeConfig::paper(),
             ..Self::tiny()
         }
     }
@@ -239,6 +260,15 @@ mod tests {
         assert_eq!(cfg.candidates, 48);
         assert_eq!(cfg.pair_fusion_margin, Some(0.25));
         assert_eq!(cfg.window, (2, 8));
+        let cfg = cfg
+            .with_settings(&[
+                "volume_branch=true",
+                "volume.top_k=100",
+                "volume.cells=[8, 4, 8]",
+            ])
+            .unwrap();
+        assert!(cfg.volume_branch && cfg.cost_volume_branch);
+        assert_eq!((cfg.volume.top_k, cfg.volume.cells), (100, [8, 4, 8]));
         assert_eq!(
             cfg.with_settings(&["pair_fusion_margin=null"])
                 .unwrap()
@@ -248,6 +278,11 @@ mod tests {
         let err = |s: &str| Config::tiny().with_settings(&[s]).unwrap_err();
         assert!(matches!(err("candidates"), SettingError::Malformed(_)));
         assert!(matches!(err("colour=3"), SettingError::UnknownKey(k) if k == "colour"));
+        assert!(matches!(err("volume.size=3"), SettingError::UnknownKey(_)));
+        assert!(matches!(
+            err("volume.cells=[1, 2]"),
+            SettingError::Invalid { .. }
+        ));
         assert!(
             matches!(err("candidates=many"), SettingError::Invalid { key, .. } if key == "candidates")
         );

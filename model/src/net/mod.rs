@@ -20,6 +20,7 @@ pub mod pair_fusion;
 mod reconstructor;
 mod stereosplat;
 mod transformer;
+pub mod volume;
 
 pub use config::{Config, SettingError, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;

@@ -77,6 +77,29 @@ impl DepthMap {
     pub fn valid_count(&self) -> usize {
         self.data.iter().filter(|d| **d > 0.0).count()
     }
+
+    /// This map at `width` x `height`, each pixel taking the stored pixel its centre falls
+    /// in (depth must not be averaged across edges); itself when the size is already that.
+    pub fn nearest(self, width: u32, height: u32) -> Self {
+        if (width, height) == (self.width, self.height) || self.data.is_empty() {
+            return self;
+        }
+        let pick = |i: u32, out: u32, stored: u32| {
+            (((i as f64 + 0.5) * stored as f64 / out as f64) as u32).min(stored - 1) as usize
+        };
+        let data = (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                self.data[pick(y, height, self.height) * self.width as usize
+                    + pick(x, width, self.width)]
+            })
+            .collect();
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
 }
 
 /// A rectified stereo rig: both cameras share `intrinsics` and the right camera sits

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use crate::frame::Side;
 use crate::kitti360::{Calibration, Kitti360Error, SequenceWriter};
 use crate::synth::{SynthConfig, SynthSequence};
 
@@ -16,7 +17,7 @@ pub fn sequence_name(seed: u64) -> String {
 }
 
 /// Generates the drive `config` describes and writes it under `root` (images, poses,
-/// timestamps, calibration, LiDAR scans). `progress` is called after each frame with (frames
+/// timestamps, calibration, LiDAR scans, and both cameras' exact depth). `progress` is called after each frame with (frames
 /// done, frames in all). Returns the sequence name.
 pub fn write_synthetic(
     root: &Path,
@@ -36,6 +37,8 @@ pub fn write_synthetic(
         let t = sequence.timestamp_ns(i);
         writer.write_frame(&frame.frame, t)?;
         writer.write_lidar(frame.frame.index, &frame.lidar, t)?;
+        writer.write_exact_depth(frame.frame.index, Side::Left, &frame.left_depth)?;
+        writer.write_exact_depth(frame.frame.index, Side::Right, &frame.right_depth)?;
         progress(i + 1, sequence.len());
     }
     writer.finish()?;

@@ -85,6 +85,33 @@ fn a_clean_drive_scores_every_bin_with_finite_numbers() {
     let summary = model::eval::Summary::of(&bins);
     let (first, last) = (summary.first.lpips.unwrap(), summary.last.lpips.unwrap());
     assert!(first < last, "first {first} last {last}");
+    // Unseen regions: none in the input pair itself; 8 m on, the facades that came into view
+    // at the sides are unseen and scored on their own.
+    for bin in &bins {
+        for f in bin.frames.iter().filter(|f| f.frame == bin.first) {
+            assert_eq!((f.unseen_pixels, f.unseen_psnr), (0, None), "{f:?}");
+        }
+        let last: Vec<_> = bin.frames.iter().filter(|f| f.frame == bin.last).collect();
+        let pixels = 136 * 40;
+        assert!(
+            last.iter()
+                .all(|f| f.unseen_pixels > pixels / 50 && f.unseen_pixels < pixels / 2),
+            "{last:?}"
+        );
+    }
+    let (unseen, all) = (summary.last.unseen_psnr.unwrap(), summary.last.psnr);
+    assert!(
+        unseen.is_finite() && unseen > 5.0 && unseen != all,
+        "unseen {unseen} dB, all {all} dB"
+    );
+    // Without the exact depth files (real data) the column is gone, the rest unchanged.
+    std::fs::remove_dir_all(root.join("data_2d_exact_depth")).unwrap();
+    let (_, bare, _) = run(&root, &name, None);
+    assert!(bare
+        .iter()
+        .flat_map(|b| &b.frames)
+        .all(|f| f.unseen_psnr.is_none() && f.unseen_pixels == 0));
+    assert_eq!(bare[0].frames[0].psnr, bins[0].frames[0].psnr);
     let _ = std::fs::remove_dir_all(&root);
 }
 

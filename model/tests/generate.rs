@@ -51,8 +51,9 @@ fn files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 fn a_seed_gives_identical_bytes_and_another_seed_other_bytes() {
     let (a, b, c) = (write("a", 3), write("b", 3), write("c", 4));
     let (fa, fb) = (files(&a), files(&b));
-    // 12 frames x (2 images + 1 scan) + 2 pose files + 3 timestamp files + 3 calibration files.
-    assert_eq!(fa.len(), 12 * 3 + 2 + 3 + 3, "{:?}", fa.keys());
+    // 12 frames x (2 images + 1 scan + 2 exact depths) + 2 pose files + 3 timestamp files
+    // + 3 calibration files.
+    assert_eq!(fa.len(), 12 * 5 + 2 + 3 + 3, "{:?}", fa.keys());
     assert_eq!(fa, fb);
     let fc = files(&c);
     let image = |f: &BTreeMap<PathBuf, Vec<u8>>, seed| {

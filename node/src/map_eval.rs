@@ -9,7 +9,7 @@
 
 use glam::{DAffine3, DVec3};
 use model::bins::{make_bins, BinConfig, BinLayout};
-use model::eval::{score_frame, EvalConfig, EvalError, MeanScores, Raster};
+use model::eval::{score_frame, EvalConfig, EvalError, FrameTarget, MeanScores, Raster};
 use model::frame::{RgbImage, Side};
 use model::kitti360::{Kitti360Error, Sequence};
 use model::reconstruct::{Reconstructor, StereoView};
@@ -152,23 +152,15 @@ pub fn score_map(
         let camera = rig.local_camera(pose, pose, Side::Left);
         let render = raster.render(&set, &camera, &config.render)?;
         let lidar = sequence.lidar_depth(f.index, Side::Left);
-        let score = score_frame(
-            f.index,
-            Side::Left,
-            None,
-            &frame.left,
-            &render,
-            lidar,
-            config,
-        )?;
-        scores.push(MeanScores {
-            psnr: score.psnr,
-            ssim: score.ssim,
-            lpips: score.lpips,
-            abs_rel: score.abs_rel,
-            sq_rel: score.sq_rel,
-            count: 1,
-        });
+        let target = FrameTarget {
+            frame: f.index,
+            side: Side::Left,
+            role: None,
+            truth: &frame.left,
+            unseen: None,
+        };
+        let score = score_frame(target, &render, lidar, config)?;
+        scores.push(MeanScores::from(&score));
         progress(k + 1, frames.len());
     }
     Ok(MapScores {

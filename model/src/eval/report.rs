@@ -30,6 +30,11 @@ pub struct FrameScore {
     pub sq_rel: Option<f64>,
     /// LiDAR pixels the depth scores average over.
     pub lidar_pixels: usize,
+    /// PSNR on the pixels whose true surface no input view saw (see `unseen`); `None` on
+    /// real data (no exact depth) or with too few such pixels.
+    pub unseen_psnr: Option<f64>,
+    /// How many pixels were unseen (0 without exact depth).
+    pub unseen_pixels: usize,
 }
 
 fn side_name<S: serde::Serializer>(side: &Side, s: S) -> Result<S::Ok, S::Error> {
@@ -83,6 +88,8 @@ pub struct MeanScores {
     pub abs_rel: Option<f64>,
     /// Mean SqRel over the frames that had LiDAR.
     pub sq_rel: Option<f64>,
+    /// Mean unseen-region PSNR over the frames that had one (`None` if none had).
+    pub unseen_psnr: Option<f64>,
     /// How many values the image means average.
     pub count: usize,
 }
@@ -98,23 +105,29 @@ impl MeanScores {
             lpips: mean(scores.iter().filter_map(|s| s.lpips).collect()),
             abs_rel: mean(scores.iter().filter_map(|s| s.abs_rel).collect()),
             sq_rel: mean(scores.iter().filter_map(|s| s.sq_rel).collect()),
+            unseen_psnr: mean(scores.iter().filter_map(|s| s.unseen_psnr).collect()),
             count: scores.len(),
         }
     }
 
     fn of_frames<'a>(frames: impl IntoIterator<Item = &'a FrameScore>) -> Self {
-        let per_frame: Vec<MeanScores> = frames
-            .into_iter()
-            .map(|f| MeanScores {
-                psnr: f.psnr,
-                ssim: f.ssim,
-                lpips: f.lpips,
-                abs_rel: f.abs_rel,
-                sq_rel: f.sq_rel,
-                count: 1,
-            })
-            .collect();
+        let per_frame: Vec<MeanScores> = frames.into_iter().map(MeanScores::from).collect();
         Self::of(&per_frame)
+    }
+}
+
+impl From<&FrameScore> for MeanScores {
+    /// One frame's scores as a mean of one.
+    fn from(f: &FrameScore) -> Self {
+        Self {
+            psnr: f.psnr,
+            ssim: f.ssim,
+            lpips: f.lpips,
+            abs_rel: f.abs_rel,
+            sq_rel: f.sq_rel,
+            unseen_psnr: f.unseen_psnr,
+            count: 1,
+        }
     }
 }
 
@@ -217,7 +230,7 @@ impl EvalReport {
             self.mean_gaussians,
             self.mean_reconstruct_ms,
         );
-        s.push_str(&table_header(self.has_lpips()));
+        s.push_str(&table_header(self.has_lpips(), self.has_unseen()));
         s.push_str(&self.table_row());
         if !self.skipped.is_empty() {
             s.push_str("\nSkipped bins:\n\n");
@@ -236,11 +249,20 @@ impl EvalReport {
         self.summary.average.lpips.is_some()
     }
 
+    /// Whether any frame had an unseen-region PSNR (generated drives), i.e. whether the
+    /// table has its two columns.
+    pub fn has_unseen(&self) -> bool {
+        self.summary.average.unseen_psnr.is_some()
+    }
+
     /// This method's line of the table (see [`table_header`], called with
-    /// [`EvalReport::has_lpips`]).
+    /// [`EvalReport::has_lpips`] and [`EvalReport::has_unseen`]).
     pub fn table_row(&self) -> String {
         let t = &self.summary;
         let with_lpips = self.has_lpips();
+        let unseen = self.has_unseen().then(|| {
+            [t.last, t.average].map(|m| m.unseen_psnr.map_or("n/a".into(), |v| format!("{v:.2}")))
+        });
         let cells: Vec<String> = [t.first, t.centre, t.last, t.average]
             .iter()
             .flat_map(|m| {
@@ -250,6 +272,7 @@ impl EvalReport {
                     .chain(lpips)
                     .chain([opt(m.abs_rel), opt(m.sq_rel)])
             })
+            .chain(unseen.into_iter().flatten())
             .collect();
         format!("| {} | {} |\n", self.method, cells.join(" | "))
     }
@@ -261,16 +284,22 @@ fn opt(v: Option<f64>) -> String {
 
 /// The header of the paper-style table: for each of first, centre, last frame and the bin
 /// average, PSNR, SSIM, LPIPS (only `with_lpips`, so runs without it keep the narrower
-/// table), AbsRel and SqRel. Rows of one table must agree on `with_lpips`.
-pub fn table_header(with_lpips: bool) -> String {
+/// table), AbsRel and SqRel; then, `with_unseen`, the unseen-region PSNR of the last frame
+/// and of the bin average. Rows of one table must agree on both.
+pub fn table_header(with_lpips: bool, with_unseen: bool) -> String {
     let groups = ["first", "centre", "last", "bin avg"];
     let metrics: Vec<&str> = ["PSNR", "SSIM", "LPIPS", "AbsRel", "SqRel"]
         .into_iter()
         .filter(|&m| with_lpips || m != "LPIPS")
         .collect();
+    let unseen = ["last unseen PSNR", "bin avg unseen PSNR"]
+        .into_iter()
+        .filter(|_| with_unseen)
+        .map(String::from);
     let names: Vec<String> = groups
         .iter()
         .flat_map(|g| metrics.iter().map(move |m| format!("{g} {m}")))
+        .chain(unseen)
         .collect();
     format!(
         "| method | {} |\n|---|{}\n",
@@ -291,6 +320,8 @@ mod tests {
             psnr,
             ssim: psnr / 100.0,
             lpips: None,
+            unseen_psnr: None,
+            unseen_pixels: 0,
             abs_rel,
             sq_rel: abs_rel.map(|a| a * 2.0),
             lidar_pixels: 10,

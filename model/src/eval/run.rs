@@ -4,11 +4,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use candle_core::Tensor;
-use renderer::{RenderOutput, RenderSettings};
+use renderer::{Camera, RenderOutput, RenderSettings};
 
 use super::pictures;
 use super::raster::Raster;
 use super::report::{BinReport, FrameScore, SkippedBin};
+use super::unseen::{unseen_mask, unseen_psnr, InputView};
 use crate::bins::{make_bins, Bin, BinConfig};
 use crate::frame::{DepthMap, RgbImage, Side, StereoFrame};
 use crate::kitti360::{Kitti360Error, Sequence};
@@ -180,21 +181,48 @@ fn evaluate_bin(
     let set = reconstructor.reconstruct(&inputs)?;
     let reconstruct_ms = start.elapsed().as_secs_f64() * 1e3;
 
+    // Exact depth of the input views, when the drive has it (generated drives).
+    let input_depth: Option<Vec<(Camera, DepthMap)>> = inputs
+        .iter()
+        .zip(&frames)
+        .flat_map(|(view, f)| {
+            [
+                (view.left_camera, f.index, Side::Left),
+                (view.right_camera, f.index, Side::Right),
+            ]
+        })
+        .map(|(cam, index, side)| Ok(sequence.exact_depth(index, side)?.map(|d| (cam, d))))
+        .collect::<Result<Option<Vec<_>>, Kitti360Error>>()?;
+
     let mut scores = Vec::new();
     let mut renders = Vec::new();
     for (i, frame) in bin.frames().zip(&frames) {
         for side in [Side::Left, Side::Right] {
-            let render = raster.render(&set, &camera(frame, side), &config.render)?;
+            let target = camera(frame, side);
+            let render = raster.render(&set, &target, &config.render)?;
             let truth = match side {
                 Side::Left => &frame.left,
                 Side::Right => &frame.right,
             };
+            let unseen = match (&input_depth, sequence.exact_depth(frame.index, side)?) {
+                (Some(inputs), Some(depth)) => {
+                    let views: Vec<InputView> = inputs
+                        .iter()
+                        .map(|(camera, depth)| InputView { camera, depth })
+                        .collect();
+                    Some(unseen_mask(&target, &depth, &views))
+                }
+                _ => None,
+            };
             let lidar = sequence.lidar_depth(frame.index, side);
             let score = score_frame(
-                frame.index,
-                side,
-                bin.role(i),
-                truth,
+                FrameTarget {
+                    frame: frame.index,
+                    side,
+                    role: bin.role(i),
+                    truth,
+                    unseen: unseen.as_deref(),
+                },
                 &render,
                 lidar,
                 config,
@@ -222,18 +250,32 @@ fn evaluate_bin(
     Ok((report, renders))
 }
 
+/// The recorded frame a render is scored against.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameTarget<'a> {
+    /// The frame number in the sequence.
+    pub frame: u32,
+    /// Which camera.
+    pub side: Side,
+    /// First, centre or last frame of the bin, or none of them.
+    pub role: Option<crate::bins::Role>,
+    /// The recorded image.
+    pub truth: &'a RgbImage,
+    /// Per pixel, whether no input view saw its surface ([`unseen_mask`]); `None` without
+    /// exact depth.
+    pub unseen: Option<&'a [bool]>,
+}
+
 /// Scores one render against the recorded image and LiDAR with `config`'s metrics (also
 /// used to score the node's fused map). Missing LiDAR (no file, an empty scan, no point
 /// inside the depth range) leaves the depth scores empty rather than failing the bin.
 pub fn score_frame(
-    frame: u32,
-    side: Side,
-    role: Option<crate::bins::Role>,
-    truth: &RgbImage,
+    target: FrameTarget,
     render: &RenderOutput,
     lidar: Result<DepthMap, Kitti360Error>,
     config: &EvalConfig,
 ) -> Result<FrameScore, EvalError> {
+    let truth = target.truth;
     let image = RgbImage {
         width: render.width,
         height: render.height,
@@ -245,6 +287,13 @@ pub fn score_frame(
         Some(net) => Some(lpips_distance(net, &image, truth)?),
         None => None,
     };
+    let (unseen_psnr, unseen_pixels) = match target.unseen {
+        Some(mask) => (
+            unseen_psnr(&image, truth, mask)?,
+            mask.iter().filter(|&&u| u).count(),
+        ),
+        None => (None, 0),
+    };
     let depth = rendered_depth(render);
     let errors = match lidar {
         Ok(gt) => match metrics::depth_errors(&depth, &gt, &config.depth) {
@@ -255,15 +304,17 @@ pub fn score_frame(
         Err(_) => None,
     };
     Ok(FrameScore {
-        frame,
-        side,
-        role,
+        frame: target.frame,
+        side: target.side,
+        role: target.role,
         psnr,
         ssim,
         lpips,
         abs_rel: errors.as_ref().map(|e| e.abs_rel),
         sq_rel: errors.as_ref().map(|e| e.sq_rel),
         lidar_pixels: errors.as_ref().map_or(0, |e| e.valid),
+        unseen_psnr,
+        unseen_pixels,
     })
 }
 

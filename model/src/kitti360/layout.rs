@@ -40,6 +40,19 @@ pub fn image(root: &Path, seq: &str, side: Side, index: u32) -> PathBuf {
         .join(format!("{index:010}.png"))
 }
 
+/// `data_2d_exact_depth/<seq>/image_0x/%010d.png`: exact depth of a generated frame (a
+/// project extension; see [`super::exact_depth`]).
+pub fn exact_depth(root: &Path, seq: &str, side: Side, index: u32) -> PathBuf {
+    let cam = camera_dir(root, seq, side);
+    root.join("data_2d_exact_depth")
+        .join(seq)
+        .join(
+            cam.file_name()
+                .expect("camera_dir ends in the camera's folder"),
+        )
+        .join(format!("{index:010}.png"))
+}
+
 /// `data_2d_raw/<seq>/image_0x/timestamps.txt`: one capture time per frame, line k = frame k.
 pub fn image_timestamps(root: &Path, seq: &str, side: Side) -> PathBuf {
     camera_dir(root, seq, side).join("timestamps.txt")

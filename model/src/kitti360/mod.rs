@@ -8,12 +8,15 @@
 //!   ([`calibration`] explains each and how they combine);
 //! - `data_2d_raw/<seq>/image_0{0,1}/data_rect/%010d.png` and `timestamps.txt`;
 //! - `data_poses/<seq>/poses.txt` and `cam0_to_world.txt` ([`poses`]);
-//! - `data_3d_raw/<seq>/velodyne_points/data/%010d.bin` and `timestamps.txt` ([`velodyne`]).
+//! - `data_3d_raw/<seq>/velodyne_points/data/%010d.bin` and `timestamps.txt` ([`velodyne`]);
+//! - generated drives only: `data_2d_exact_depth/<seq>/image_0{0,1}/%010d.png`
+//!   ([`exact_depth`]).
 //!
 //! Only frames with a pose exist for this reader, as for KITTI-360's own tools.
 
 pub mod calibration;
 pub mod error;
+pub mod exact_depth;
 pub mod images;
 pub mod layout;
 pub mod lidar_depth;

@@ -8,6 +8,7 @@ use glam::{DAffine3, DVec3};
 
 use super::calibration::Calibration;
 use super::error::Kitti360Error;
+use super::exact_depth::read_depth_png;
 use super::images::read_png;
 use super::layout;
 use super::lidar_depth::project_depth;
@@ -186,6 +187,19 @@ impl Sequence {
     pub fn load_lidar(&self, index: u32) -> Result<Vec<[f32; 4]>, Kitti360Error> {
         self.frame(index)?;
         read_scan(&layout::velodyne(&self.root, &self.name, index))
+    }
+
+    /// Exact depth of frame `index` in one camera at the rig's resolution (nearest stored
+    /// pixel where the sequence is read at another size), where the drive was generated with
+    /// it; `None` for real data, which has none (no file). 0 where unknown.
+    pub fn exact_depth(&self, index: u32, side: Side) -> Result<Option<DepthMap>, Kitti360Error> {
+        self.frame(index)?;
+        let k = &self.rig.intrinsics;
+        match read_depth_png(&layout::exact_depth(&self.root, &self.name, side, index)) {
+            Ok(depth) => Ok(Some(depth.nearest(k.width, k.height))),
+            Err(Kitti360Error::MissingFile { .. }) => Ok(None),
+            Err(e) => Err(e),
+        }
     }
 
     /// Sparse depth of frame `index` in one rectified camera at the rig's resolution: the

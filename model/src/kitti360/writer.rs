@@ -9,12 +9,13 @@ use glam::DAffine3;
 
 use super::calibration::Calibration;
 use super::error::Kitti360Error;
+use super::exact_depth::write_depth_png;
 use super::images::write_png;
 use super::layout;
 use super::poses::{write_pose_file, PoseFormat};
 use super::timestamps::{fill_timestamps, write_timestamps};
 use super::velodyne::write_scan;
-use crate::frame::{RgbImage, Side, StereoFrame};
+use crate::frame::{DepthMap, RgbImage, Side, StereoFrame};
 
 /// Writes one sequence: images and scans as they come, poses and timestamps at
 /// [`SequenceWriter::finish`]. Existing files of the same names are overwritten.
@@ -125,6 +126,25 @@ impl SequenceWriter {
         write_scan(&path, points)?;
         self.lidar_stamps.insert(index, timestamp_ns);
         Ok(())
+    }
+
+    /// Writes the exact depth of one camera of frame `index` (generated drives only; see
+    /// [`super::exact_depth`]). Errors: a map not of the calibration's size.
+    pub fn write_exact_depth(
+        &self,
+        index: u32,
+        side: Side,
+        depth: &DepthMap,
+    ) -> Result<(), Kitti360Error> {
+        let path = layout::exact_depth(&self.root, &self.name, side, index);
+        if (depth.width, depth.height) != self.calibration.image_size {
+            return Err(Kitti360Error::SizeMismatch {
+                path,
+                expected: self.calibration.image_size,
+                found: (depth.width, depth.height),
+            });
+        }
+        write_depth_png(&path, depth)
     }
 
     /// Writes the pose files and timestamps: `cam0_to_world.txt` with the frames' poses,

@@ -13,7 +13,7 @@ mod ssim;
 
 pub use depth::{depth_errors, DepthErrors, DepthFilter};
 pub use error_map::error_map;
-pub use psnr::psnr;
+pub use psnr::{psnr, psnr_masked};
 pub use ssim::{ssim, ssim_map, SsimMap, SSIM_WINDOW};
 
 use crate::frame::RgbImage;

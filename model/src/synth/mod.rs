@@ -45,14 +45,16 @@ use trajectory::{Road, Trajectory};
 /// How far along the road (both ways) a frame considers objects, metres.
 const OBJECT_RANGE: f64 = 150.0;
 
-/// One generated frame: the stereo pair with its pose, the left camera's exact z-depth
-/// (0 = sky) and a LiDAR sweep in the velodyne frame (`[x, y, z, reflectance]`).
+/// One generated frame: the stereo pair with its pose, both cameras' exact z-depth (0 = sky)
+/// and a LiDAR sweep in the velodyne frame (`[x, y, z, reflectance]`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SynthFrame {
     /// Left and right images and the left camera's pose.
     pub frame: StereoFrame,
     /// Left camera z-depth per pixel centre, metres; 0 where the sky is seen.
     pub left_depth: DepthMap,
+    /// Right camera z-depth per pixel centre, metres; 0 where the sky is seen.
+    pub right_depth: DepthMap,
     /// LiDAR points in the velodyne frame, as a KITTI `.bin` holds them.
     pub lidar: Vec<[f32; 4]>,
 }
@@ -143,7 +145,7 @@ impl SynthSequence {
         )
     }
 
-    /// Renders frame `i`: both images, the left depth and the LiDAR sweep.
+    /// Renders frame `i`: both images, both depths and the LiDAR sweep.
     pub fn frame(&self, i: usize) -> SynthFrame {
         let world = self.world(i);
         let left_pose = self.pose(i);
@@ -159,6 +161,7 @@ impl SynthSequence {
             camera_effects::apply(&mut right, &look.camera, look.camera.gain_right, &mut rng);
         }
         let (left_depth, _) = camera_render::render_centres(&world, &left_pose, k);
+        let (right_depth, _) = camera_render::render_centres(&world, &right_pose, k);
         let velo_to_world = left_pose * self.cam_to_velo.inverse();
         let lidar = lidar::scan(
             &world,
@@ -174,6 +177,7 @@ impl SynthSequence {
                 left_to_world: left_pose,
             },
             left_depth,
+            right_depth,
             lidar,
         }
     }

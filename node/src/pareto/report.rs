@@ -41,6 +41,8 @@ pub struct PointResult {
     pub abs_rel: Option<f64>,
     /// Bin-average SqRel against LiDAR.
     pub sq_rel: Option<f64>,
+    /// Bin-average PSNR on the pixels the input pair never saw (generated drives only).
+    pub unseen_psnr: Option<f64>,
     /// Bins whose map failed the worker's self-check.
     pub checks_failed: usize,
     /// Bins whose map was replaced by SGM's (the node's default on a failed check).
@@ -82,6 +84,7 @@ impl PointResult {
             lpips: avg.lpips,
             abs_rel: avg.abs_rel,
             sq_rel: avg.sq_rel,
+            unseen_psnr: avg.unseen_psnr,
             checks_failed,
             replaced_by_sgm,
             front_psnr: false,
@@ -161,13 +164,13 @@ impl ParetoReport {
         );
         s.push_str(
             "| point | settings | ms p50 | ms p90 | peak MiB | Gaussians | PSNR | SSIM | LPIPS \
-             | AbsRel | SqRel | SGM fallbacks | front PSNR | front AbsRel |\n\
-             |---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|:---:|\n",
+             | AbsRel | SqRel | unseen PSNR | SGM fallbacks | front PSNR | front AbsRel |\n\
+             |---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|:---:|\n",
         );
         for p in &self.points {
             s.push_str(&format!(
                 "| {} | {} | {:.1} | {:.1} | {:.0} | {:.0} | {:.2} | {:.3} | {} | {} | {} | {} \
-                 | {} | {} |\n",
+                 | {} | {} | {} |\n",
                 p.point.name,
                 settings_text(&p.point),
                 p.latency_median_ms,
@@ -179,6 +182,7 @@ impl ParetoReport {
                 table_cell(p.lpips, 3),
                 table_cell(p.abs_rel, 4),
                 table_cell(p.sq_rel, 3),
+                table_cell(p.unseen_psnr, 2),
                 p.replaced_by_sgm,
                 front_mark(p.front_psnr),
                 front_mark(p.front_abs_rel),

@@ -7,7 +7,7 @@
 //! fusion setting, so a sweep of budgets, cell sizes and keep rules costs only fusion and
 //! renders.
 
-use glam::{DAffine3, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::eval::{score_frame, EvalConfig, EvalError, FrameTarget, MeanScores, Raster};
 use model::frame::{RgbImage, Side};
@@ -16,7 +16,7 @@ use model::reconstruct::{Reconstructor, StereoView};
 use renderer::GaussianSet;
 use serde::Serialize;
 
-use crate::fusion::{local_set, ExportError, FusionConfig, FusionError, GlobalMap};
+use crate::fusion::{local_set, ExportError, FusionConfig, FusionError, GlobalMap, Keep};
 use crate::pipeline::self_check::{OnCheckFail, SelfCheck};
 use crate::pipeline::worker::bin_map;
 
@@ -49,6 +49,8 @@ pub enum MapEvalError {
 pub struct BinMap {
     /// The bin's number along the drive.
     pub bin_id: u64,
+    /// The sequence's frame number of the bin's first frame.
+    pub first_frame: u32,
     /// Bin frame (its first left camera) to world.
     pub bin_to_world: DAffine3,
     /// The map in the bin frame (empty when the reconstructor failed).
@@ -87,6 +89,7 @@ pub fn bin_maps(
         let (result, _) = bin_map(reconstructor, &mut self_check, &[view]);
         maps.push(BinMap {
             bin_id: k as u64,
+            first_frame: frame.index,
             bin_to_world: origin,
             set: result.unwrap_or_default(),
         });
@@ -128,10 +131,44 @@ pub struct MapScores {
     pub frames: usize,
 }
 
-/// Renders `map` at every `frame_stride`-th frame's left camera of `sequence` and scores it
-/// with `config`'s metrics; `progress` gets (frames done, frames in all).
+/// The sky layers a consumer draws behind the map ([`Keep::backdrop`]): each frame is
+/// rendered with the layer of the bin it belongs to (the latest bin map the node had
+/// published when the frame was taken).
+#[derive(Clone, Copy, Debug)]
+pub struct Backdrops<'a> {
+    /// The bin maps, in drive order.
+    pub maps: &'a [BinMap],
+    /// The rule whose far side is the layer.
+    pub keep: Keep,
+}
+
+impl Backdrops<'_> {
+    /// The layer for frame `frame` (that of the last bin starting at or before it; empty
+    /// before the first), in the frame of `camera_to_world`.
+    pub fn at(&self, frame: u32, camera_to_world: DAffine3) -> GaussianSet {
+        let Some(bin) = self.maps.iter().rev().find(|m| m.first_frame <= frame) else {
+            return GaussianSet::default();
+        };
+        let far = self.keep.backdrop(&bin.set);
+        let to_camera = camera_to_world.inverse() * bin.bin_to_world;
+        let turn = DQuat::from_mat3(&to_camera.matrix3);
+        let mut out = GaussianSet::with_capacity(far.len());
+        for i in 0..far.len() {
+            let mut g = far.get(i);
+            g.mean = to_camera.transform_point3(g.mean.as_dvec3()).as_vec3();
+            g.rotation = (turn * g.rotation.as_dquat()).normalize().as_quat();
+            out.push(g);
+        }
+        out
+    }
+}
+
+/// Renders `map` at every `frame_stride`-th frame's left camera of `sequence` (with the sky
+/// layer of the frame's bin behind it when `backdrops` is given) and scores it with
+/// `config`'s metrics; `progress` gets (frames done, frames in all).
 pub fn score_map(
     map: &GlobalMap,
+    backdrops: Option<Backdrops>,
     sequence: &Sequence,
     raster: &mut Raster,
     config: &EvalConfig,
@@ -148,7 +185,13 @@ pub fn score_map(
     for (k, f) in frames.iter().enumerate() {
         let frame = sequence.load_frame(f.index)?;
         let pose = frame.left_to_world;
-        let set = set_around(map, pose)?;
+        let mut set = set_around(map, pose)?;
+        if let Some(b) = &backdrops {
+            let far = b.at(f.index, pose);
+            for i in 0..far.len() {
+                set.push(far.get(i));
+            }
+        }
         let camera = rig.local_camera(pose, pose, Side::Left);
         let render = raster.render(&set, &camera, &config.render)?;
         let lidar = sequence.lidar_depth(f.index, Side::Left);

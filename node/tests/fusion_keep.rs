@@ -4,6 +4,7 @@
 
 use glam::{DAffine3, DQuat, DVec3, Quat, Vec3};
 use node::fusion::{FusionConfig, GlobalMap, Keep, DEFAULT_MAX_RANGE_M};
+use node::map_eval::{Backdrops, BinMap};
 use renderer::{Gaussian, GaussianSet};
 
 fn gauss(mean: [f32; 3], confidence: f32) -> Gaussian {
@@ -47,6 +48,56 @@ fn sky_at_the_far_plane_is_not_fused_and_the_road_is() {
         assert!((p - *got).length() < 1e-9, "{p} vs {got}");
     }
     assert_eq!(DEFAULT_MAX_RANGE_M, Keep::default().max_range_m);
+}
+
+#[test]
+fn what_is_not_fused_for_range_is_the_sky_layer_drawn_from_its_own_bins_frames() {
+    let keep = Keep::default();
+    let road = gauss([0.0, 1.6, 12.0], 0.8);
+    let sky = gauss([-20.0, -30.0, 100.0], 0.9);
+    let far_wall = gauss([0.0, 0.0, 60.0], 0.1);
+    let lost = gauss([f32::NAN, 0.0, 1e3], 0.9);
+    let bin = set_of(&[road, sky, far_wall, lost]);
+    let layer = keep.backdrop(&bin);
+    assert_eq!(layer.means, vec![sky.mean, far_wall.mean]);
+    assert!(Keep::ALL.backdrop(&bin).is_empty());
+    // Two bins 10 m apart along a turned road, far from the world origin.
+    let turn = DQuat::from_rotation_y(0.3);
+    let p0 = DAffine3::from_rotation_translation(turn, DVec3::new(1e5, 3.0, -2e5));
+    let p1 = p0 * DAffine3::from_translation(DVec3::new(0.0, 0.0, 10.0));
+    let maps = [
+        BinMap {
+            bin_id: 0,
+            first_frame: 0,
+            bin_to_world: p0,
+            set: set_of(&[road, sky]),
+        },
+        BinMap {
+            bin_id: 1,
+            first_frame: 10,
+            bin_to_world: p1,
+            set: set_of(&[far_wall]),
+        },
+    ];
+    let b = Backdrops { maps: &maps, keep };
+    // Frame 5 belongs to bin 0; seen from bin 0's camera the sky sits where the bin put it.
+    let at5 = b.at(5, p0);
+    assert_eq!(at5.len(), 1);
+    assert!((at5.means[0] - sky.mean).length() < 1e-3, "{:?}", at5.means);
+    // Frame 12 belongs to bin 1; from 2 m behind bin 1's camera its wall is 62 m ahead.
+    let at12 = b.at(
+        12,
+        p1 * DAffine3::from_translation(DVec3::new(0.0, 0.0, -2.0)),
+    );
+    assert_eq!(at12.len(), 1);
+    assert!(
+        (at12.means[0] - Vec3::new(0.0, 0.0, 62.0)).length() < 1e-3,
+        "{:?}",
+        at12.means
+    );
+    assert!((at12.rotations[0].length() - 1.0).abs() < 1e-5);
+    let none = Backdrops { maps: &[], keep };
+    assert!(none.at(3, p0).is_empty());
 }
 
 #[test]

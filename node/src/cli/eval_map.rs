@@ -22,7 +22,7 @@ use super::method_args::MethodArgs;
 use super::progress;
 use super::synth::first_sequence;
 use crate::fusion::{bev_image, save_bev_png, BevView, FusionConfig, GlobalMap, Keep};
-use crate::map_eval::{bin_maps, fuse, score_map, side_view, MapScores};
+use crate::map_eval::{bin_maps, fuse, score_map, side_view, Backdrops, MapScores};
 use crate::pareto::{front, front_mark, table_cell, Better};
 use crate::pipeline::self_check::OnCheckFail;
 
@@ -55,6 +55,10 @@ pub struct EvalMapArgs {
     /// Keep ranges to sweep, metres (`inf`: fuse every distance, the map before the rule).
     #[arg(long, value_delimiter = ',', default_values_t = [f32::INFINITY, 80.0, 20.0])]
     ranges: Vec<f32>,
+    /// Keep ranges to score again with each bin's sky layer (its Gaussians beyond the range)
+    /// drawn behind the map at the bin's frames, as a consumer rendering views would.
+    #[arg(long, value_delimiter = ',', default_values_t = [40.0f32, 30.0, 20.0])]
+    sky_ranges: Vec<f32>,
     /// Keep confidence floors to sweep.
     #[arg(long, value_delimiter = ',', default_values_t = [0.3f32])]
     confidences: Vec<f32>,
@@ -74,6 +78,9 @@ struct Row {
     max_gaussians: usize,
     keep_max_range_m: f32,
     keep_min_confidence: f32,
+    /// Mean Gaussians of the sky layer drawn behind the map (one bin's far part), when the
+    /// row draws it.
+    sky_layer_gaussians: Option<f64>,
     gaussians: usize,
     gaussians_per_metre: f64,
     scores: MapScores,
@@ -108,11 +115,20 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
     bar.finish_and_clear();
 
     let mut rows = Vec::new();
-    for (setting, fusion) in settings(args) {
+    for (setting, fusion, sky) in settings(args) {
         let map = fuse(&maps, fusion)?;
         let bar = progress::bar(0, &setting);
+        let backdrops = sky.then_some(Backdrops {
+            maps: &maps,
+            keep: fusion.keep,
+        });
+        let sky_layer_gaussians = backdrops.map(|b| {
+            let total: usize = maps.iter().map(|m| b.keep.backdrop(&m.set).len()).sum();
+            total as f64 / maps.len().max(1) as f64
+        });
         let scores = score_map(
             &map,
+            backdrops,
             &sequence,
             &mut raster,
             &config,
@@ -126,7 +142,7 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
             scores.mean.psnr,
             scores.mean.abs_rel.unwrap_or(f64::NAN)
         );
-        if setting == "default" || setting.starts_with("range") {
+        if setting == "default" || (setting.starts_with("range") && !sky) {
             pictures(args, &map, &sequence, &mut raster, &config, &setting)?;
         }
         rows.push(Row {
@@ -135,6 +151,7 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
             max_gaussians: fusion.max_gaussians,
             keep_max_range_m: fusion.keep.max_range_m,
             keep_min_confidence: fusion.keep.min_confidence,
+            sky_layer_gaussians,
             gaussians: map.len(),
             gaussians_per_metre: map.len() as f64 / length_m.max(1e-9),
             scores,
@@ -207,10 +224,10 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
     Ok(())
 }
 
-/// The node's defaults, then one setting changed at a time.
-fn settings(args: &EvalMapArgs) -> Vec<(String, FusionConfig)> {
+/// The node's defaults, then one setting changed at a time; the flag: draw the sky layer.
+fn settings(args: &EvalMapArgs) -> Vec<(String, FusionConfig, bool)> {
     let base = FusionConfig::default();
-    let mut out = vec![("default".to_string(), base)];
+    let mut out = vec![("default".to_string(), base, false)];
     for &b in &args.budgets {
         out.push((
             format!("budget {b}"),
@@ -218,6 +235,7 @@ fn settings(args: &EvalMapArgs) -> Vec<(String, FusionConfig)> {
                 max_gaussians: b,
                 ..base
             },
+            false,
         ));
     }
     for &c in &args.cell_sizes {
@@ -227,6 +245,7 @@ fn settings(args: &EvalMapArgs) -> Vec<(String, FusionConfig)> {
                 cell_size: c,
                 ..base
             },
+            false,
         ));
     }
     for &r in &args.ranges {
@@ -234,14 +253,22 @@ fn settings(args: &EvalMapArgs) -> Vec<(String, FusionConfig)> {
             max_range_m: r,
             ..base.keep
         };
-        out.push((format!("range {r}"), FusionConfig { keep, ..base }));
+        out.push((format!("range {r}"), FusionConfig { keep, ..base }, false));
+    }
+    for &r in &args.sky_ranges {
+        let keep = Keep {
+            max_range_m: r,
+            ..base.keep
+        };
+        let config = FusionConfig { keep, ..base };
+        out.push((format!("range {r} + sky layer"), config, true));
     }
     for &c in &args.confidences {
         let keep = Keep {
             min_confidence: c,
             ..base.keep
         };
-        out.push((format!("conf {c}"), FusionConfig { keep, ..base }));
+        out.push((format!("conf {c}"), FusionConfig { keep, ..base }, false));
     }
     out
 }
@@ -285,9 +312,10 @@ fn markdown(
     let mut s = format!(
         "# The fused map's own quality\n\n`{name}`: {bins} bins of {} m over {length_m:.0} m, \
          bin maps by `{}`{}; the fused map rendered at every {} frame's left camera. \
-         `*`: on the front (no other setting with fewer Gaussians and better).\n\n\
-         | setting | Gaussians | per metre | PSNR | SSIM | LPIPS | AbsRel | SqRel | front PSNR \
-         | front AbsRel |\n|---|---:|---:|---:|---:|---:|---:|---:|:---:|:---:|\n",
+         `*`: on the front (no other setting with fewer Gaussians and better). Sky layer: \
+         mean Gaussians of the bin's far part drawn behind the map (not in it).\n\n\
+         | setting | Gaussians | per metre | sky layer | PSNR | SSIM | LPIPS | AbsRel | SqRel \
+         | front PSNR | front AbsRel |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|:---:|:---:|\n",
         args.bin_length,
         method.method,
         method
@@ -302,10 +330,12 @@ fn markdown(
     for r in rows {
         let m = &r.scores.mean;
         s.push_str(&format!(
-            "| {} | {} | {:.0} | {:.2} | {:.3} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {:.0} | {} | {:.2} | {:.3} | {} | {} | {} | {} | {} |\n",
             r.setting,
             r.gaussians,
             r.gaussians_per_metre,
+            r.sky_layer_gaussians
+                .map_or("-".into(), |g| format!("{g:.0}")),
             m.psnr,
             m.ssim,
             table_cell(m.lpips, 3),

@@ -105,6 +105,20 @@ impl Keep {
     pub fn keeps(&self, mean: Vec3, confidence: f32) -> bool {
         mean.length() <= self.max_range_m && confidence >= self.min_confidence
     }
+
+    /// A bin map's sky layer: its Gaussians beyond `max_range_m` (finite centres), in the
+    /// bin frame. They stay out of the world map's geometry, but a consumer rendering views
+    /// near the bin draws them behind the map, as the bin map itself would.
+    pub fn backdrop(&self, set: &GaussianSet) -> GaussianSet {
+        let mut out = GaussianSet::default();
+        for i in 0..set.len() {
+            let g = set.get(i);
+            if g.mean.is_finite() && g.mean.length() > self.max_range_m {
+                out.push(g);
+            }
+        }
+        out
+    }
 }
 
 /// The map's settings.

@@ -3,7 +3,7 @@
 //! It owns the types every other crate speaks (a [`GaussianSet`], a pinhole [`Camera`],
 //! [`RenderOutput`]), the CPU reference rasterizer ([`cpu`], forward and backward, the oracle
 //! that training differentiates through), the wgpu rasterizer ([`gpu`], forward, what the node
-//! draws with), and file formats ([`ply`] for maps, [`picture`] for PNG), written crash-safely
+//! draws with), the one entry point that picks between them ([`raster`]), and file formats ([`ply`] for maps, [`picture`] for PNG), written crash-safely
 //! through [`atomic`].
 //!
 //! It must not know about networks, data sets or transport: those live in `model` and `node`,
@@ -17,10 +17,12 @@ pub mod gpu;
 pub mod output;
 pub mod picture;
 pub mod ply;
+pub mod raster;
 pub mod real;
 pub mod scene;
 
 pub use camera::{Camera, CameraParams, Intrinsics};
 pub use gaussians::{Gaussian, GaussianSet, SplatsView};
 pub use output::{RenderOutput, RenderSettings};
+pub use raster::{Raster, RenderWith};
 pub use real::Real;

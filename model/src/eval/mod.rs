@@ -6,11 +6,10 @@
 //! paper's table, [`pictures`] draws a few bins.
 
 pub mod pictures;
-pub mod raster;
 pub mod report;
 pub mod run;
 pub mod unseen;
 
-pub use raster::Raster;
+pub use renderer::Raster;
 pub use report::{BinReport, EvalReport, FrameScore, MeanScores, SkippedBin, Summary};
 pub use run::{evaluate, score_frame, EvalConfig, EvalError, FrameTarget};

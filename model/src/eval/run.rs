@@ -7,7 +7,6 @@ use candle_core::Tensor;
 use renderer::{Camera, RenderOutput, RenderSettings};
 
 use super::pictures;
-use super::raster::Raster;
 use super::report::{BinReport, FrameScore, SkippedBin};
 use super::unseen::{unseen_mask, unseen_psnr, InputView};
 use crate::bins::{make_bins, Bin, BinConfig};
@@ -16,6 +15,7 @@ use crate::kitti360::{Kitti360Error, Sequence};
 use crate::lpips::Lpips;
 use crate::metrics::{self, DepthFilter, MetricError};
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
+use renderer::Raster;
 
 /// Settings of an evaluation run.
 #[derive(Clone, Debug)]

@@ -15,15 +15,14 @@ use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 use glam::DAffine3;
-use model::eval::raster::Raster;
 use model::frame::{RgbImage, Side, StereoFrame, StereoRig};
 use model::reconstruct::{Reconstructor, StereoView};
-use renderer::gpu::GpuRasterizer;
-use renderer::{GaussianSet, RenderSettings};
+use renderer::{GaussianSet, Raster, RenderSettings};
 
 use super::self_check::{CheckOutcome, OnCheckFail, SelfCheck};
 
-/// Which rasterizer draws each bin's map from its input (left) view.
+/// Whether and how each bin's map is drawn from its input (left) view: off, or one of the
+/// renderer's choices ([`renderer::RenderWith`], which owns the pick of rasterizer).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum RenderWith {
     /// No renders.
@@ -32,8 +31,7 @@ pub enum RenderWith {
     Cpu,
     /// wgpu; when no adapter is found the worker says so once and uses the CPU instead.
     Gpu,
-    /// wgpu on a hardware GPU, else the CPU reference (a software Vulkan adapter runs the
-    /// same shaders several times slower than the CPU reference).
+    /// wgpu on a hardware GPU, else the CPU reference.
     #[default]
     Auto,
 }
@@ -41,21 +39,13 @@ pub enum RenderWith {
 impl RenderWith {
     /// The rasterizer, made on the thread that will use it.
     fn raster(self) -> Option<Raster> {
-        match self {
-            RenderWith::Off => None,
-            RenderWith::Cpu => Some(Raster::Cpu),
-            RenderWith::Gpu => Some(match GpuRasterizer::new() {
-                Ok(gpu) => Raster::Gpu(Box::new(gpu)),
-                Err(e) => {
-                    eprintln!("worker: no wgpu adapter ({e}); rendering on the CPU");
-                    Raster::Cpu
-                }
-            }),
-            RenderWith::Auto => Some(match GpuRasterizer::new() {
-                Ok(gpu) if !gpu.is_software() => Raster::Gpu(Box::new(gpu)),
-                _ => Raster::Cpu,
-            }),
-        }
+        let with = match self {
+            RenderWith::Off => return None,
+            RenderWith::Cpu => renderer::RenderWith::Cpu,
+            RenderWith::Gpu => renderer::RenderWith::Gpu,
+            RenderWith::Auto => renderer::RenderWith::Auto,
+        };
+        Some(with.raster())
     }
 }
 

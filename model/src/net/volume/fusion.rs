@@ -78,16 +78,17 @@ impl ProjectionFusion {
                 continue;
             };
             let cells = &landing.cells[p];
-            let mut counts = vec![0f32; size];
+            let mut counts = vec![0f64; size];
             for &c in cells {
                 counts[c] += 1.0;
             }
-            let inverse: Vec<f32> = counts
+            let inverse: Vec<f64> = counts
                 .iter()
                 .map(|&c| if c > 0.0 { 1.0 / c } else { 0.0 })
                 .collect();
-            let occupied: Vec<f32> = counts.iter().map(|&c| f32::from(c > 0.0)).collect();
-            let column = |v: Vec<f32>| -> Result<Tensor> {
+            let occupied: Vec<f64> = counts.iter().map(|&c| f64::from(c > 0.0)).collect();
+            // In f64, then the features' dtype: 1 / count is exact to that dtype.
+            let column = |v: Vec<f64>| -> Result<Tensor> {
                 Tensor::from_vec(v, (size, 1), device)?.to_dtype(dtype)
             };
             let sums = Tensor::zeros((size, k), dtype, device)?.index_add(

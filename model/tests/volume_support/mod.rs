@@ -27,10 +27,18 @@ pub fn rng(seed: u64) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(seed)
 }
 
-/// Uniform values in `[lo, hi)` as an `f64` tensor of `shape`.
+/// Uniform values in `[lo, hi)` as an `f64` tensor of `shape` (all `lo` when `hi <= lo`).
 pub fn uniform(rng: &mut ChaCha8Rng, shape: &[usize], lo: f64, hi: f64) -> Tensor {
     let n = shape.iter().product();
-    let v: Vec<f64> = (0..n).map(|_| rng.random_range(lo..hi)).collect();
+    let v: Vec<f64> = (0..n)
+        .map(|_| {
+            if hi > lo {
+                rng.random_range(lo..hi)
+            } else {
+                lo
+            }
+        })
+        .collect();
     Tensor::from_vec(v, shape, &Device::Cpu).unwrap()
 }
 

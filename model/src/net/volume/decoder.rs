@@ -6,7 +6,8 @@
 //!   the 5 x 5 x 5 voxels around its own;
 //! - scale = `sigmoid` x 2 voxel sizes (per axis), given as its log (`ln sigmoid` computed
 //!   stably, finite for any finite input);
-//! - rotation: a normalised quaternion (`w x y z`, starting near the identity);
+//! - rotation: a normalised quaternion (`w x y z`, starting near the identity; a zero
+//!   quaternion stays zero, which the renderer reads as the identity);
 //! - colour `sigmoid` (linear RGB in `[0, 1]`), confidence `sigmoid`;
 //! - opacity = `sigmoid(a) sigmoid(o)`, `o` the voxel's occupancy logit, so the render's
 //!   gradients train the occupancy head too; given as its logit (what the renderer and the
@@ -120,6 +121,10 @@ impl VoxelDecoder {
             .to_dtype(dtype)?
             .reshape((1, 4))?;
         let raw = part(6, 4)?.broadcast_add(&identity)?;
+        // Divided by its largest component first (a constant: the direction, and so the
+        // gradient, is the same), so squaring never overflows.
+        let largest = (raw.abs()?.max_keepdim(1)?.detach() + 1e-30)?;
+        let raw = raw.broadcast_div(&largest)?;
         let norm = (raw.sqr()?.sum_keepdim(1)? + 1e-12)?.sqrt()?;
         let rotations = raw.broadcast_div(&norm)?;
 

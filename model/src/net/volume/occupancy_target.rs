@@ -83,10 +83,11 @@ pub fn occupancy_loss(
     let classes = usize::from(positives > 0) + usize::from(negatives > 0);
     let share = |count: usize| match count {
         0 => 0.0,
-        c => 1.0 / (classes * c) as f32,
+        c => 1.0 / (classes * c) as f64,
     };
     let (wp, wn) = (share(positives), share(negatives));
-    let weights: Vec<f32> = (0..n)
+    // In f64, then the logits' dtype: the weights are exact to that dtype.
+    let weights: Vec<f64> = (0..n)
         .map(|i| match (inside(i), occupied[i]) {
             (false, _) => 0.0,
             (true, true) => wp,

@@ -57,7 +57,8 @@ fn occupancy_is_the_linear_score_of_the_voxel_feature() {
     let b = values(data["occ.score.bias"].as_tensor())[0];
     let p: Vec<Vec<f64>> = planes.iter().map(values).collect();
     let got = values(&logits);
-    for flat in 0..voxel_count(&cfg) {
+    assert_eq!(got.len(), voxel_count(&cfg));
+    for (flat, got) in got.into_iter().enumerate() {
         let index = voxel_at(&cfg, flat);
         assert_eq!(voxel_index(&cfg, index), flat);
         let mut want = b;
@@ -68,7 +69,7 @@ fn occupancy_is_the_linear_score_of_the_voxel_feature() {
                 .map(|c| w[c] * p[k][c * rows * cols + cell])
                 .sum::<f64>();
         }
-        assert!((got[flat] - want).abs() < 1e-12, "voxel {index:?}");
+        assert!((got - want).abs() < 1e-12, "voxel {index:?}");
     }
     // Wrong plane shapes are an error.
     let wrong = [planes[1].clone(), planes[1].clone(), planes[2].clone()];
@@ -106,6 +107,20 @@ fn the_frustum_mask_keeps_voxels_in_front_and_inside_the_image() {
     }
     assert!(right.iter().any(|&s| s));
     assert!(frustum_mask(&cfg, &[]).iter().all(|&s| !s));
+    // Degenerate cameras see nothing: an empty image, NaN optics, a NaN pose.
+    let empty = Intrinsics {
+        width: 0,
+        height: 0,
+        ..intrinsics()
+    };
+    let nan = Intrinsics {
+        fx: f32::NAN,
+        ..intrinsics()
+    };
+    let lost = Camera::from_camera_to_world(intrinsics(), Quat::IDENTITY, Vec3::NAN);
+    for bad in [Camera::identity(empty), Camera::identity(nan), lost] {
+        assert!(frustum_mask(&cfg, &[bad]).iter().all(|&s| !s));
+    }
 }
 
 #[test]

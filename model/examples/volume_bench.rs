@@ -94,9 +94,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .plane_shapes()
         .map(|(rows, cols)| Tensor::randn(0f32, 1.0, (vol.channels, rows, cols), &device));
 
-    let (fusion_ms, prior) = timed(runs, || {
-        fusion.forward(&means, &gaussian_rows(&prediction.features)?)
-    });
+    let (rows_ms, rows) = timed(runs, || gaussian_rows(&prediction.features));
+    let rows = rows?;
+    let (pool_ms, prior) = timed(runs, || fusion.forward(&means, &rows));
+    let fusion_ms = rows_ms + pool_ms;
     let prior = prior?;
     let mut planes = Vec::with_capacity(3);
     for (q, p) in queries.into_iter().zip(prior.iter()) {
@@ -134,6 +135,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "volume_gaussians": splats.means.dim(0)?,
         "cost_volume_ms": cost_volume_ms,
         "fusion_ms": fusion_ms,
+        "fusion_feature_rows_ms": rows_ms,
         "occupancy_ms": occupancy_ms,
         "frustum_mask_ms": mask_ms,
         "top_k_ms": top_k_ms,

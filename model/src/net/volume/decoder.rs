@@ -22,7 +22,7 @@ use candle_nn::{linear, Linear, VarBuilder};
 
 use super::voxels::{check_planes, index_tensor, plane_cell, voxel_at};
 use super::{Plane, VolumeConfig};
-use crate::ops::SplatTensors;
+use crate::ops::{transpose_last2, SplatTensors};
 
 /// Predicted values per Gaussian: offset 3, scale 3, rotation 4, colour 3, opacity 1,
 /// confidence 1.
@@ -84,7 +84,7 @@ impl VoxelDecoder {
         for (plane, t) in Plane::ALL.into_iter().zip(planes) {
             let ids: Vec<usize> = cells.iter().map(|&i| plane_cell(cfg, plane, i)).collect();
             let (c, r, k) = t.dims3()?;
-            let table = t.reshape((c, r * k))?.t()?.contiguous()?;
+            let table = transpose_last2(&t.reshape((1, c, r * k))?)?.squeeze(0)?;
             let f = table.index_select(&index_tensor(&ids, device)?, 0)?;
             feature = Some(match feature {
                 None => f,

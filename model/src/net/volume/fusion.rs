@@ -16,6 +16,7 @@ use candle_nn::{linear, Linear, VarBuilder};
 
 use super::voxels::{index_tensor, plane_cell};
 use super::{Plane, VolumeConfig};
+use crate::ops::transpose_last2;
 
 /// The fusion block: pooling into the planes' cells and the adapter.
 #[derive(Clone, Debug)]
@@ -101,7 +102,8 @@ impl ProjectionFusion {
                 .adapter
                 .forward(&mean)?
                 .broadcast_mul(&column(occupied)?)?;
-            out.push(adapted.t()?.reshape((self.cfg.channels, rows, columns))?);
+            let adapted = transpose_last2(&adapted.unsqueeze(0)?)?;
+            out.push(adapted.reshape((self.cfg.channels, rows, columns))?);
         }
         let [a, b, c] = <[Tensor; 3]>::try_from(out).expect("three planes");
         Ok([a, b, c])
@@ -134,5 +136,5 @@ impl ProjectionFusion {
 /// order of `Prediction::splats` (view-major, then row-major pixels).
 pub fn gaussian_rows(features: &Tensor) -> Result<Tensor> {
     let (v, k, h, w) = features.dims4()?;
-    features.permute((0, 2, 3, 1))?.reshape((v * h * w, k))
+    transpose_last2(&features.reshape((v, k, h * w))?)?.reshape((v * h * w, k))
 }

@@ -105,8 +105,8 @@ impl ProjectionFusion {
             let adapted = transpose_last2(&adapted.unsqueeze(0)?)?;
             out.push(adapted.reshape((self.cfg.channels, rows, columns))?);
         }
-        let [a, b, c] = <[Tensor; 3]>::try_from(out).expect("three planes");
-        Ok([a, b, c])
+        out.try_into()
+            .map_err(|_| candle_core::Error::Msg("fusion: not three planes".into()))
     }
 
     /// Which Gaussians lie in the volume and the cells they land in.

@@ -1,5 +1,5 @@
 //! Which voxels the volume branch decodes: the occupancy head against the voxel feature it
-//! stands for, the frustum mask (in front, inside the image; bin frame, so drives 1e5 m from
+//! stands for (and its gradients against finite differences), the frustum mask (in front, inside the image; bin frame, so drives 1e5 m from
 //! the world origin change nothing), the top-k selection against brute force (mask, k, ties,
 //! NaN), the occupancy target from known points and from a written sequence's LiDAR, and the
 //! balanced BCE against its formula and finite differences.
@@ -74,6 +74,32 @@ fn occupancy_is_the_linear_score_of_the_voxel_feature() {
     // Wrong plane shapes are an error.
     let wrong = [planes[1].clone(), planes[1].clone(), planes[2].clone()];
     assert!(head.forward(&wrong).is_err());
+
+    // Gradients with respect to the planes and the head's weights.
+    let weight = data["occ.score.weight"].clone();
+    let bias = data["occ.score.bias"].clone();
+    drop(data);
+    let vars = planes.map(|t| Var::from_tensor(&t).unwrap());
+    let probe = uniform(&mut r, &cfg.cells, -1.0, 1.0);
+    let loss = || {
+        let planes = [0, 1, 2].map(|i| vars[i].as_tensor().clone());
+        (head.forward(&planes).unwrap() * &probe)
+            .unwrap()
+            .sum_all()
+            .unwrap()
+    };
+    let worst = check_gradients(
+        &[
+            ("xz", &vars[0]),
+            ("xy", &vars[1]),
+            ("zy", &vars[2]),
+            ("weight", &weight),
+            ("bias", &bias),
+        ],
+        32,
+        &loss,
+    );
+    assert!(worst < 1e-6, "{worst}");
 }
 
 #[test]

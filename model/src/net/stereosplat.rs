@@ -36,14 +36,7 @@ impl Prediction {
             Tensor::cat(&parts.iter().map(f).collect::<Vec<_>>(), 0)
         };
         Ok(Self {
-            splats: SplatTensors {
-                means: cat(&|p| &p.splats.means)?,
-                log_scales: cat(&|p| &p.splats.log_scales)?,
-                rotations: cat(&|p| &p.splats.rotations)?,
-                opacity_logits: cat(&|p| &p.splats.opacity_logits)?,
-                colors: cat(&|p| &p.splats.colors)?,
-                confidences: cat(&|p| &p.splats.confidences)?,
-            },
+            splats: SplatTensors::cat(&parts.iter().map(|p| &p.splats).collect::<Vec<_>>())?,
             depth: cat(&|p| &p.depth)?,
             features: cat(&|p| &p.features)?,
         })

@@ -7,6 +7,8 @@
 //!   and confidence train the network that predicts the Gaussians.
 //!
 //! - [`Conv`]: a convolution whose gradients are matrix products (fast on the CPU).
+//! - [`transpose_last2`]: a tiled transpose (candle's strided copy of a permuted tensor is
+//!   slow on the CPU).
 //!
 //! The kernels run on CPU tensors of `f32` (training) or `f64` (gradient checks). Second
 //! derivatives are not supported: the gradients these ops return are not themselves
@@ -17,6 +19,7 @@ mod conv;
 mod cpu;
 mod im2col;
 mod render;
+mod transpose;
 
 pub use bilinear::{grid_sample, upsample_bilinear};
 pub use conv::Conv;
@@ -26,3 +29,4 @@ pub use render::{
     render, SplatTensors, CH_ALPHA, CH_B, CH_CONFIDENCE, CH_DEPTH, CH_G, CH_R, COL_COLOR,
     COL_CONFIDENCE, COL_LOG_SCALE, COL_MEAN, COL_OPACITY_LOGIT, COL_ROTATION, OUT_CHANNELS, PARAMS,
 };
+pub use transpose::transpose_last2;

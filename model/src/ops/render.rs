@@ -95,6 +95,22 @@ impl SplatTensors {
         )
     }
 
+    /// The Gaussians of `parts` in order as one set (the cost-volume branch's and the volume
+    /// branch's, or several views' predictions): a concatenation, differentiable in every part.
+    pub fn cat(parts: &[&SplatTensors]) -> Result<Self> {
+        let cat = |f: fn(&SplatTensors) -> &Tensor| {
+            Tensor::cat(&parts.iter().map(|p| f(p)).collect::<Vec<_>>(), 0)
+        };
+        Ok(Self {
+            means: cat(|p| &p.means)?,
+            log_scales: cat(|p| &p.log_scales)?,
+            rotations: cat(|p| &p.rotations)?,
+            opacity_logits: cat(|p| &p.opacity_logits)?,
+            colors: cat(|p| &p.colors)?,
+            confidences: cat(|p| &p.confidences)?,
+        })
+    }
+
     /// The tensors of a renderer Gaussian set (opacities become logits through
     /// `renderer::ply::opacity_logit`, which keeps 0 and 1 finite), for feeding existing maps
     /// and test scenes to [`render`].

@@ -4,5 +4,18 @@
 //! most occupied voxels inside the input frusta into Gaussians.
 
 mod config;
+mod decoder;
+mod fusion;
+mod head;
+mod occupancy;
+mod occupancy_target;
+pub mod voxels;
 
 pub use config::{Plane, VolumeConfig, VolumeLayer};
+pub use decoder::{
+    log_sigmoid, product_logit, VoxelDecoder, GAUSSIAN_PARAMS, MAX_OFFSET, MAX_SCALE,
+};
+pub use fusion::{gaussian_rows, ProjectionFusion};
+pub use head::{GaussiansPerBranch, VolumeHead, VolumeOutput};
+pub use occupancy::{frustum_mask, top_k, OccupancyHead, MIN_DEPTH};
+pub use occupancy_target::{bin_lidar_points, occupancy_loss, occupied_voxels, BinPoints};

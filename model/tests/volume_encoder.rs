@@ -569,8 +569,8 @@ fn cameras_behind_the_volume_leave_the_images_out() {
     let other = enc
         .forward(None, &view_features(2, 7), &behind, STRIDE)
         .unwrap();
-    for i in 0..3 {
-        assert!(max_abs_diff(&planes[i], &other.0[i]) < 1e-6);
+    for (a, b) in planes.iter().zip(&other.0) {
+        assert!(max_abs_diff(a, b) < 1e-6);
     }
 }
 

@@ -90,7 +90,7 @@ impl TriplaneEncoder {
     /// features before their normalisation).
     pub fn new(vb: VarBuilder, cfg: &Config) -> Result<Self> {
         let v = &cfg.volume;
-        if v.heads == 0 || v.channels % v.heads != 0 {
+        if v.heads == 0 || !v.channels.is_multiple_of(v.heads) {
             candle_core::bail!(
                 "volume channels {} must be a multiple of its heads {}",
                 v.channels,

@@ -65,7 +65,7 @@ pub fn so3_log(r: DMat3) -> DVec3 {
     let w = sign * q[0];
     let v = DVec3::new(q[1], q[2], q[3]) * sign;
     let norm = (w * w + v.length_squared()).sqrt();
-    if !(norm > 0.0) {
+    if norm.is_nan() || norm <= 0.0 {
         return DVec3::ZERO;
     }
     let (w, v) = (w / norm, v / norm);

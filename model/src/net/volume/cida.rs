@@ -82,19 +82,25 @@ impl CrossImageAttention {
                 .forward(q)?
                 .broadcast_add(&heads.spread)?
                 .reshape((n, self.heads, a, k, 2))?
-                .transpose(0, 1)?;
+                .transpose(0, 1)?
+                .contiguous()?;
+            // The anchors (constant) laid out as the grid, then the offsets added per view.
             let grid = anchors
                 .pixels
                 .reshape((v, 1, n, a, 1, 2))?
+                .broadcast_as((v, self.heads, n, a, k, 2))?
+                .contiguous()?
                 .broadcast_add(&offsets.unsqueeze(0)?)?
                 .reshape((v * self.heads, n, a * k, 2))?;
-            let samples = grid_sample(&value, &grid)?.reshape((v, self.heads, dh, n, a * k))?;
+            // The weights are the same for every view: sum the views' samples first.
+            let samples = grid_sample(&value, &grid)?
+                .reshape((v, self.heads, dh, n, a * k))?
+                .sum_keepdim(0)?;
             let weights =
                 softmax_last(&heads.weights.forward(q)?.reshape((n, self.heads, a * k))?)?
                     .transpose(0, 1)?;
-            // Sum over the views (unseen anchors sampled zero), mean over those that see it.
+            // Unseen anchors sampled zero: divided by the views that see the query, a mean.
             let attended = weighted_sum(&samples, &weights)?
-                .sum(0)?
                 .reshape((c, n))?
                 .t()?
                 .broadcast_mul(&anchors.inverse_count)?;

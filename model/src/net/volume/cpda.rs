@@ -24,12 +24,13 @@ const OWN_PLANE_LOGIT: f64 = 4.0;
 #[derive(Clone, Debug)]
 struct PlaneHeads {
     offsets: Linear,
-    spread: Tensor,
     within: Linear,
     levels: Linear,
     level_bias: Tensor,
-    /// Per level (in [`Plane::ALL`] order), `(N, P, 2)` pixels of that level's tensor.
-    references: [Tensor; 3],
+    /// `(N, heads, 3, P, 2)`: where the points sit before the learned offsets, the
+    /// references (pixels of each level's tensor, levels in [`Plane::ALL`] order) plus
+    /// Deformable-DETR's spread.
+    start: Tensor,
 }
 
 /// Cross-plane deformable attention.
@@ -54,19 +55,26 @@ impl CrossPlaneAttention {
         let one = |i: usize| -> Result<PlaneHeads> {
             let vb = vb.pp(names[i]);
             let query = Plane::ALL[i];
-            let reference =
-                |l: usize| plane_references(cfg, query, Plane::ALL[l], p, dtype, &device);
+            let references = (0..3)
+                .map(|l| plane_references(cfg, query, Plane::ALL[l], p, dtype, &device))
+                .collect::<Result<Vec<_>>>()?;
+            let references = Tensor::stack(&references, 1)?; // (N, 3, P, 2)
+            let spread =
+                offset_spread(heads, 3, p, dtype, &device)?.reshape((1, heads, 3, p, 2))?;
+            let start = references
+                .unsqueeze(1)?
+                .broadcast_add(&spread)?
+                .contiguous()?;
             let mut bias = vec![0.0; heads * 3];
             for h in 0..heads {
                 bias[h * 3 + i] = OWN_PLANE_LOGIT;
             }
             Ok(PlaneHeads {
                 offsets: zero_linear(vb.pp("offsets"), c, heads * 3 * p * 2)?,
-                spread: offset_spread(heads, 3, p, dtype, &device)?,
                 within: zero_linear(vb.pp("within"), c, heads * 3 * p)?,
                 levels: zero_linear(vb.pp("levels"), c, heads * 3)?,
                 level_bias: Tensor::from_vec(bias, heads * 3, &device)?.to_dtype(dtype)?,
-                references: [reference(0)?, reference(1)?, reference(2)?],
+                start,
             })
         };
         Ok(Self {
@@ -99,12 +107,10 @@ impl CrossPlaneAttention {
             let n = q.dim(0)?;
             let key = (q + &positions[i])?;
             // (N, heads, 3, P, 2) -> (3, heads, N, P, 2): cells around each reference.
-            let offsets = planes
-                .offsets
-                .forward(&key)?
-                .broadcast_add(&planes.spread)?
-                .reshape((n, heads, 3, p, 2))?
-                .permute((2, 1, 0, 3, 4))?;
+            let grids = (planes.offsets.forward(&key)?.reshape((n, heads, 3, p, 2))?
+                + &planes.start)?
+                .permute((2, 1, 0, 3, 4))?
+                .contiguous()?;
             let within = softmax_last(&planes.within.forward(&key)?.reshape((n, heads, 3, p))?)?;
             let across = softmax_last(
                 &planes
@@ -116,23 +122,17 @@ impl CrossPlaneAttention {
             // (3, heads, N, P)
             let weights = within
                 .broadcast_mul(&across.unsqueeze(3)?)?
-                .permute((2, 1, 0, 3))?;
-            let mut sum: Option<Tensor> = None;
-            for (l, value) in values.iter().enumerate() {
-                let grid = planes.references[l]
-                    .unsqueeze(0)?
-                    .broadcast_add(&offsets.get(l)?)?;
-                let samples = grid_sample(value, &grid)?.unsqueeze(0)?;
-                let part = weighted_sum(&samples, &weights.get(l)?)?;
-                sum = Some(match sum {
-                    Some(s) => (s + part)?,
-                    None => part,
-                });
-            }
-            let attended = match sum {
-                Some(s) => s.reshape((c, n))?.t()?,
-                None => candle_core::bail!("cross-plane attention without planes"),
-            };
+                .permute((2, 1, 0, 3))?
+                .contiguous()?;
+            let parts = values
+                .iter()
+                .enumerate()
+                .map(|(l, value)| {
+                    let samples = grid_sample(value, &grids.get(l)?)?.unsqueeze(0)?;
+                    weighted_sum(&samples, &weights.get(l)?)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let attended = Tensor::stack(&parts, 0)?.sum(0)?.reshape((c, n))?.t()?;
             q + self.out.forward(&attended)?
         };
         Ok([one(0)?, one(1)?, one(2)?])

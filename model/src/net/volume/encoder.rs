@@ -4,8 +4,10 @@
 //! self = cross-plane attention -> LN -> FFN -> LN. The views' features are projected to the
 //! plane channels once and carry their pose code PE(T_i).
 
-use candle_core::{Module, Result, Tensor};
-use candle_nn::{linear, Linear, VarBuilder};
+use std::collections::HashMap;
+
+use candle_core::{DType, Device, Module, Result, Tensor};
+use candle_nn::{linear, Linear, VarBuilder, VarMap};
 use renderer::Camera;
 
 use super::anchors::ViewAnchors;
@@ -55,22 +57,28 @@ impl Layer {
         positions: &[Tensor; 3],
         views: Option<(&Tensor, &[ViewAnchors; 3])>,
     ) -> Result<[Tensor; 3]> {
-        let norm = |norm: &Norm, t: [Tensor; 3]| -> Result<[Tensor; 3]> {
+        // Norms and the FFN act on each token alone: all planes' tokens go through at once.
+        let sizes = tokens.each_ref().map(|t| t.dim(0).unwrap_or(0));
+        let join = |t: &[Tensor; 3]| Tensor::cat(t, 0);
+        let split = |t: &Tensor| -> Result<[Tensor; 3]> {
             Ok([
-                norm.forward(&t[0])?,
-                norm.forward(&t[1])?,
-                norm.forward(&t[2])?,
+                t.narrow(0, 0, sizes[0])?,
+                t.narrow(0, sizes[0], sizes[1])?,
+                t.narrow(0, sizes[0] + sizes[1], sizes[2])?,
             ])
         };
-        let mut t = norm(&self.norm_planes, self.planes.forward(tokens, positions)?)?;
-        if let (Some((attention, n)), Some((features, anchors))) = (&self.image, views) {
-            t = norm(n, attention.forward(&t, features, anchors)?)?;
+        let mut t = self
+            .norm_planes
+            .forward(&join(&self.planes.forward(tokens, positions)?)?)?;
+        if let (Some((attention, norm)), Some((features, anchors))) = (&self.image, views) {
+            t = norm.forward(&join(&attention.forward(
+                &split(&t)?,
+                features,
+                anchors,
+            )?)?)?;
         }
-        let ffn = |x: &Tensor| -> Result<Tensor> {
-            let y = self.ffn_out.forward(&self.ffn_in.forward(x)?.relu()?)?;
-            self.norm_ffn.forward(&(x + y)?)
-        };
-        Ok([ffn(&t[0])?, ffn(&t[1])?, ffn(&t[2])?])
+        let y = self.ffn_out.forward(&self.ffn_in.forward(&t)?.relu()?)?;
+        split(&self.norm_ffn.forward(&(t + y)?)?)
     }
 }
 
@@ -110,6 +118,27 @@ impl TriplaneEncoder {
             layers,
             cfg: v.clone(),
         })
+    }
+
+    /// The encoder of `cfg` with fresh random weights held as plain tensors (no gradient
+    /// tracked, so the inference kernels run), and its parameter count: what a benchmark
+    /// times before trained weights exist.
+    pub fn untrained(cfg: &Config) -> Result<(Self, usize)> {
+        let varmap = VarMap::new();
+        Self::new(
+            VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu),
+            cfg,
+        )?;
+        let weights: HashMap<String, Tensor> = varmap
+            .data()
+            .lock()
+            .map_err(|_| candle_core::Error::Msg("variable map poisoned".into()))?
+            .iter()
+            .map(|(k, v)| (k.clone(), v.as_tensor().detach()))
+            .collect();
+        let parameters = weights.values().map(|t| t.elem_count()).sum();
+        let vb = VarBuilder::from_tensors(weights, DType::F32, &Device::Cpu);
+        Ok((Self::new(vb, cfg)?, parameters))
     }
 
     /// The planes for the views' `features` `(V, cost_channels, h, w)` (feature pixel `j` at

@@ -92,10 +92,12 @@ impl CrossImageAttention {
                 .contiguous()?
                 .broadcast_add(&offsets.unsqueeze(0)?)?
                 .reshape((v * self.heads, n, a * k, 2))?;
-            // The weights are the same for every view: sum the views' samples first.
-            let samples = grid_sample(&value, &grid)?
-                .reshape((v, self.heads, dh, n, a * k))?
-                .sum_keepdim(0)?;
+            // The weights are the same for every view: sum the views' samples first (as
+            // adds of contiguous slices: candle's reduction over a leading axis is slow).
+            let samples = grid_sample(&value, &grid)?.reshape((v, self.heads, dh, n, a * k))?;
+            let samples = (1..v).try_fold(samples.narrow(0, 0, 1)?, |sum, i| {
+                sum + samples.narrow(0, i, 1)?
+            })?;
             let weights =
                 softmax_last(&heads.weights.forward(q)?.reshape((n, self.heads, a * k))?)?
                     .transpose(0, 1)?;

@@ -124,15 +124,17 @@ impl CrossPlaneAttention {
                 .broadcast_mul(&across.unsqueeze(3)?)?
                 .permute((2, 1, 0, 3))?
                 .contiguous()?;
-            let parts = values
+            let parts: Vec<Tensor> = values
                 .iter()
                 .enumerate()
                 .map(|(l, value)| {
                     let samples = grid_sample(value, &grids.get(l)?)?.unsqueeze(0)?;
                     weighted_sum(&samples, &weights.get(l)?)
                 })
-                .collect::<Result<Vec<_>>>()?;
-            let attended = Tensor::stack(&parts, 0)?.sum(0)?.reshape((c, n))?.t()?;
+                .collect::<Result<_>>()?;
+            let attended = ((&parts[0] + &parts[1])? + &parts[2])?
+                .reshape((c, n))?
+                .t()?;
             q + self.out.forward(&attended)?
         };
         Ok([one(0)?, one(1)?, one(2)?])

@@ -59,10 +59,15 @@ pub(super) fn project_channels(linear: &Linear, x: &Tensor) -> Result<Tensor> {
 }
 
 /// The weighted sum over the last axis of `samples` `(B, heads, dh, N, P)` with `weights`
-/// `(heads, N, P)`: `(B, heads, dh, N)`.
+/// `(heads, N, P)`: `(B, heads, dh, N)`. The sum over the short last axis is a product with
+/// a column of ones: candle's matmul does it about twice as fast as its `sum`.
 pub(super) fn weighted_sum(samples: &Tensor, weights: &Tensor) -> Result<Tensor> {
     let (heads, n, p) = weights.dims3()?;
+    let (b, _, dh, _, _) = samples.dims5()?;
+    let ones = Tensor::ones((p, 1), samples.dtype(), samples.device())?;
     samples
         .broadcast_mul(&weights.reshape((1, heads, 1, n, p))?)?
-        .sum(4)
+        .reshape((b * heads * dh * n, p))?
+        .matmul(&ones)?
+        .reshape((b, heads, dh, n))
 }

@@ -5,8 +5,11 @@
 //! origin (the same planes as at the origin: the branch works in the bin frame), 1 and K
 //! pairs with the same weights, and cameras behind the volume.
 
+mod finite_support;
+
 use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::{VarBuilder, VarMap};
+use finite_support::{assert_finite, assert_finite_gradients};
 use glam::{DAffine3, DMat3, DVec3, Quat, Vec3};
 use model::frame::{Side, StereoRig};
 use model::net::volume::{
@@ -99,12 +102,6 @@ fn values(t: &Tensor) -> Vec<f64> {
         .unwrap()
         .to_vec1()
         .unwrap()
-}
-
-fn assert_finite(t: &Tensor, what: &str) {
-    let v = values(t);
-    let bad = v.iter().filter(|x| !x.is_finite()).count();
-    assert_eq!(bad, 0, "{what}: {bad} of {} values not finite", v.len());
 }
 
 fn max_abs_diff(a: &Tensor, b: &Tensor) -> f64 {
@@ -438,13 +435,7 @@ fn check_stable(features: &Tensor, cameras: &[Camera], what: &str) -> [Tensor; 3
         .reduce(|a, b| (a + b).unwrap())
         .unwrap();
     let grads = loss.backward().unwrap();
-    let mut with_grad = 0;
-    for var in varmap.all_vars() {
-        if let Some(g) = grads.get(var.as_tensor()) {
-            assert_finite(g, &format!("{what}: gradient"));
-            with_grad += 1;
-        }
-    }
+    let with_grad = assert_finite_gradients(&varmap, &grads, what);
     assert!(
         with_grad > 20,
         "{what}: only {with_grad} variables got a gradient"

@@ -4,10 +4,12 @@
 //! disparity), a scene at 1 m and at 80 m, cameras far from the origin. Every output and
 //! every gradient (through the differentiable rasterizer) must be finite.
 
+mod finite_support;
 mod var_support;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
+use finite_support::{assert_finite, assert_finite_gradients};
 use glam::{Quat, Vec3};
 use model::net::{to_set, Config, StereoSplat};
 use model::ops::render;
@@ -65,12 +67,6 @@ fn images(views: &[Vec<f32>]) -> Tensor {
     Tensor::from_vec(data, (views.len(), 3, H as usize, W as usize), &Device::Cpu).unwrap()
 }
 
-fn assert_finite(t: &Tensor, what: &str) {
-    let v: Vec<f32> = t.flatten_all().unwrap().to_vec1().unwrap();
-    let bad = v.iter().filter(|x| !x.is_finite()).count();
-    assert_eq!(bad, 0, "{what}: {bad} of {} values not finite", v.len());
-}
-
 /// Forward, render a target view, backward: every output and gradient finite.
 fn check_stable(views: &[Vec<f32>], cameras: &[Camera], what: &str) {
     check_stable_with(&Config::tiny(), views, cameras, what);
@@ -100,13 +96,7 @@ fn check_stable_with(cfg: &Config, views: &[Vec<f32>], cameras: &[Camera], what:
     assert_finite(&out, &format!("{what}: render"));
     let loss = (out.sqr().unwrap().mean_all().unwrap() + p.depth.mean_all().unwrap()).unwrap();
     let grads = loss.backward().unwrap();
-    let mut with_grad = 0;
-    for var in varmap.all_vars() {
-        if let Some(g) = grads.get(var.as_tensor()) {
-            assert_finite(g, &format!("{what}: gradient"));
-            with_grad += 1;
-        }
-    }
+    let with_grad = assert_finite_gradients(&varmap, &grads, what);
     assert!(
         with_grad > 10,
         "{what}: only {with_grad} variables got a gradient"

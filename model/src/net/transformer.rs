@@ -15,26 +15,38 @@ use super::Config;
 /// Whether any of `tensors` takes part in a gradient. Where none does (inference), candle's
 /// fused kernels run instead of the compositions of differentiable ops, which compute the
 /// same function.
-fn tracked(tensors: &[&Tensor]) -> bool {
+pub(super) fn tracked(tensors: &[&Tensor]) -> bool {
     tensors.iter().any(|t| t.track_op())
+}
+
+/// Softmax over the last dimension: candle's differentiable composition when training, its
+/// fused kernel (which drops gradients) otherwise.
+pub(super) fn softmax_last(x: &Tensor) -> Result<Tensor> {
+    if tracked(&[x]) {
+        candle_nn::ops::softmax(x, D::Minus1)
+    } else {
+        candle_nn::ops::softmax_last_dim(&x.contiguous()?)
+    }
 }
 
 /// Layer norm over the last dimension: composed of differentiable tensor ops when training.
 #[derive(Clone, Debug)]
-struct Norm {
+pub(super) struct Norm {
     weight: Tensor,
     bias: Tensor,
 }
 
 impl Norm {
-    fn new(vb: VarBuilder, c: usize) -> Result<Self> {
+    /// Weight 1 and bias 0 over `c` channels, under `vb`.
+    pub(super) fn new(vb: VarBuilder, c: usize) -> Result<Self> {
         Ok(Self {
             weight: vb.get_with_hints(c, "weight", candle_nn::Init::Const(1.0))?,
             bias: vb.get_with_hints(c, "bias", candle_nn::Init::Const(0.0))?,
         })
     }
 
-    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+    /// `x` normalised over its last dimension.
+    pub(super) fn forward(&self, x: &Tensor) -> Result<Tensor> {
         if tracked(&[x, &self.weight]) {
             candle_nn::ops::layer_norm_slow(x, &self.weight, &self.bias, 1e-5)
         } else {
@@ -77,11 +89,7 @@ impl Attention {
         let k = split(self.k.forward(context)?, tk)?;
         let v = split(self.v.forward(context)?, tk)?;
         let logits = (q.matmul(&k.transpose(2, 3)?.contiguous()?)? / (dh as f64).sqrt())?;
-        let weights = if tracked(&[&logits]) {
-            candle_nn::ops::softmax(&logits, D::Minus1)?
-        } else {
-            candle_nn::ops::softmax_last_dim(&logits.contiguous()?)?
-        };
+        let weights = softmax_last(&logits)?;
         let y = weights.matmul(&v)?.transpose(1, 2)?.reshape((b, tq, c))?;
         self.out.forward(&y)
     }

@@ -4,16 +4,20 @@
 //! the largest of the presets run so far: run one preset per process for each alone), parameters and
 //! Gaussians emitted. A preset without shipped weights runs untrained (`"weights":
 //! "untrained"`): its time and memory are those of the trained network, its Gaussian count
-//! is not.
+//! is not. Each report also times the volume branch's triplane encoder alone
+//! (`volume_encoder_*`: untrained, on features of the cost-volume branch's shape at stride 4,
+//! with the pair's cameras), until the branch is part of the reconstructor.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use candle_core::{Device, Tensor};
 use clap::Args;
 use model::frame::Side;
 use model::kitti360::Sequence;
-use model::net::{default_weights, Config, LearnedReconstructor, PRESETS};
+use model::net::volume::TriplaneEncoder;
+use model::net::{default_weights, Config, LearnedReconstructor, COST_STRIDE, PRESETS};
 use model::reconstruct::{Reconstructor, StereoView};
 use model::synth::SynthConfig;
 use serde::Serialize;
@@ -57,6 +61,52 @@ struct PresetReport {
     runs: usize,
     gaussians: usize,
     peak_rss_mib: f64,
+    volume_encoder_median_ms: f64,
+    volume_encoder_min_ms: f64,
+    volume_encoder_parameters: usize,
+}
+
+/// Median and min milliseconds, over `runs` after `warmup`, of `f`.
+fn time_runs(warmup: usize, runs: usize, mut f: impl FnMut() -> Result<()>) -> Result<(f64, f64)> {
+    let mut times = Vec::with_capacity(runs);
+    for i in 0..warmup + runs {
+        let start = Instant::now();
+        f()?;
+        if i >= warmup {
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    Ok((
+        times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+        times.first().copied().unwrap_or(f64::NAN),
+    ))
+}
+
+/// The untrained triplane encoder of `cfg` on random view features of the cost-volume
+/// branch's shape for `cameras` (inference kernels: its weights are plain tensors, so no
+/// gradient is tracked): median and min milliseconds and its parameter count.
+fn time_volume_encoder(
+    cfg: &Config,
+    cameras: &[renderer::Camera],
+    args: &BenchModelArgs,
+) -> Result<(f64, f64, usize)> {
+    let (encoder, parameters) = TriplaneEncoder::untrained(cfg)?;
+    let (h, w) = (
+        (args.height as usize).div_ceil(COST_STRIDE),
+        (args.width as usize).div_ceil(COST_STRIDE),
+    );
+    let features = Tensor::randn(
+        0f32,
+        1.0,
+        (cameras.len(), cfg.cost_channels, h, w),
+        &Device::Cpu,
+    )?;
+    let (median, min) = time_runs(args.warmup, args.runs, || {
+        encoder.forward(None, &features, cameras, COST_STRIDE)?;
+        Ok(())
+    })?;
+    Ok((median, min, parameters))
 }
 
 /// Runs the benchmark.
@@ -95,17 +145,13 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
                 "untrained".to_string(),
             )
         };
-        let mut times = Vec::with_capacity(args.runs);
         let mut gaussians = 0;
-        for i in 0..args.warmup + args.runs {
-            let start = Instant::now();
-            let set = rec.reconstruct(&[view])?;
-            if i >= args.warmup {
-                times.push(start.elapsed().as_secs_f64() * 1e3);
-            }
-            gaussians = set.len();
-        }
-        times.sort_by(f64::total_cmp);
+        let (median_ms, min_ms) = time_runs(args.warmup, args.runs, || {
+            gaussians = rec.reconstruct(&[view])?.len();
+            Ok(())
+        })?;
+        let (volume_median, volume_min, volume_parameters) =
+            time_volume_encoder(&cfg, &[view.left_camera, view.right_camera], args)?;
         let report = PresetReport {
             preset: name.to_string(),
             weights,
@@ -113,11 +159,14 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
             height: args.height,
             threads: rayon::current_num_threads(),
             parameters: rec.parameters(),
-            median_ms: times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
-            min_ms: times.first().copied().unwrap_or(f64::NAN),
-            runs: times.len(),
+            median_ms,
+            min_ms,
+            runs: args.runs,
             gaussians,
             peak_rss_mib: peak_rss_bytes() as f64 / (1 << 20) as f64,
+            volume_encoder_median_ms: volume_median,
+            volume_encoder_min_ms: volume_min,
+            volume_encoder_parameters: volume_parameters,
         };
         println!("{}", serde_json::to_string(&report)?);
     }

@@ -44,9 +44,11 @@ pub struct VolumeConfig {
     pub pose_frequencies: usize,
     /// Base b of the pose code's frequencies, `omega_m = 2 pi b^(-(m-1)/(M-1))`.
     pub pose_base: f32,
-    /// Translation scale s_t of the pose code (1 / metres).
+    /// Translation scale of the pose code (1 / metres): the translation is multiplied by it,
+    /// so it is the paper's `1 / s_t` (0.1: 10 m becomes 1).
     pub pose_translation_scale: f32,
-    /// Rotation scale s_r of the pose code (1 / radians).
+    /// Rotation scale of the pose code (1 / radians): the log map is multiplied by it (the
+    /// paper's `1 / s_r`).
     pub pose_rotation_scale: f32,
     /// Whether the pose code also carries the raw pose (the paper's gamma switch).
     pub pose_raw: bool,

@@ -113,6 +113,8 @@ fn bench_pareto_and_eval_map_on_a_small_drive() {
             "0.5",
             "--ranges",
             "inf,10",
+            "--sky-ranges",
+            "10",
             "--confidences",
             "0.5",
             "--data",
@@ -130,9 +132,13 @@ fn bench_pareto_and_eval_map_on_a_small_drive() {
     };
     let count = |name: &str| row(name)["gaussians"].as_u64().unwrap();
     assert!(count("budget 2000") <= 2000);
-    // The keep rule only ever removes: everything >= the default 40 m >= 10 m.
+    // The keep rule only ever removes: everything >= the default 20 m >= 10 m.
     assert!(count("range inf") >= count("default"));
     assert!(count("default") >= count("range 10"));
+    // The sky layer is drawn behind the same map, not added to it.
+    assert_eq!(count("range 10 + sky layer"), count("range 10"));
+    assert!(num(&row("range 10 + sky layer")["sky_layer_gaussians"]) > 0.0);
+    assert!(row("range 10")["sky_layer_gaussians"].is_null());
     assert!(count("conf 0.5") <= count("default"));
     for r in rows {
         assert!(num(&r["scores"]["mean"]["psnr"]).is_finite(), "{r}");

@@ -34,9 +34,9 @@ fn sky_at_the_far_plane_is_not_fused_and_the_road_is() {
         DVec3::new(1000.0, -250.0, 3.0),
     );
     let road = gauss([0.0, 1.6, 12.0], 0.8);
-    let kerb = gauss([3.0, 1.5, 39.0], 0.8);
+    let kerb = gauss([3.0, 1.5, 19.0], 0.8);
     let sky = gauss([-20.0, -30.0, 100.0], 0.9);
-    let far_wall = gauss([0.0, 0.0, 60.0], 0.9);
+    let far_wall = gauss([0.0, 0.0, 30.0], 0.9);
     let inc = map
         .insert_bin(0, &set_of(&[road, sky, kerb, far_wall]), pose)
         .unwrap();

@@ -69,6 +69,11 @@ pub struct Config {
     /// `gaussian_stride` pixels everywhere. Inference only.
     #[serde(default)]
     pub merge_tolerance: Option<f32>,
+    /// Drop the Gaussians whose blend weight summed over the input views is below this many
+    /// pixels (hidden behind nearer ones, outside every image, too faint; see `prune`);
+    /// `None` keeps them. Inference only.
+    #[serde(default)]
+    pub min_view_weight: Option<f32>,
     /// Whether the cost-volume branch's Gaussians are part of the output (its features
     /// still guide the volume branch when it is off: the paper's Branch_3D row).
     #[serde(default = "yes")]
@@ -169,6 +174,7 @@ impl Config {
             opacity_floor: 0.02,
             max_gaussians: 200_000,
             merge_tolerance: None,
+            min_view_weight: None,
             cost_volume_branch: true,
             volume_branch: false,
             volume: VolumeConfig::tiny(),

@@ -17,6 +17,7 @@ mod gaussian_head;
 mod geometry;
 pub mod merge;
 pub mod pair_fusion;
+pub mod prune;
 mod reconstructor;
 mod stereosplat;
 mod transformer;

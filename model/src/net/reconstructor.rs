@@ -10,6 +10,7 @@ use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
 use super::merge::merge_redundant;
+use super::prune::prune_unseen;
 use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
@@ -158,11 +159,15 @@ impl Reconstructor for LearnedReconstructor {
             cfg.max_gaussians,
         )
         .map_err(backend)?;
-        Ok(match (cfg.merge_tolerance, cameras.first()) {
+        let set = match (cfg.merge_tolerance, cameras.first()) {
             (Some(tolerance), Some(reference)) => {
                 merge_redundant(&set, reference, cfg.gaussian_stride, tolerance)
             }
             _ => set,
+        };
+        Ok(match cfg.min_view_weight {
+            Some(min_weight) => prune_unseen(&set, &cameras, min_weight),
+            None => set,
         })
     }
 }

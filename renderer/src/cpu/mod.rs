@@ -7,18 +7,21 @@
 //!
 //! Stages, each a module: [`mod@project`] (3D Gaussian to screen-space conic, depth and tile
 //! rectangle), [`tiles`] (which Gaussians touch which 16x16 tile, depth sorted),
-//! [`composite`] (front-to-back blending per pixel), and [`mod@backward`] (gradients).
+//! [`composite`] (front-to-back blending per pixel), and [`mod@backward`] (gradients);
+//! [`visibility`] sums each Gaussian's blend weight over a view.
 
 pub mod backward;
 pub mod composite;
 pub mod math;
 pub mod project;
 pub mod tiles;
+pub mod visibility;
 
 pub use backward::{backward, OutputGrads, SplatGrads};
 pub use composite::{render, ForwardPass};
 pub use project::{project, Projected};
 pub use tiles::{TileBins, TILE_SIZE};
+pub use visibility::blend_weights;
 
 /// Alpha is clamped to this from above so transmittance never reaches zero in one step.
 pub const MAX_ALPHA: f64 = 0.99;

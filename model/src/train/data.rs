@@ -126,6 +126,12 @@ impl TrainingSet {
         self.bins.is_empty()
     }
 
+    /// Bin `i` (of [`Self::len`]) with the sequence it was cut from.
+    pub fn bin(&self, i: usize) -> (&Sequence, Bin) {
+        let (s, bin) = self.bins[i];
+        (&self.sequences[s], bin)
+    }
+
     /// Draws a sample with `rng`.
     pub fn sample(
         &self,

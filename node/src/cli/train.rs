@@ -150,7 +150,7 @@ pub fn run(args: &TrainArgs) -> Result<()> {
 }
 
 /// Calls `f` on the first SIGINT or SIGTERM, from a thread of its own.
-fn ctrlc_hook(f: impl FnOnce() + Send + 'static) {
+pub(crate) fn ctrlc_hook(f: impl FnOnce() + Send + 'static) {
     std::thread::spawn(move || {
         let Ok(rt) = tokio::runtime::Builder::new_current_thread()
             .enable_all()

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use candle_core::{Device, Tensor};
+use candle_core::Device;
 use model::bins::BinConfig;
 use model::enhance::evaluate::evaluate;
 use model::enhance::loss::LossWeights;
@@ -18,6 +18,9 @@ use model::lpips::Lpips;
 use model::net::default_weights;
 use model::synth::SynthConfig;
 use model::train::AdamWConfig;
+
+mod train_support;
+use train_support::{assert_same_weights, logged_steps};
 
 fn temp(case: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("stereosplat-enh-{case}-{}", std::process::id()));
@@ -70,17 +73,6 @@ fn train(pairs: &Path, out: &Path, steps: u64, resume: bool) -> Vec<f32> {
         .unwrap();
     assert_eq!(trainer.step(), steps);
     losses
-}
-
-fn weights(out: &Path) -> Vec<(String, Vec<f32>)> {
-    let mut map: Vec<_> =
-        candle_core::safetensors::load(exported_weights(out, "tiny"), &Device::Cpu)
-            .unwrap()
-            .into_iter()
-            .map(|(k, v): (String, Tensor)| (k, v.flatten_all().unwrap().to_vec1().unwrap()))
-            .collect();
-    map.sort_by(|a, b| a.0.cmp(&b.0));
-    map
 }
 
 #[test]
@@ -144,21 +136,11 @@ fn pairs_are_written_as_asked_and_training_resumes_exactly() {
     assert_eq!((a.len(), b.len()), (3, 2));
     let all = train(&made, &whole, 5, false);
     assert_eq!(&all[..3], &a[..], "same seed, same first steps");
-    for ((name, x), (_, y)) in weights(&stopped).iter().zip(weights(&whole)) {
-        let diff = x
-            .iter()
-            .zip(&y)
-            .map(|(p, q)| (p - q).abs())
-            .fold(0f32, f32::max);
-        assert!(diff < 1e-5, "{name} differs by {diff}");
-    }
-    let log = std::fs::read_to_string(stopped.join("log.csv")).unwrap();
-    let steps: Vec<&str> = log
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').next().unwrap())
-        .collect();
-    assert_eq!(steps, ["1", "2", "3", "4", "5"]);
+    assert_same_weights(
+        &exported_weights(&stopped, "tiny"),
+        &exported_weights(&whole, "tiny"),
+    );
+    assert_eq!(logged_steps(&stopped), ["1", "2", "3", "4", "5"]);
     let curve = image::open(stopped.join("loss_curve.png")).unwrap();
     assert_eq!((curve.width(), curve.height()), (800, 480));
     // Another preset's checkpoint is refused.

@@ -17,14 +17,15 @@ pub struct LossWeights {
 }
 
 impl Default for LossWeights {
-    /// Difix's 1 / 1 / 1 for L2 and LPIPS. The Gram term on LPIPS's unit-normalised
-    /// AlexNet features is about 1e-3 of LPIPS on raw renders (seen on the first steps of
-    /// `train-enhancer`), so its weight is 100 to give it a say without ruling.
+    /// Difix's 1 / 1 for L2 and LPIPS. The Gram term on LPIPS's unit-normalised AlexNet
+    /// features is about 5e-6 on raw renders against LPIPS's 0.2 (the first steps of
+    /// `train-enhancer` on the synthetic drives), so its weight is 1e4: about a fifth of
+    /// LPIPS, a say without ruling.
     fn default() -> Self {
         Self {
             l2: 1.0,
             lpips: 1.0,
-            style: 100.0,
+            style: 1e4,
         }
     }
 }

@@ -22,8 +22,8 @@ use crate::bins::BinConfig;
 use crate::eval::raster::Raster;
 use crate::frame::{Side, StereoFrame};
 use crate::net::LearnedReconstructor;
-use crate::reconstruct::{Reconstructor, StereoView};
-use crate::train::TrainingSet;
+use crate::reconstruct::Reconstructor;
+use crate::train::{bin_views, draw_targets, TrainingSet};
 
 /// StereoSplat weights that make renders, with the label the index records.
 pub struct Source {
@@ -92,15 +92,7 @@ pub fn make_pairs(
                 .map(|i| frames[i + 1]),
         );
         inputs.sort_unstable();
-        let rest: Vec<usize> = frames
-            .iter()
-            .copied()
-            .filter(|f| !inputs.contains(f))
-            .collect();
-        let chosen: Vec<usize> = sample(&mut rng, rest.len(), cfg.targets.min(rest.len()))
-            .into_iter()
-            .map(|i| rest[i])
-            .collect();
+        let chosen = draw_targets(&mut rng, &frames, &inputs, cfg.targets);
         let sides: Vec<Side> = chosen
             .iter()
             .map(|_| match rng.random_bool(0.5) {
@@ -115,15 +107,7 @@ pub fn make_pairs(
         let rig = sequence.rig();
         let input_frames: Vec<StereoFrame> =
             inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
-        let views: Vec<StereoView> = input_frames
-            .iter()
-            .map(|f| StereoView {
-                left: &f.left,
-                right: &f.right,
-                left_camera: rig.local_camera(origin, f.left_to_world, Side::Left),
-                right_camera: rig.local_camera(origin, f.left_to_world, Side::Right),
-            })
-            .collect();
+        let views = bin_views(&rig, origin, &input_frames);
         let gaussians = nets[source].reconstruct(&views)?;
         let reference = &input_frames[0].left;
         let mut records = Vec::new();

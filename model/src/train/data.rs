@@ -5,12 +5,13 @@
 use std::path::Path;
 
 use candle_core::{Device, Tensor};
+use glam::DAffine3;
 use rand::seq::index::sample;
 use rand::Rng;
 use renderer::Camera;
 
 use crate::bins::{make_bins, Bin, BinConfig};
-use crate::frame::{DepthMap, RgbImage, Side, StereoFrame};
+use crate::frame::{DepthMap, RgbImage, Side, StereoFrame, StereoRig};
 use crate::kitti360::{Kitti360Error, Sequence};
 use crate::net::every_nth_pixel;
 use crate::reconstruct::StereoView;
@@ -154,15 +155,7 @@ impl TrainingSet {
         } else {
             vec![bin.first]
         };
-        let rest: Vec<usize> = frames
-            .iter()
-            .copied()
-            .filter(|f| !inputs.contains(f))
-            .collect();
-        let chosen: Vec<usize> = sample(rng, rest.len(), cfg.targets.min(rest.len()))
-            .into_iter()
-            .map(|i| rest[i])
-            .collect();
+        let chosen = draw_targets(rng, &frames, &inputs, cfg.targets);
 
         let poses = sequence.frames();
         let load = |i: usize| sequence.load_frame(poses[i].index);
@@ -170,15 +163,7 @@ impl TrainingSet {
         let rig = sequence.rig();
         let input_frames: Vec<StereoFrame> =
             inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
-        let views: Vec<StereoView> = input_frames
-            .iter()
-            .map(|f| StereoView {
-                left: &f.left,
-                right: &f.right,
-                left_camera: rig.local_camera(origin, f.left_to_world, Side::Left),
-                right_camera: rig.local_camera(origin, f.left_to_world, Side::Right),
-            })
-            .collect();
+        let views = bin_views(&rig, origin, &input_frames);
         let (images, cameras) = crate::net::images_and_cameras(&views, device)?;
         let mut depths = Vec::with_capacity(cameras.len());
         for f in &input_frames {
@@ -213,6 +198,42 @@ impl TrainingSet {
             targets,
         })
     }
+}
+
+/// Up to `n` frames of `frames` that are not `inputs`, drawn with `rng`: a sample's targets.
+pub(crate) fn draw_targets(
+    rng: &mut impl Rng,
+    frames: &[usize],
+    inputs: &[usize],
+    n: usize,
+) -> Vec<usize> {
+    let rest: Vec<usize> = frames
+        .iter()
+        .copied()
+        .filter(|f| !inputs.contains(f))
+        .collect();
+    sample(rng, rest.len(), n.min(rest.len()))
+        .into_iter()
+        .map(|i| rest[i])
+        .collect()
+}
+
+/// The stereo views of `frames` with cameras in the bin frame whose origin (the bin's first
+/// left camera) is `origin`.
+pub(crate) fn bin_views<'a>(
+    rig: &StereoRig,
+    origin: DAffine3,
+    frames: &'a [StereoFrame],
+) -> Vec<StereoView<'a>> {
+    frames
+        .iter()
+        .map(|f| StereoView {
+            left: &f.left,
+            right: &f.right,
+            left_camera: rig.local_camera(origin, f.left_to_world, Side::Left),
+            right_camera: rig.local_camera(origin, f.left_to_world, Side::Right),
+        })
+        .collect()
 }
 
 /// Every (root, sequence name) under `root`: its own sequences if it is a KITTI-360 root,

@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 
 pub use adamw::{AdamW, AdamWConfig};
 pub use checkpoint::checkpoint_dir;
+pub(crate) use data::{bin_views, draw_targets};
 pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
 pub use log::{TrainLog, LOG_COLUMNS};
 pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};

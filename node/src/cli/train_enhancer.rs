@@ -3,8 +3,6 @@
 //! `enhancer_<preset>.safetensors`. Ctrl-C stops after the current step with a checkpoint.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 use anyhow::{Context, Result};
 use clap::Args;
@@ -14,7 +12,7 @@ use model::enhance::Config;
 use model::train::AdamWConfig;
 
 use super::progress;
-use super::train::ctrlc_hook;
+use super::train::stop_on_signal;
 
 /// Flags of `train-enhancer`.
 #[derive(Args, Clone, Debug)]
@@ -91,12 +89,10 @@ pub fn run(args: &TrainEnhancerArgs) -> Result<()> {
         trainer.step(),
         args.steps
     );
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    ctrlc_hook(move || flag.store(true, Ordering::SeqCst));
+    let stop = stop_on_signal();
     let bar = progress::bar(args.steps as usize, "train");
     bar.set_position(trainer.step());
-    trainer.run(&|| stop.load(Ordering::SeqCst), &mut |r| {
+    trainer.run(&stop, &mut |r| {
         bar.set_position(r.step);
         bar.set_message(format!(
             "loss {:.4} l2 {:.5} (raw {:.5}) lpips {:.3} style {:.5} {:.2} it/s",

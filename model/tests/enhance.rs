@@ -1,6 +1,7 @@
 //! The one-step enhancer (`model::enhance`): exactly the identity at initialisation (the
-//! residual gate starts at 0), finite outputs in [0, 1] and finite gradients on a black, a
-//! saturated and an all-transparent render (with the gate open, so the whole network acts),
+//! residual's last layer starts at 0), finite outputs in [0, 1] and finite gradients on a
+//! black, a saturated and an all-transparent render (with that layer drawn at random, so the
+//! whole network acts),
 //! the reference view reaching the output, and the joint attention's gradients against
 //! central finite differences in f64.
 
@@ -50,9 +51,13 @@ fn the_untrained_enhancer_returns_the_render_exactly() {
 #[test]
 fn black_saturated_and_transparent_renders_give_finite_outputs_and_gradients() {
     let (varmap, net) = network();
-    // Open the gate so the residual path acts (at 0 the output is the render itself).
-    let gate = varmap.data().lock().unwrap()["residual_gate"].clone();
-    gate.set(&Tensor::new(&[1f32, 1.0, 1.0], &Device::Cpu).unwrap())
+    // Draw the residual's last layer (zero at init, when the output is the render itself).
+    let head = varmap.data().lock().unwrap()["decoder.zero_head.weight"].clone();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let drawn: Vec<f32> = (0..head.elem_count())
+        .map(|_| rng.random_range(-0.2..0.2))
+        .collect();
+    head.set(&Tensor::from_vec(drawn, head.shape(), &Device::Cpu).unwrap())
         .unwrap();
     let lpips = Lpips::load_default().unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(2);

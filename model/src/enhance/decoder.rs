@@ -1,14 +1,15 @@
 //! The enhancer's decoder: from 1/16 back to full resolution, each step a bilinear upsampling
 //! (`ops::upsample_bilinear`, which has a backward pass), the encoder's map of that size
 //! concatenated (the U-Net skip), a convolution and residual blocks; at full resolution the
-//! render itself is the skip, and a 3x3 head predicts the RGB residual.
+//! render itself is the skip, and a 3x3 head predicts the RGB residual. The head starts at
+//! zero (`Conv::zeros`), so the untrained decoder adds nothing.
 
 use candle_core::{Module, Result, Tensor};
 use candle_nn::VarBuilder;
 
 use super::encoder::{Features, INPUT_CHANNELS};
 use super::Config;
-use crate::net::blocks::{chain, conv, res_blocks, ConvRelu, ResBlock};
+use crate::net::blocks::{chain, res_blocks, ConvRelu, ResBlock};
 use crate::ops::{upsample_bilinear, Conv};
 
 /// One step up: fuse the upsampled map with the skip, then residual blocks.
@@ -54,7 +55,7 @@ impl Decoder {
         ];
         Ok(Self {
             ups,
-            head: conv(vb.pp("head"), s, 3, 3, 1)?,
+            head: Conv::zeros(vb.pp("zero_head"), (s, 3), 3, 1, 1)?,
         })
     }
 

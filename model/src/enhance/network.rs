@@ -1,14 +1,14 @@
 //! The whole enhancer: render (RGB, alpha, confidence) and reference image in, the enhanced
-//! render out, `clamp(render + gate * residual, 0, 1)`.
+//! render out, `clamp(render + residual, 0, 1)`.
 //!
-//! The gate is one learned weight per colour channel that starts at 0, so the untrained
-//! network is exactly the identity (Difix starts from a pretrained model and zero-initialised
-//! skip convolutions for the same reason: training begins at "change nothing"). The clamp
-//! keeps the output a valid image; its gradient is zero only where the output is pushed past
-//! 0 or 1.
+//! The residual's last layer starts at zero, so the untrained network is exactly the
+//! identity (Difix starts from a pretrained model and near-zero skip convolutions for the
+//! same reason: training begins at "change nothing"), and that layer gets gradients from the
+//! first step (a gate at zero in front of a random layer would starve both). The clamp keeps
+//! the output a valid image; its gradient is zero only where the output is pushed past 0 or 1.
 
 use candle_core::{Result, Tensor};
-use candle_nn::{Init, VarBuilder};
+use candle_nn::VarBuilder;
 
 use super::decoder::Decoder;
 use super::encoder::{Encoder, INPUT_CHANNELS};
@@ -21,7 +21,6 @@ pub struct Enhancer {
     encoder: Encoder,
     attention: Vec<JointAttention>,
     decoder: Decoder,
-    gate: Tensor,
     cfg: Config,
 }
 
@@ -35,7 +34,6 @@ impl Enhancer {
                 .map(|i| JointAttention::new(vb.pp(format!("attention{i}")), c, cfg.heads))
                 .collect::<Result<_>>()?,
             decoder: Decoder::new(vb.pp("decoder"), cfg)?,
-            gate: vb.get_with_hints(3, "residual_gate", Init::Const(0.0))?,
             cfg: cfg.clone(),
         })
     }
@@ -69,7 +67,6 @@ impl Enhancer {
             &deepest.narrow(0, n, n)?,
         )?;
         let residual = self.decoder.forward(&both.narrow(0, n)?, &mixed, render)?;
-        let gated = residual.broadcast_mul(&self.gate.reshape((1, 3, 1, 1))?)?;
-        (render.narrow(1, 0, 3)? + gated)?.clamp(0.0, 1.0)
+        (render.narrow(1, 0, 3)? + residual)?.clamp(0.0, 1.0)
     }
 }

@@ -340,7 +340,8 @@ pub(crate) fn mix(seed: u64, step: u64) -> u64 {
 /// on names and shapes: weights of rank 2 and up with the standard deviation of Kaiming
 /// normal (`sqrt(2 / fan_in)`), their biases within `1 / sqrt(fan_in)`, the transformer's
 /// position embedding with standard deviation 0.02. Constants (norm weights and biases)
-/// stay as they are.
+/// stay as they are, and so do variables under a `zero_` name (zero-initialised layers,
+/// `ops::Conv::zeros`).
 pub(crate) fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
     let data = varmap.data().lock().expect("varmap lock");
     let fan_in = |name: &str| {
@@ -353,7 +354,9 @@ pub(crate) fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for name in names {
         let var = &data[name];
-        let bound = if name.ends_with("position") {
+        let bound = if name.split('.').any(|part| part.starts_with("zero_")) {
+            continue;
+        } else if name.ends_with("position") {
             0.02 * 3f64.sqrt()
         } else if var.rank() >= 2 {
             (3.0 * 2.0 / fan_in(name).unwrap_or(1.0)).sqrt()

@@ -11,14 +11,18 @@
 # Run it again after an interruption: drives, pairs and the training's checkpoint are kept
 # and each stage goes on where it stopped.
 #   bash scripts/train_enhancer.sh [DATA_DIR] [RUN_DIR]
-#   PAIRS=3000 HELDOUT_PAIRS=300 STEPS=4000 (defaults; change them in the environment)
+#   PAIRS=3000 HELDOUT_PAIRS=300 STEPS=2500 (defaults; change them in the environment)
+# Time, estimated from the smoke run (results/enhancer_tiny_smoke/README.md), which ran at
+# 0.33-0.39 steps/s and 0.4 s a pair with the machine's load at 8-10: drives about 16 min,
+# pairs about 22 min, 2500 steps about 2 h, scores 1 min: under 3 hours. Not yet measured
+# end to end.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/enhancer}"
 run="${2:-runs/enhancer_tiny}"
 pairs="${PAIRS:-3000}"
 heldout_pairs="${HELDOUT_PAIRS:-300}"
-steps="${STEPS:-4000}"
+steps="${STEPS:-2500}"
 bin=target/release/stereosplat
 cargo build --release --bin stereosplat
 for seed in 20 21 22 23 24 25 26 27; do

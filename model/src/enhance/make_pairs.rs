@@ -20,10 +20,10 @@ use super::pairs::{append_records, write_pictures, PairPictures, PairRecord, Pai
 use super::EnhanceError;
 use crate::bins::BinConfig;
 use crate::eval::raster::Raster;
-use crate::frame::{Side, StereoFrame};
+use crate::frame::Side;
 use crate::net::LearnedReconstructor;
 use crate::reconstruct::Reconstructor;
-use crate::train::{bin_views, draw_targets, TrainingSet};
+use crate::train::{draw_targets, BinInputs, TrainingSet};
 
 /// StereoSplat weights that make renders, with the label the index records.
 pub struct Source {
@@ -102,21 +102,16 @@ pub fn make_pairs(
             .collect();
 
         let poses = sequence.frames();
-        let load = |i: usize| sequence.load_frame(poses[i].index);
-        let origin = poses[bin.first].left_to_world;
-        let rig = sequence.rig();
-        let input_frames: Vec<StereoFrame> =
-            inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
-        let views = bin_views(&rig, origin, &input_frames);
-        let gaussians = nets[source].reconstruct(&views)?;
-        let reference = &input_frames[0].left;
+        let bin_inputs = BinInputs::load(sequence, &bin, &inputs)?;
+        let gaussians = nets[source].reconstruct(&bin_inputs.views())?;
+        let reference = &bin_inputs.frames[0].left;
         let mut records = Vec::new();
         for (&i, &side) in chosen.iter().zip(&sides) {
             if count + records.len() >= cfg.pairs {
                 break;
             }
-            let frame = load(i)?;
-            let camera = rig.local_camera(origin, frame.left_to_world, side);
+            let frame = sequence.load_frame(poses[i].index)?;
+            let camera = bin_inputs.camera(&frame, side);
             let r = raster.render(&gaussians, &camera, &settings)?;
             let target = match side {
                 Side::Left => &frame.left,

@@ -105,14 +105,6 @@ pub enum EnhanceError {
     /// The pair folder holds no pair.
     #[error("no training pairs in {0} (make them with `stereosplat enhancer-data`)")]
     NoPairs(PathBuf),
-    /// The checkpoint is of another enhancer preset or size.
-    #[error("checkpoint is for enhancer {found}, not {expected}")]
-    ConfigMismatch {
-        /// The settings asked for, as JSON.
-        expected: String,
-        /// The checkpoint's, as JSON.
-        found: String,
-    },
 }
 
 impl EnhanceError {

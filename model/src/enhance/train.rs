@@ -10,7 +10,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use candle_core::{DType, Device};
-use candle_nn::{VarBuilder, VarMap};
 use rand::seq::index::sample;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -20,7 +19,8 @@ use super::loss::{losses, LossWeights};
 use super::pairs::PairSet;
 use super::{Config, EnhanceError, Enhancer};
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
-use crate::train::{checkpoint, mix, reseed, warmup_lr, AdamW, AdamWConfig, TrainLog};
+use crate::train::checkpoint::Run;
+use crate::train::{mix, warmup_lr, AdamWConfig, TrainError};
 
 /// The log's columns: `raw_l2` is the L2 of the render itself (what the identity scores).
 pub const LOG_COLUMNS: &[&str] = &[
@@ -103,20 +103,16 @@ pub fn exported_weights(out: &Path, preset: &str) -> PathBuf {
 
 /// A training run in progress.
 pub struct Trainer {
-    varmap: VarMap,
+    run: Run,
     net: Enhancer,
-    optimizer: AdamW,
     lpips: Lpips,
     pairs: PairSet,
     cfg: TrainConfig,
-    out: PathBuf,
-    log: TrainLog,
-    elapsed_before: f64,
 }
 
 impl Trainer {
     /// A run of `net_cfg` on the pairs in `pairs`, writing to `out`; with `resume`,
-    /// continues from `out`'s checkpoint.
+    /// continues from `out`'s checkpoint (refused if it is of other sizes).
     pub fn new(
         net_cfg: &Config,
         cfg: TrainConfig,
@@ -128,52 +124,38 @@ impl Trainer {
         if set.is_empty() {
             return Err(EnhanceError::NoPairs(pairs.to_path_buf()));
         }
-        std::fs::create_dir_all(checkpoint::checkpoint_dir(out)).map_err(EnhanceError::io(out))?;
-        let device = Device::Cpu;
-        let varmap = VarMap::new();
-        let net = Enhancer::new(
-            VarBuilder::from_varmap(&varmap, DType::F32, &device),
-            net_cfg,
-        )?;
-        reseed(&varmap, cfg.seed)?;
-        let mut optimizer = AdamW::new(checkpoint::variables(&varmap), cfg.adamw.clone())?;
-        let state = match resume {
-            true => checkpoint::read_state::<State>(out)?,
-            false => None,
-        };
-        let (step, elapsed_before) = match state {
-            Some(state) if state.config != *net_cfg => {
+        let check = |state: State| {
+            if state.config != *net_cfg {
                 let json = |c: &Config| serde_json::to_string(c).expect("config serialises");
-                return Err(EnhanceError::ConfigMismatch {
+                return Err(TrainError::SettingsMismatch {
+                    preset: format!("enhancer {}", net_cfg.name),
                     expected: json(net_cfg),
                     found: json(&state.config),
                 });
             }
-            Some(state) => {
-                checkpoint::load(out, &varmap, &mut optimizer, state.step)?;
-                (state.step, state.elapsed_s)
-            }
-            None => (0, 0.0),
+            Ok((state.step, state.elapsed_s))
         };
-        let log_path = out.join("log.csv");
-        let log =
-            TrainLog::open(&log_path, LOG_COLUMNS, step).map_err(EnhanceError::io(&log_path))?;
+        let (run, net) = Run::start(
+            out,
+            cfg.seed,
+            cfg.adamw.clone(),
+            LOG_COLUMNS,
+            resume,
+            |vb| Enhancer::new(vb, net_cfg),
+            check,
+        )?;
         Ok(Self {
-            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
-            varmap,
+            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu)?,
+            run,
             net,
-            optimizer,
             pairs: set,
             cfg,
-            out: out.to_path_buf(),
-            log,
-            elapsed_before,
         })
     }
 
     /// Steps already taken.
     pub fn step(&self) -> u64 {
-        self.optimizer.step
+        self.run.optimizer.step
     }
 
     /// Training pairs.
@@ -183,7 +165,12 @@ impl Trainer {
 
     /// Number of weights.
     pub fn parameters(&self) -> usize {
-        self.varmap.all_vars().iter().map(|v| v.elem_count()).sum()
+        self.run
+            .varmap
+            .all_vars()
+            .iter()
+            .map(|v| v.elem_count())
+            .sum()
     }
 
     /// Trains until the configured step count or until `stop` returns true, reporting every
@@ -194,9 +181,9 @@ impl Trainer {
         report: &mut dyn FnMut(&StepReport),
     ) -> Result<(), EnhanceError> {
         let start = Instant::now();
-        let first = self.optimizer.step;
-        while self.optimizer.step < self.cfg.steps && !stop() {
-            let step = self.optimizer.step + 1;
+        let first = self.run.optimizer.step;
+        while self.run.optimizer.step < self.cfg.steps && !stop() {
+            let step = self.run.optimizer.step + 1;
             let mut rng = ChaCha8Rng::seed_from_u64(mix(self.cfg.seed, step));
             let n = self.pairs.len();
             let picked = sample(&mut rng, n, self.cfg.batch.clamp(1, n)).into_vec();
@@ -212,6 +199,7 @@ impl Trainer {
             let mut grads = l.total.backward()?;
             let lr = warmup_lr(self.cfg.lr, self.cfg.warmup, step);
             let grad_norm = self
+                .run
                 .optimizer
                 .clip_and_update(&mut grads, self.cfg.clip, lr)?;
             let session = start.elapsed().as_secs_f64();
@@ -225,7 +213,7 @@ impl Trainer {
                 lr,
                 grad_norm,
                 steps_per_s: (step - first) as f64 / session.max(1e-9),
-                elapsed_s: self.elapsed_before + session,
+                elapsed_s: self.run.elapsed_before + session,
             };
             let row = format!(
                 "{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3e},{:.4},{:.4},{:.1}",
@@ -240,34 +228,24 @@ impl Trainer {
                 r.steps_per_s,
                 r.elapsed_s
             );
-            self.log
-                .append_row(&row)
-                .map_err(EnhanceError::io(&self.out.join("log.csv")))?;
+            self.run.log_row(&row)?;
             report(&r);
             if step.is_multiple_of(self.cfg.checkpoint_every) {
                 self.checkpoint(r.elapsed_s)?;
             }
         }
-        self.checkpoint(self.elapsed_before + start.elapsed().as_secs_f64())
+        self.checkpoint(self.run.elapsed_before + start.elapsed().as_secs_f64())
     }
 
     fn checkpoint(&self, elapsed_s: f64) -> Result<(), EnhanceError> {
         let cfg = self.net.config();
         let state = State {
             config: cfg.clone(),
-            step: self.optimizer.step,
+            step: self.run.optimizer.step,
             seed: self.cfg.seed,
             elapsed_s,
         };
-        let export = exported_weights(&self.out, &cfg.name);
-        checkpoint::save(
-            &self.out,
-            &self.varmap,
-            &self.optimizer,
-            &state,
-            &export,
-            CURVE_COLUMNS,
-        )?;
-        Ok(())
+        let export = exported_weights(&self.run.out, &cfg.name);
+        Ok(self.run.save(&state, &export, CURVE_COLUMNS)?)
     }
 }

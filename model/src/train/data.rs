@@ -157,16 +157,11 @@ impl TrainingSet {
         };
         let chosen = draw_targets(rng, &frames, &inputs, cfg.targets);
 
-        let poses = sequence.frames();
-        let load = |i: usize| sequence.load_frame(poses[i].index);
-        let origin = poses[bin.first].left_to_world;
-        let rig = sequence.rig();
-        let input_frames: Vec<StereoFrame> =
-            inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
-        let views = bin_views(&rig, origin, &input_frames);
-        let (images, cameras) = crate::net::images_and_cameras(&views, device)?;
+        let bin_inputs = BinInputs::load(sequence, &bin, &inputs)?;
+        let input_frames = &bin_inputs.frames;
+        let (images, cameras) = crate::net::images_and_cameras(&bin_inputs.views(), device)?;
         let mut depths = Vec::with_capacity(cameras.len());
-        for f in &input_frames {
+        for f in input_frames {
             for side in [Side::Left, Side::Right] {
                 depths.push(depth_tensor(&lidar_or_empty(sequence, f, side), device)?);
             }
@@ -175,7 +170,7 @@ impl TrainingSet {
 
         let mut targets = Vec::with_capacity(chosen.len());
         for i in chosen {
-            let frame = load(i)?;
+            let frame = sequence.load_frame(sequence.frames()[i].index)?;
             let side = if rng.random_bool(0.5) {
                 Side::Left
             } else {
@@ -186,7 +181,7 @@ impl TrainingSet {
                 Side::Right => &frame.right,
             };
             targets.push(Target {
-                camera: rig.local_camera(origin, frame.left_to_world, side),
+                camera: bin_inputs.camera(&frame, side),
                 image: image_tensor(image, device)?,
                 depth: depth_tensor(&lidar_or_empty(sequence, &frame, side), device)?.squeeze(0)?,
             });
@@ -218,22 +213,46 @@ pub(crate) fn draw_targets(
         .collect()
 }
 
-/// The stereo views of `frames` with cameras in the bin frame whose origin (the bin's first
-/// left camera) is `origin`.
-pub(crate) fn bin_views<'a>(
-    rig: &StereoRig,
+/// A bin's input frames, loaded, with the bin frame (its first left camera) and the rig.
+pub(crate) struct BinInputs {
+    /// The input frames in the order asked for.
+    pub frames: Vec<StereoFrame>,
     origin: DAffine3,
-    frames: &'a [StereoFrame],
-) -> Vec<StereoView<'a>> {
-    frames
-        .iter()
-        .map(|f| StereoView {
-            left: &f.left,
-            right: &f.right,
-            left_camera: rig.local_camera(origin, f.left_to_world, Side::Left),
-            right_camera: rig.local_camera(origin, f.left_to_world, Side::Right),
+    rig: StereoRig,
+}
+
+impl BinInputs {
+    /// Loads frames `inputs` (positions in `sequence.frames()`) of `bin`.
+    pub fn load(sequence: &Sequence, bin: &Bin, inputs: &[usize]) -> Result<Self, Kitti360Error> {
+        let poses = sequence.frames();
+        Ok(Self {
+            frames: inputs
+                .iter()
+                .map(|&i| sequence.load_frame(poses[i].index))
+                .collect::<Result<_, _>>()?,
+            origin: poses[bin.first].left_to_world,
+            rig: sequence.rig(),
         })
-        .collect()
+    }
+
+    /// The camera of `frame`'s `side` in the bin frame.
+    pub fn camera(&self, frame: &StereoFrame, side: Side) -> Camera {
+        self.rig
+            .local_camera(self.origin, frame.left_to_world, side)
+    }
+
+    /// The input frames as stereo views with cameras in the bin frame.
+    pub fn views(&self) -> Vec<StereoView<'_>> {
+        self.frames
+            .iter()
+            .map(|f| StereoView {
+                left: &f.left,
+                right: &f.right,
+                left_camera: self.camera(f, Side::Left),
+                right_camera: self.camera(f, Side::Right),
+            })
+            .collect()
+    }
 }
 
 /// Every (root, sequence name) under `root`: its own sequences if it is a KITTI-360 root,

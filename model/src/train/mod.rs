@@ -14,15 +14,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use candle_core::{DType, Device, Tensor};
-use candle_nn::{VarBuilder, VarMap};
+use candle_nn::VarMap;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 pub use adamw::{AdamW, AdamWConfig};
 pub use checkpoint::checkpoint_dir;
-pub(crate) use data::{bin_views, draw_targets};
 pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
+pub(crate) use data::{draw_targets, BinInputs};
 pub use log::{TrainLog, LOG_COLUMNS};
 pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};
 
@@ -167,15 +167,11 @@ pub fn exported_weights(out: &Path, preset: &str) -> PathBuf {
 
 /// A training run in progress.
 pub struct Trainer {
-    varmap: VarMap,
+    run: checkpoint::Run,
     net: StereoSplat,
-    optimizer: AdamW,
     lpips: Lpips,
     data: TrainingSet,
     cfg: TrainConfig,
-    out: PathBuf,
-    log: TrainLog,
-    elapsed_before: f64,
 }
 
 impl Trainer {
@@ -188,21 +184,7 @@ impl Trainer {
         out: &Path,
         resume: bool,
     ) -> Result<Self, TrainError> {
-        std::fs::create_dir_all(checkpoint_dir(out)).map_err(checkpoint::io_error(out))?;
-        let device = Device::Cpu;
-        let varmap = VarMap::new();
-        let net = StereoSplat::new(
-            VarBuilder::from_varmap(&varmap, DType::F32, &device),
-            net_cfg,
-        )?;
-        reseed(&varmap, cfg.seed)?;
-        let mut optimizer = AdamW::new(checkpoint::variables(&varmap), cfg.adamw.clone())?;
-        let mut elapsed_before = 0.0;
-        let state = match resume {
-            true => checkpoint::read_state::<State>(out)?,
-            false => None,
-        };
-        let step = if let Some(state) = state {
+        let check = |state: State| {
             if state.preset != net_cfg.name {
                 return Err(TrainError::PresetMismatch {
                     expected: net_cfg.name.clone(),
@@ -217,37 +199,36 @@ impl Trainer {
                     found: json(&found),
                 });
             }
-            checkpoint::load(out, &varmap, &mut optimizer, state.step)?;
-            elapsed_before = state.elapsed_s;
-            state.step
-        } else {
-            0
+            Ok((state.step, state.elapsed_s))
         };
-        let log = TrainLog::open(&out.join("log.csv"), LOG_COLUMNS, step)
-            .map_err(checkpoint::io_error(out))?;
+        let (run, net) = checkpoint::Run::start(
+            out,
+            cfg.seed,
+            cfg.adamw.clone(),
+            LOG_COLUMNS,
+            resume,
+            |vb| StereoSplat::new(vb, net_cfg),
+            check,
+        )?;
         Ok(Self {
-            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
+            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu)?,
             data: TrainingSet::open(data, &cfg.bins, cfg.resize)?,
-            varmap,
+            run,
             net,
-            optimizer,
             cfg,
-            out: out.to_path_buf(),
-            log,
-            elapsed_before,
         })
     }
 
     /// Replaces the weights with those of a safetensors file of the same preset (the start
     /// of a fine-tuning run).
     pub fn load_weights(&mut self, path: &Path) -> Result<(), TrainError> {
-        self.varmap.load(path)?;
+        self.run.varmap.load(path)?;
         Ok(())
     }
 
     /// Steps already taken.
     pub fn step(&self) -> u64 {
-        self.optimizer.step
+        self.run.optimizer.step
     }
 
     /// Bins in the training set.
@@ -263,10 +244,10 @@ impl Trainer {
         report: &mut dyn FnMut(&StepReport),
     ) -> Result<(), TrainError> {
         let start = Instant::now();
-        let first = self.optimizer.step;
+        let first = self.run.optimizer.step;
         let settings = RenderSettings::default();
-        while self.optimizer.step < self.cfg.steps && !stop() {
-            let step = self.optimizer.step + 1;
+        while self.run.optimizer.step < self.cfg.steps && !stop() {
+            let step = self.run.optimizer.step + 1;
             let mut rng = ChaCha8Rng::seed_from_u64(mix(self.cfg.seed, step));
             let sample = self.data.sample(&mut rng, &self.cfg.sample, &Device::Cpu)?;
             let prediction = self.net.forward(&sample.images, &sample.cameras)?;
@@ -274,6 +255,7 @@ impl Trainer {
             let mut grads = l.total.backward()?;
             let lr = warmup_lr(self.cfg.lr, self.cfg.warmup, step);
             let grad_norm = self
+                .run
                 .optimizer
                 .clip_and_update(&mut grads, self.cfg.clip, lr)?;
             let session = start.elapsed().as_secs_f64();
@@ -289,18 +271,18 @@ impl Trainer {
                 grad_norm,
                 pairs: sample.cameras.len() / 2,
                 steps_per_s: (step - first) as f64 / session.max(1e-9),
-                elapsed_s: self.elapsed_before + session,
+                elapsed_s: self.run.elapsed_before + session,
             };
-            self.log.append(&r).map_err(|source| TrainError::Io {
-                path: self.out.join("log.csv"),
-                source,
-            })?;
+            self.run
+                .log
+                .append(&r)
+                .map_err(checkpoint::io_error(&self.run.out.join("log.csv")))?;
             report(&r);
             if step.is_multiple_of(self.cfg.checkpoint_every) {
                 self.checkpoint(r.elapsed_s)?;
             }
         }
-        self.checkpoint(self.elapsed_before + start.elapsed().as_secs_f64())
+        self.checkpoint(self.run.elapsed_before + start.elapsed().as_secs_f64())
     }
 
     /// Writes the checkpoint (see [`checkpoint`]) and exports the weights.
@@ -308,19 +290,12 @@ impl Trainer {
         let state = State {
             preset: self.net.config().name.clone(),
             config: Some(self.net.config().clone()),
-            step: self.optimizer.step,
+            step: self.run.optimizer.step,
             seed: self.cfg.seed,
             elapsed_s,
         };
-        let export = exported_weights(&self.out, &self.net.config().name);
-        checkpoint::save(
-            &self.out,
-            &self.varmap,
-            &self.optimizer,
-            &state,
-            &export,
-            CURVE_COLUMNS,
-        )
+        let export = exported_weights(&self.run.out, &self.net.config().name);
+        self.run.save(&state, &export, CURVE_COLUMNS)
     }
 }
 

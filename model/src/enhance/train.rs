@@ -20,7 +20,7 @@ use super::pairs::PairSet;
 use super::{Config, EnhanceError, Enhancer};
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
 use crate::train::checkpoint::Run;
-use crate::train::{mix, warmup_lr, AdamWConfig, TrainError};
+use crate::train::{mix, AdamWConfig, TrainError};
 
 /// The log's columns: `raw_l2` is the L2 of the render itself (what the identity scores).
 pub const LOG_COLUMNS: &[&str] = &[
@@ -196,12 +196,9 @@ impl Trainer {
                 .sqr()?
                 .mean_all()?
                 .to_scalar::<f32>()?;
-            let mut grads = l.total.backward()?;
-            let lr = warmup_lr(self.cfg.lr, self.cfg.warmup, step);
-            let grad_norm = self
-                .run
-                .optimizer
-                .clip_and_update(&mut grads, self.cfg.clip, lr)?;
+            let (lr, grad_norm) =
+                self.run
+                    .learn(&l.total, self.cfg.lr, self.cfg.warmup, self.cfg.clip, step)?;
             let session = start.elapsed().as_secs_f64();
             let r = StepReport {
                 step,

@@ -72,6 +72,23 @@ impl Run {
         Ok((run, net))
     }
 
+    /// Backpropagates `loss` and takes optimizer step `step` at `lr` after `warmup` steps of
+    /// linear warm-up, gradients clipped to `clip`; returns the rate used and the gradient
+    /// norm before clipping.
+    pub(crate) fn learn(
+        &mut self,
+        loss: &candle_core::Tensor,
+        lr: f64,
+        warmup: u64,
+        clip: f64,
+        step: u64,
+    ) -> Result<(f64, f64), TrainError> {
+        let mut grads = loss.backward()?;
+        let lr = super::warmup_lr(lr, warmup, step);
+        let norm = self.optimizer.clip_and_update(&mut grads, clip, lr)?;
+        Ok((lr, norm))
+    }
+
     /// Appends a row to the log.
     pub(crate) fn log_row(&mut self, row: &str) -> Result<(), TrainError> {
         self.log

@@ -252,12 +252,9 @@ impl Trainer {
             let sample = self.data.sample(&mut rng, &self.cfg.sample, &Device::Cpu)?;
             let prediction = self.net.forward(&sample.images, &sample.cameras)?;
             let l = losses(&prediction, &sample, &self.lpips, &self.cfg.loss, &settings)?;
-            let mut grads = l.total.backward()?;
-            let lr = warmup_lr(self.cfg.lr, self.cfg.warmup, step);
-            let grad_norm = self
-                .run
-                .optimizer
-                .clip_and_update(&mut grads, self.cfg.clip, lr)?;
+            let (lr, grad_norm) =
+                self.run
+                    .learn(&l.total, self.cfg.lr, self.cfg.warmup, self.cfg.clip, step)?;
             let session = start.elapsed().as_secs_f64();
             let r = StepReport {
                 step,

@@ -2,8 +2,9 @@
 //! reader, the synthetic street generator, bins, metrics), the reconstructors that turn
 //! stereo frames into Gaussian sets (the classical baseline now, the candle network later),
 //! the differentiable candle ops the network trains through ([`ops`]), the LPIPS loss and
-//! metric ([`lpips`]), the evaluation protocol of the paper's section 4, and loss-curve
-//! charts ([`curve`]).
+//! metric ([`lpips`]), the evaluation protocol of the paper's section 4, loss-curve charts
+//! ([`curve`]), and the one-step enhancer of StereoSplat+ with its training pairs, training
+//! and scores ([`enhance`]).
 //!
 //! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
 //! about transport (`node`).
@@ -12,6 +13,7 @@ pub mod baseline;
 pub mod bins;
 pub mod consistency;
 pub mod curve;
+pub mod enhance;
 pub mod eval;
 pub mod frame;
 pub mod generate;

@@ -205,8 +205,33 @@ impl Lpips {
     /// one value per image, `(N,)`. Differentiable with respect to both inputs.
     pub fn forward(&self, a: &Tensor, b: &Tensor) -> Result<Tensor> {
         let (fa, fb) = (self.features(a)?, self.features(b)?);
+        self.distance(&fa, &fb)
+    }
+
+    /// The LPIPS distance (as [`Self::forward`]) and a style distance on the same features,
+    /// both `(N,)`: per layer the Gram matrices `F F^T / (h w)` of the unit-normalised
+    /// features `(C, h w)` are compared by their mean squared difference, summed over the
+    /// layers (the Gram loss Difix adds, on VGG there, on this network here).
+    pub fn forward_with_style(&self, a: &Tensor, b: &Tensor) -> Result<(Tensor, Tensor)> {
+        let (fa, fb) = (self.features(a)?, self.features(b)?);
+        let gram = |f: &Tensor| -> Result<Tensor> {
+            let (n, c, h, w) = f.dims4()?;
+            let flat = f.reshape((n, c, h * w))?;
+            flat.matmul(&flat.transpose(1, 2)?.contiguous()?)? / (h * w) as f64
+        };
+        let mut style = Tensor::zeros(a.dim(0)?, a.dtype(), a.device())?;
+        for (fa, fb) in fa.iter().zip(&fb) {
+            let d = (gram(fa)? - gram(fb)?)?.sqr()?.flatten_from(1)?.mean(1)?;
+            style = (style + d)?;
+        }
+        Ok((self.distance(&fa, &fb)?, style))
+    }
+
+    /// LPIPS from the two images' features.
+    fn distance(&self, fa: &[Tensor], fb: &[Tensor]) -> Result<Tensor> {
+        let a = &fa[0];
         let mut total = Tensor::zeros((a.dim(0)?, 1), a.dtype(), a.device())?;
-        for ((fa, fb), head) in fa.iter().zip(&fb).zip(&self.heads) {
+        for ((fa, fb), head) in fa.iter().zip(fb).zip(&self.heads) {
             let d = head.forward(&(fa - fb)?.sqr()?)?;
             total = (total + d.mean(D::Minus1)?.mean(D::Minus1)?)?;
         }

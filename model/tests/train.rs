@@ -5,7 +5,6 @@
 
 use std::path::{Path, PathBuf};
 
-use candle_core::{Device, Tensor};
 use model::bins::BinConfig;
 use model::generate::write_synthetic;
 use model::net::Config;
@@ -13,6 +12,9 @@ use model::synth::SynthConfig;
 use model::train::{
     exported_weights, AdamWConfig, LossWeights, SampleConfig, TrainConfig, TrainError, Trainer,
 };
+
+mod train_support;
+use train_support::{assert_same_weights, logged_steps};
 
 fn temp(case: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("stereosplat-train-{case}-{}", std::process::id()));
@@ -55,20 +57,6 @@ fn run(data: &Path, out: &Path, steps: u64, resume: bool) -> Vec<f32> {
     losses
 }
 
-fn flat(t: &Tensor) -> Vec<f32> {
-    t.flatten_all().unwrap().to_vec1().unwrap()
-}
-
-fn weights(out: &Path) -> Vec<(String, Tensor)> {
-    let mut map: Vec<_> =
-        candle_core::safetensors::load(exported_weights(out, "tiny"), &Device::Cpu)
-            .unwrap()
-            .into_iter()
-            .collect();
-    map.sort_by(|a, b| a.0.cmp(&b.0));
-    map
-}
-
 #[test]
 fn a_resumed_run_ends_where_a_straight_run_does() {
     let data = temp("data");
@@ -90,23 +78,11 @@ fn a_resumed_run_ends_where_a_straight_run_does() {
     for (a, b) in all[4..].iter().zip(&second) {
         assert!((a - b).abs() <= 1e-5 * a.abs().max(1.0), "{a} vs {b}");
     }
-    for ((name, a), (_, b)) in weights(&resumed).iter().zip(weights(&straight)) {
-        let (a, b) = (flat(a), flat(&b));
-        let diff = a
-            .iter()
-            .zip(&b)
-            .map(|(x, y)| (x - y).abs())
-            .fold(0f32, f32::max);
-        assert!(diff < 1e-5, "{name} differs by {diff}");
-    }
-
-    let log = std::fs::read_to_string(resumed.join("log.csv")).unwrap();
-    let steps: Vec<&str> = log
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').next().unwrap())
-        .collect();
-    assert_eq!(steps, ["1", "2", "3", "4", "5", "6"]);
+    assert_same_weights(
+        &exported_weights(&resumed, "tiny"),
+        &exported_weights(&straight, "tiny"),
+    );
+    assert_eq!(logged_steps(&resumed), ["1", "2", "3", "4", "5", "6"]);
     let curve = image::open(resumed.join("loss_curve.png")).unwrap();
     assert_eq!((curve.width(), curve.height()), (800, 480));
 

@@ -4,8 +4,9 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_model, bench_node, bench_pareto, demo, eval, eval_map, launch, logs,
-    reconstruct, render, stream, synth, train, view,
+    bench, bench_check, bench_model, bench_node, bench_pareto, demo, enhancer_data, eval,
+    eval_enhancer, eval_map, launch, logs, reconstruct, render, stream, synth, train,
+    train_enhancer, view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -35,6 +36,15 @@ enum Command {
     Reconstruct(reconstruct::ReconstructArgs),
     /// Train a network preset: checkpoints, resume, CSV log, loss curve, safetensors.
     Train(train::TrainArgs),
+    /// Training pairs for the one-step enhancer: StereoSplat's renders of the bins' other
+    /// frames, with alpha and confidence, against the true images.
+    EnhancerData(enhancer_data::EnhancerDataArgs),
+    /// Train the one-step enhancer on pairs from `enhancer-data`: checkpoints, resume, CSV
+    /// log, loss curve, safetensors.
+    TrainEnhancer(train_enhancer::TrainEnhancerArgs),
+    /// Score raw against enhanced renders on held-out pairs: PSNR, unseen-region PSNR,
+    /// LPIPS, as JSON.
+    EvalEnhancer(eval_enhancer::EvalEnhancerArgs),
     /// Start a graph of processes from a launch file; stop them together.
     Launch(launch::LaunchArgs),
     /// The streaming node: stereo frames and poses in over zenoh, Gaussian maps out.
@@ -83,6 +93,9 @@ fn main() -> Result<()> {
         Command::EvalMap(args) => eval_map::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Train(args) => train::run(&args),
+        Command::EnhancerData(args) => enhancer_data::run(&args),
+        Command::TrainEnhancer(args) => train_enhancer::run(&args),
+        Command::EvalEnhancer(args) => eval_enhancer::run(&args),
         Command::Launch(args) => launch::run(&args),
         Command::Run(args) => stream::run(&args),
         Command::Replay(args) => stream::replay(&args),

@@ -8,7 +8,7 @@
 //! needs (opacity floor, budget, pair fusion, [`merge`] of redundant Gaussians) and implements
 //! the project's `Reconstructor`.
 
-mod blocks;
+pub(crate) mod blocks;
 mod config;
 mod cost_volume;
 mod depth_head;
@@ -20,7 +20,7 @@ pub mod pair_fusion;
 pub mod prune;
 mod reconstructor;
 mod stereosplat;
-mod transformer;
+pub(crate) mod transformer;
 pub mod volume;
 
 pub use config::{Config, SettingError, UnknownPreset, PRESETS};

@@ -30,23 +30,24 @@ pub(super) fn softmax_last(x: &Tensor) -> Result<Tensor> {
 }
 
 /// Layer norm over the last dimension: composed of differentiable tensor ops when training.
+/// Shared with the enhancer's joint attention.
 #[derive(Clone, Debug)]
-pub(super) struct Norm {
+pub(crate) struct Norm {
     weight: Tensor,
     bias: Tensor,
 }
 
 impl Norm {
-    /// Weight 1 and bias 0 over `c` channels, under `vb`.
-    pub(super) fn new(vb: VarBuilder, c: usize) -> Result<Self> {
+    /// A norm over `c` features (`weight` 1, `bias` 0).
+    pub(crate) fn new(vb: VarBuilder, c: usize) -> Result<Self> {
         Ok(Self {
             weight: vb.get_with_hints(c, "weight", candle_nn::Init::Const(1.0))?,
             bias: vb.get_with_hints(c, "bias", candle_nn::Init::Const(0.0))?,
         })
     }
 
-    /// `x` normalised over its last dimension.
-    pub(super) fn forward(&self, x: &Tensor) -> Result<Tensor> {
+    /// Normalises `x` over its last dimension.
+    pub(crate) fn forward(&self, x: &Tensor) -> Result<Tensor> {
         if tracked(&[x, &self.weight]) {
             candle_nn::ops::layer_norm_slow(x, &self.weight, &self.bias, 1e-5)
         } else {
@@ -56,8 +57,9 @@ impl Norm {
 }
 
 /// Multi-head attention of queries `q` `(B, Tq, C)` over keys and values `(B, Tk, C)`.
+/// Shared with the enhancer's joint attention.
 #[derive(Clone, Debug)]
-struct Attention {
+pub(crate) struct Attention {
     q: Linear,
     k: Linear,
     v: Linear,
@@ -66,7 +68,8 @@ struct Attention {
 }
 
 impl Attention {
-    fn new(vb: VarBuilder, c: usize, heads: usize) -> Result<Self> {
+    /// Attention on `c` features with `heads` heads (`c` divisible by `heads`).
+    pub(crate) fn new(vb: VarBuilder, c: usize, heads: usize) -> Result<Self> {
         Ok(Self {
             q: linear(c, c, vb.pp("q"))?,
             k: linear(c, c, vb.pp("k"))?,
@@ -76,7 +79,8 @@ impl Attention {
         })
     }
 
-    fn forward(&self, x: &Tensor, context: &Tensor) -> Result<Tensor> {
+    /// Queries `x` `(B, Tq, C)` attending over `context` `(B, Tk, C)`.
+    pub(crate) fn forward(&self, x: &Tensor, context: &Tensor) -> Result<Tensor> {
         let (b, tq, c) = x.dims3()?;
         let tk = context.dim(1)?;
         let dh = c / self.heads;

@@ -34,23 +34,53 @@ impl Conv {
         padding: usize,
         bias: bool,
     ) -> Result<Self> {
-        let weight = vb.get_with_hints(
-            (cout, cin, kernel, kernel),
-            "weight",
-            candle_nn::init::DEFAULT_KAIMING_NORMAL,
-        )?;
         let bound = 1.0 / ((cin * kernel * kernel) as f64).sqrt();
-        let bias = if bias {
-            Some(vb.get_with_hints(
-                cout,
-                "bias",
-                Init::Uniform {
-                    lo: -bound,
-                    up: bound,
-                },
-            )?)
-        } else {
-            None
+        let inits = (
+            candle_nn::init::DEFAULT_KAIMING_NORMAL,
+            Init::Uniform {
+                lo: -bound,
+                up: bound,
+            },
+        );
+        Self::with_init(
+            vb,
+            (cin, cout),
+            kernel,
+            stride,
+            padding,
+            bias.then_some(inits),
+        )
+    }
+
+    /// A convolution like [`Self::new`] whose weights and bias start at zero: the last layer
+    /// of a residual branch that must begin as "add nothing" (ControlNet's zero convolution).
+    /// The trainer's seeded initialisation keeps variables under a `zero_` name at zero.
+    pub fn zeros(
+        vb: VarBuilder,
+        (cin, cout): (usize, usize),
+        kernel: usize,
+        stride: usize,
+        padding: usize,
+    ) -> Result<Self> {
+        let zero = Init::Const(0.0);
+        Self::with_init(vb, (cin, cout), kernel, stride, padding, Some((zero, zero)))
+    }
+
+    /// The convolution with `inits` (weight, bias) initialisers; `None`: no bias and Kaiming
+    /// weights.
+    fn with_init(
+        vb: VarBuilder,
+        (cin, cout): (usize, usize),
+        kernel: usize,
+        stride: usize,
+        padding: usize,
+        inits: Option<(Init, Init)>,
+    ) -> Result<Self> {
+        let weight_init = inits.map_or(candle_nn::init::DEFAULT_KAIMING_NORMAL, |i| i.0);
+        let weight = vb.get_with_hints((cout, cin, kernel, kernel), "weight", weight_init)?;
+        let bias = match inits {
+            Some((_, init)) => Some(vb.get_with_hints(cout, "bias", init)?),
+            None => None,
         };
         let folded = if weight.track_op() {
             None

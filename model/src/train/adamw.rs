@@ -112,6 +112,24 @@ impl AdamW {
         Ok(())
     }
 
+    /// One training step's update: clips `grads` to `max_norm`, then updates with `lr`; a
+    /// non-finite gradient would poison the weights, so that step is skipped (but counted,
+    /// so a seeded sample stream stays the same). Returns the norm before clipping.
+    pub fn clip_and_update(
+        &mut self,
+        grads: &mut GradStore,
+        max_norm: f64,
+        lr: f64,
+    ) -> Result<f64> {
+        let norm = self.clip(grads, max_norm)?;
+        if norm.is_finite() {
+            self.update(grads, lr)?;
+        } else {
+            self.step += 1;
+        }
+        Ok(norm)
+    }
+
     /// Writes the moments to a safetensors file (`m.<name>`, `v.<name>`).
     pub fn save(&self, path: &Path) -> Result<()> {
         let mut map = HashMap::new();

@@ -5,12 +5,13 @@
 use std::path::Path;
 
 use candle_core::{Device, Tensor};
+use glam::DAffine3;
 use rand::seq::index::sample;
 use rand::Rng;
 use renderer::Camera;
 
 use crate::bins::{make_bins, Bin, BinConfig};
-use crate::frame::{DepthMap, RgbImage, Side, StereoFrame};
+use crate::frame::{DepthMap, RgbImage, Side, StereoFrame, StereoRig};
 use crate::kitti360::{Kitti360Error, Sequence};
 use crate::net::every_nth_pixel;
 use crate::reconstruct::StereoView;
@@ -126,6 +127,12 @@ impl TrainingSet {
         self.bins.is_empty()
     }
 
+    /// Bin `i` (of [`Self::len`]) with the sequence it was cut from.
+    pub fn bin(&self, i: usize) -> (&Sequence, Bin) {
+        let (s, bin) = self.bins[i];
+        (&self.sequences[s], bin)
+    }
+
     /// Draws a sample with `rng`.
     pub fn sample(
         &self,
@@ -148,34 +155,13 @@ impl TrainingSet {
         } else {
             vec![bin.first]
         };
-        let rest: Vec<usize> = frames
-            .iter()
-            .copied()
-            .filter(|f| !inputs.contains(f))
-            .collect();
-        let chosen: Vec<usize> = sample(rng, rest.len(), cfg.targets.min(rest.len()))
-            .into_iter()
-            .map(|i| rest[i])
-            .collect();
+        let chosen = draw_targets(rng, &frames, &inputs, cfg.targets);
 
-        let poses = sequence.frames();
-        let load = |i: usize| sequence.load_frame(poses[i].index);
-        let origin = poses[bin.first].left_to_world;
-        let rig = sequence.rig();
-        let input_frames: Vec<StereoFrame> =
-            inputs.iter().map(|&i| load(i)).collect::<Result<_, _>>()?;
-        let views: Vec<StereoView> = input_frames
-            .iter()
-            .map(|f| StereoView {
-                left: &f.left,
-                right: &f.right,
-                left_camera: rig.local_camera(origin, f.left_to_world, Side::Left),
-                right_camera: rig.local_camera(origin, f.left_to_world, Side::Right),
-            })
-            .collect();
-        let (images, cameras) = crate::net::images_and_cameras(&views, device)?;
+        let bin_inputs = BinInputs::load(sequence, &bin, &inputs)?;
+        let input_frames = &bin_inputs.frames;
+        let (images, cameras) = crate::net::images_and_cameras(&bin_inputs.views(), device)?;
         let mut depths = Vec::with_capacity(cameras.len());
-        for f in &input_frames {
+        for f in input_frames {
             for side in [Side::Left, Side::Right] {
                 depths.push(depth_tensor(&lidar_or_empty(sequence, f, side), device)?);
             }
@@ -184,7 +170,7 @@ impl TrainingSet {
 
         let mut targets = Vec::with_capacity(chosen.len());
         for i in chosen {
-            let frame = load(i)?;
+            let frame = sequence.load_frame(sequence.frames()[i].index)?;
             let side = if rng.random_bool(0.5) {
                 Side::Left
             } else {
@@ -195,7 +181,7 @@ impl TrainingSet {
                 Side::Right => &frame.right,
             };
             targets.push(Target {
-                camera: rig.local_camera(origin, frame.left_to_world, side),
+                camera: bin_inputs.camera(&frame, side),
                 image: image_tensor(image, device)?,
                 depth: depth_tensor(&lidar_or_empty(sequence, &frame, side), device)?.squeeze(0)?,
             });
@@ -206,6 +192,66 @@ impl TrainingSet {
             input_depth,
             targets,
         })
+    }
+}
+
+/// Up to `n` frames of `frames` that are not `inputs`, drawn with `rng`: a sample's targets.
+pub(crate) fn draw_targets(
+    rng: &mut impl Rng,
+    frames: &[usize],
+    inputs: &[usize],
+    n: usize,
+) -> Vec<usize> {
+    let rest: Vec<usize> = frames
+        .iter()
+        .copied()
+        .filter(|f| !inputs.contains(f))
+        .collect();
+    sample(rng, rest.len(), n.min(rest.len()))
+        .into_iter()
+        .map(|i| rest[i])
+        .collect()
+}
+
+/// A bin's input frames, loaded, with the bin frame (its first left camera) and the rig.
+pub(crate) struct BinInputs {
+    /// The input frames in the order asked for.
+    pub frames: Vec<StereoFrame>,
+    origin: DAffine3,
+    rig: StereoRig,
+}
+
+impl BinInputs {
+    /// Loads frames `inputs` (positions in `sequence.frames()`) of `bin`.
+    pub fn load(sequence: &Sequence, bin: &Bin, inputs: &[usize]) -> Result<Self, Kitti360Error> {
+        let poses = sequence.frames();
+        Ok(Self {
+            frames: inputs
+                .iter()
+                .map(|&i| sequence.load_frame(poses[i].index))
+                .collect::<Result<_, _>>()?,
+            origin: poses[bin.first].left_to_world,
+            rig: sequence.rig(),
+        })
+    }
+
+    /// The camera of `frame`'s `side` in the bin frame.
+    pub fn camera(&self, frame: &StereoFrame, side: Side) -> Camera {
+        self.rig
+            .local_camera(self.origin, frame.left_to_world, side)
+    }
+
+    /// The input frames as stereo views with cameras in the bin frame.
+    pub fn views(&self) -> Vec<StereoView<'_>> {
+        self.frames
+            .iter()
+            .map(|f| StereoView {
+                left: &f.left,
+                right: &f.right,
+                left_camera: self.camera(f, Side::Left),
+                right_camera: self.camera(f, Side::Right),
+            })
+            .collect()
     }
 }
 

@@ -1,5 +1,6 @@
 //! The CSV training log: one row per step, kept consistent with the checkpoint on resume
-//! (rows after the checkpoint's step are dropped, since those steps run again).
+//! (rows after the checkpoint's step are dropped, since those steps run again). The columns
+//! are the caller's: StereoSplat's training writes [`LOG_COLUMNS`], the enhancer's its own.
 
 use std::fs::{File, OpenOptions};
 use std::io::{BufRead, BufReader, Write};
@@ -29,9 +30,10 @@ pub struct TrainLog {
 }
 
 impl TrainLog {
-    /// Opens `path`, keeping the header and rows up to `keep_until` (inclusive).
-    pub fn open(path: &Path, keep_until: u64) -> std::io::Result<Self> {
-        let mut kept = vec![LOG_COLUMNS.join(",")];
+    /// Opens `path` with `columns` (the first must be the step), keeping the rows up to
+    /// `keep_until` (inclusive).
+    pub fn open(path: &Path, columns: &[&str], keep_until: u64) -> std::io::Result<Self> {
+        let mut kept = vec![columns.join(",")];
         if keep_until > 0 && path.exists() {
             for line in BufReader::new(File::open(path)?).lines().skip(1) {
                 let line = line?;
@@ -47,7 +49,12 @@ impl TrainLog {
         })
     }
 
-    /// Appends a step's row.
+    /// Appends one row, already formatted (comma-separated, the step first).
+    pub fn append_row(&mut self, row: &str) -> std::io::Result<()> {
+        writeln!(self.file, "{row}")
+    }
+
+    /// Appends a StereoSplat training step's row ([`LOG_COLUMNS`]).
     pub fn append(&mut self, r: &StepReport) -> std::io::Result<()> {
         writeln!(
             self.file,

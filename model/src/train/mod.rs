@@ -5,6 +5,7 @@
 //! with exact resume, a CSV log and the weights exported as safetensors.
 
 mod adamw;
+pub(crate) mod checkpoint;
 mod data;
 mod log;
 mod loss;
@@ -13,13 +14,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use candle_core::{DType, Device, Tensor};
-use candle_nn::{VarBuilder, VarMap};
+use candle_nn::VarMap;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 pub use adamw::{AdamW, AdamWConfig};
+pub use checkpoint::checkpoint_dir;
 pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
+pub(crate) use data::{draw_targets, BinInputs};
 pub use log::{TrainLog, LOG_COLUMNS};
 pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};
 
@@ -157,11 +160,6 @@ fn same_network(a: &Config, b: &Config) -> bool {
     training(a) == training(b)
 }
 
-/// Files of a run directory.
-fn checkpoint_dir(out: &Path) -> PathBuf {
-    out.join("checkpoint")
-}
-
 /// The exported weights of a run: `<out>/stereosplat_<preset>.safetensors`.
 pub fn exported_weights(out: &Path, preset: &str) -> PathBuf {
     out.join(format!("stereosplat_{preset}.safetensors"))
@@ -169,15 +167,11 @@ pub fn exported_weights(out: &Path, preset: &str) -> PathBuf {
 
 /// A training run in progress.
 pub struct Trainer {
-    varmap: VarMap,
+    run: checkpoint::Run,
     net: StereoSplat,
-    optimizer: AdamW,
     lpips: Lpips,
     data: TrainingSet,
     cfg: TrainConfig,
-    out: PathBuf,
-    log: TrainLog,
-    elapsed_before: f64,
 }
 
 impl Trainer {
@@ -190,33 +184,7 @@ impl Trainer {
         out: &Path,
         resume: bool,
     ) -> Result<Self, TrainError> {
-        let io = |path: &Path| {
-            let path = path.to_path_buf();
-            move |source| TrainError::Io { path, source }
-        };
-        std::fs::create_dir_all(checkpoint_dir(out)).map_err(io(out))?;
-        let device = Device::Cpu;
-        let varmap = VarMap::new();
-        let net = StereoSplat::new(
-            VarBuilder::from_varmap(&varmap, DType::F32, &device),
-            net_cfg,
-        )?;
-        reseed(&varmap, cfg.seed)?;
-        let vars = varmap
-            .data()
-            .lock()
-            .expect("varmap lock")
-            .iter()
-            .map(|(k, v)| (k.clone(), v.clone()))
-            .collect();
-        let mut optimizer = AdamW::new(vars, cfg.adamw.clone())?;
-        let mut elapsed_before = 0.0;
-        let dir = checkpoint_dir(out);
-        let state_path = dir.join("state.json");
-        let step = if resume && state_path.exists() {
-            let text = std::fs::read_to_string(&state_path).map_err(io(&state_path))?;
-            let state: State = serde_json::from_str(&text)
-                .map_err(|e| TrainError::State(state_path.clone(), e))?;
+        let check = |state: State| {
             if state.preset != net_cfg.name {
                 return Err(TrainError::PresetMismatch {
                     expected: net_cfg.name.clone(),
@@ -231,38 +199,36 @@ impl Trainer {
                     found: json(&found),
                 });
             }
-            let mut varmap = varmap.clone();
-            varmap.load(dir.join("weights.safetensors"))?;
-            optimizer.load(&dir.join("optimizer.safetensors"), state.step)?;
-            elapsed_before = state.elapsed_s;
-            state.step
-        } else {
-            0
+            Ok((state.step, state.elapsed_s))
         };
-        let log = TrainLog::open(&out.join("log.csv"), step).map_err(io(out))?;
+        let (run, net) = checkpoint::Run::start(
+            out,
+            cfg.seed,
+            cfg.adamw.clone(),
+            LOG_COLUMNS,
+            resume,
+            |vb| StereoSplat::new(vb, net_cfg),
+            check,
+        )?;
         Ok(Self {
-            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
+            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu)?,
             data: TrainingSet::open(data, &cfg.bins, cfg.resize)?,
-            varmap,
+            run,
             net,
-            optimizer,
             cfg,
-            out: out.to_path_buf(),
-            log,
-            elapsed_before,
         })
     }
 
     /// Replaces the weights with those of a safetensors file of the same preset (the start
     /// of a fine-tuning run).
     pub fn load_weights(&mut self, path: &Path) -> Result<(), TrainError> {
-        self.varmap.load(path)?;
+        self.run.varmap.load(path)?;
         Ok(())
     }
 
     /// Steps already taken.
     pub fn step(&self) -> u64 {
-        self.optimizer.step
+        self.run.optimizer.step
     }
 
     /// Bins in the training set.
@@ -278,24 +244,17 @@ impl Trainer {
         report: &mut dyn FnMut(&StepReport),
     ) -> Result<(), TrainError> {
         let start = Instant::now();
-        let first = self.optimizer.step;
+        let first = self.run.optimizer.step;
         let settings = RenderSettings::default();
-        while self.optimizer.step < self.cfg.steps && !stop() {
-            let step = self.optimizer.step + 1;
+        while self.run.optimizer.step < self.cfg.steps && !stop() {
+            let step = self.run.optimizer.step + 1;
             let mut rng = ChaCha8Rng::seed_from_u64(mix(self.cfg.seed, step));
             let sample = self.data.sample(&mut rng, &self.cfg.sample, &Device::Cpu)?;
             let prediction = self.net.forward(&sample.images, &sample.cameras)?;
             let l = losses(&prediction, &sample, &self.lpips, &self.cfg.loss, &settings)?;
-            let mut grads = l.total.backward()?;
-            let grad_norm = self.optimizer.clip(&mut grads, self.cfg.clip)?;
-            let lr = self.lr(step);
-            if grad_norm.is_finite() {
-                self.optimizer.update(&grads, lr)?;
-            } else {
-                // A non-finite gradient would poison the weights: the step is skipped (and
-                // logged with its norm) but counted, so the sample stream stays the same.
-                self.optimizer.step += 1;
-            }
+            let (lr, grad_norm) =
+                self.run
+                    .learn(&l.total, self.cfg.lr, self.cfg.warmup, self.cfg.clip, step)?;
             let session = start.elapsed().as_secs_f64();
             let r = StepReport {
                 step,
@@ -309,59 +268,42 @@ impl Trainer {
                 grad_norm,
                 pairs: sample.cameras.len() / 2,
                 steps_per_s: (step - first) as f64 / session.max(1e-9),
-                elapsed_s: self.elapsed_before + session,
+                elapsed_s: self.run.elapsed_before + session,
             };
-            self.log.append(&r).map_err(|source| TrainError::Io {
-                path: self.out.join("log.csv"),
-                source,
-            })?;
+            self.run
+                .log
+                .append(&r)
+                .map_err(checkpoint::io_error(&self.run.out.join("log.csv")))?;
             report(&r);
             if step.is_multiple_of(self.cfg.checkpoint_every) {
                 self.checkpoint(r.elapsed_s)?;
             }
         }
-        self.checkpoint(self.elapsed_before + start.elapsed().as_secs_f64())
+        self.checkpoint(self.run.elapsed_before + start.elapsed().as_secs_f64())
     }
 
-    /// The learning rate at `step`: linear warm-up to `lr`, then constant.
-    fn lr(&self, step: u64) -> f64 {
-        let warm = self.cfg.warmup.max(1);
-        self.cfg.lr * (step.min(warm) as f64 / warm as f64)
-    }
-
-    /// Writes weights, optimizer moments and then the state (so a state file always
-    /// describes complete files), and exports the weights.
+    /// Writes the checkpoint (see [`checkpoint`]) and exports the weights.
     fn checkpoint(&self, elapsed_s: f64) -> Result<(), TrainError> {
-        let dir = checkpoint_dir(&self.out);
-        let io = |path: PathBuf| move |source| TrainError::Io { path, source };
-        let weights = dir.join("weights.safetensors");
-        let tmp = dir.join("weights.safetensors.tmp");
-        self.varmap.save(&tmp)?;
-        std::fs::rename(&tmp, &weights).map_err(io(weights.clone()))?;
-        let opt = dir.join("optimizer.safetensors");
-        let tmp = dir.join("optimizer.safetensors.tmp");
-        self.optimizer.save(&tmp)?;
-        std::fs::rename(&tmp, &opt).map_err(io(opt.clone()))?;
         let state = State {
             preset: self.net.config().name.clone(),
             config: Some(self.net.config().clone()),
-            step: self.optimizer.step,
+            step: self.run.optimizer.step,
             seed: self.cfg.seed,
             elapsed_s,
         };
-        let path = dir.join("state.json");
-        let text = serde_json::to_string_pretty(&state).expect("state serialises");
-        std::fs::write(&path, text).map_err(io(path.clone()))?;
-        let export = exported_weights(&self.out, &self.net.config().name);
-        std::fs::copy(&weights, &export).map_err(io(export.clone()))?;
-        let png = self.out.join("loss_curve.png");
-        crate::curve::plot_csv(&self.out.join("log.csv"), CURVE_COLUMNS, &png, 800, 480)?;
-        Ok(())
+        let export = exported_weights(&self.run.out, &self.net.config().name);
+        self.run.save(&state, &export, CURVE_COLUMNS)
     }
 }
 
+/// The learning rate at `step`: linear warm-up over `warmup` steps to `lr`, then constant.
+pub(crate) fn warmup_lr(lr: f64, warmup: u64, step: u64) -> f64 {
+    let warm = warmup.max(1);
+    lr * (step.min(warm) as f64 / warm as f64)
+}
+
 /// A per-step seed from the run's seed, so a resumed run draws the samples it would have.
-fn mix(seed: u64, step: u64) -> u64 {
+pub(crate) fn mix(seed: u64, step: u64) -> u64 {
     seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ step.wrapping_mul(0xD1B5_4A32_D192_ED03)
 }
 
@@ -370,8 +312,9 @@ fn mix(seed: u64, step: u64) -> u64 {
 /// on names and shapes: weights of rank 2 and up with the standard deviation of Kaiming
 /// normal (`sqrt(2 / fan_in)`), their biases within `1 / sqrt(fan_in)`, the transformer's
 /// position embedding with standard deviation 0.02. Constants (norm weights and biases)
-/// stay as they are.
-fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
+/// stay as they are, and so do variables under a `zero_` name (zero-initialised layers,
+/// `ops::Conv::zeros`).
+pub(crate) fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
     let data = varmap.data().lock().expect("varmap lock");
     let fan_in = |name: &str| {
         data.get(name)
@@ -383,7 +326,9 @@ fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for name in names {
         let var = &data[name];
-        let bound = if name.ends_with("position") {
+        let bound = if name.split('.').any(|part| part.starts_with("zero_")) {
+            continue;
+        } else if name.ends_with("position") {
             0.02 * 3f64.sqrt()
         } else if var.rank() >= 2 {
             (3.0 * 2.0 / fan_in(name).unwrap_or(1.0)).sqrt()

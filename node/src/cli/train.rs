@@ -128,12 +128,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         trainer.step(),
         args.steps
     );
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
-    ctrlc_hook(move || flag.store(true, Ordering::SeqCst));
+    let stop = stop_on_signal();
     let bar = progress::bar(args.steps as usize, "train");
     bar.set_position(trainer.step());
-    trainer.run(&|| stop.load(Ordering::SeqCst), &mut |r| {
+    trainer.run(&stop, &mut |r| {
         bar.set_position(r.step);
         bar.set_message(format!(
             "loss {:.4} l2 {:.4} lpips {:.3} depth {:.3} {:.2} it/s",
@@ -147,6 +145,15 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         exported_weights(&args.out, &args.preset).display()
     );
     Ok(())
+}
+
+/// A stop test for a training loop: true once SIGINT or SIGTERM has come (the run then
+/// checkpoints and ends after its current step).
+pub(crate) fn stop_on_signal() -> impl Fn() -> bool {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc_hook(move || flag.store(true, Ordering::SeqCst));
+    move || stop.load(Ordering::SeqCst)
 }
 
 /// Calls `f` on the first SIGINT or SIGTERM, from a thread of its own.

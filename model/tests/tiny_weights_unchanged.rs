@@ -3,8 +3,8 @@
 //! runs), the count and the sums of every attribute match values recorded before the change
 //! (the bit pattern's hash is printed; it matched exactly on the machine that recorded it).
 
-use model::generate::write_synthetic;
 use model::frame::Side;
+use model::generate::write_synthetic;
 use model::kitti360::Sequence;
 use model::net::{default_weights, Config, LearnedReconstructor};
 use model::reconstruct::{Reconstructor, StereoView};
@@ -21,9 +21,12 @@ fn fingerprint(set: &renderer::GaussianSet) -> (usize, [f64; 5], u64) {
         }
     };
     for i in 0..set.len() {
-        set.means[i].to_array().map(|v| eat(0, v));
-        set.log_scales[i].to_array().map(|v| eat(1, v));
-        set.colors[i].to_array().map(|v| eat(2, v));
+        for (slot, v) in [set.means[i], set.log_scales[i], set.colors[i]]
+            .into_iter()
+            .enumerate()
+        {
+            v.to_array().into_iter().for_each(|x| eat(slot, x));
+        }
         eat(3, set.opacities[i]);
         eat(4, set.confidences[i]);
     }
@@ -68,7 +71,10 @@ fn shipped_tiny_weights_give_the_recorded_gaussians() {
     let (recorded_count, recorded_sums): (usize, [f64; 5]) = RECORDED;
     assert_eq!(count, recorded_count);
     for (got, want) in sums.iter().zip(recorded_sums) {
-        assert!((got - want).abs() <= 1e-5 * want.abs().max(1.0), "{got} vs {want}");
+        assert!(
+            (got - want).abs() <= 1e-5 * want.abs().max(1.0),
+            "{got} vs {want}"
+        );
     }
 }
 

@@ -183,6 +183,7 @@ fn a_folder_of_randomised_roots_is_one_training_set() {
         subsample_views: false,
         targets: 1,
         gaussian_stride: 2,
+        volume: None,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let mut seen = std::collections::BTreeSet::new();

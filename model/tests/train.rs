@@ -35,6 +35,7 @@ fn train_config(steps: u64) -> TrainConfig {
             subsample_views: true,
             targets: 1,
             gaussian_stride: Config::tiny().gaussian_stride,
+            volume: None,
         },
         loss: LossWeights::default(),
         bins: BinConfig::default(),

@@ -1,6 +1,6 @@
 //! The learned model's commands end to end, as a user runs them: `train` (and `--resume`) on
 //! a small generated drive, `eval --method stereosplat` with the shipped tiny weights and
-//! 2 input pairs, and `bench model`'s JSON.
+//! 2 input pairs, and `bench model`'s JSON (with and without the volume branch).
 
 use std::path::{Path, PathBuf};
 
@@ -107,5 +107,44 @@ fn bench_model_prints_json_per_preset() {
     assert!(report["parameters"].as_u64().unwrap() > 100_000);
     assert!(report["gaussians"].as_u64().unwrap() > 0);
     assert!(report["median_ms"].as_f64().unwrap() > 0.0);
+    assert_eq!(report["volume_branch"], false);
+    assert_eq!(report["cost_volume_gaussians"], report["gaussians"]);
+    // With the volume branch: the shipped weights for the cost-volume part, the branch
+    // untrained, each branch's time and Gaussians.
+    let printed = stereosplat(
+        &[
+            "bench",
+            "model",
+            "--preset",
+            "tiny",
+            "--width",
+            "136",
+            "--height",
+            "40",
+            "--runs",
+            "1",
+            "--warmup",
+            "0",
+            "--set",
+            "volume_branch=true",
+            "--set",
+            "volume.top_k=256",
+            "--cache",
+        ],
+        &[&cache],
+    );
+    let report: serde_json::Value = serde_json::from_str(printed.trim()).unwrap();
+    assert_eq!(report["volume_branch"], true);
+    assert!(report["weights"]
+        .as_str()
+        .unwrap()
+        .ends_with("+ untrained volume"));
+    assert!(report["volume_median_ms"].as_f64().unwrap() > 0.0);
+    let count = |k: &str| report[k].as_u64().unwrap();
+    assert!(count("cost_volume_gaussians") > 0);
+    assert_eq!(
+        count("cost_volume_gaussians") + count("volume_gaussians"),
+        count("gaussians")
+    );
     let _ = std::fs::remove_dir_all(&cache);
 }

@@ -84,6 +84,11 @@ pub struct Config {
     /// Sizes of the volume branch (`--set volume.top_k=2000` changes one).
     #[serde(default)]
     pub volume: VolumeConfig,
+    /// Training only: draw the number and placement of input pairs at random (the paper's
+    /// stochastic view subsampling); off, the input is the bin's first pair (what `train
+    /// --no-subsample` also asks).
+    #[serde(default = "yes")]
+    pub view_subsampling: bool,
 }
 
 fn yes() -> bool {
@@ -178,6 +183,7 @@ impl Config {
             cost_volume_branch: true,
             volume_branch: false,
             volume: VolumeConfig::tiny(),
+            view_subsampling: true,
         }
     }
 

@@ -1,10 +1,10 @@
-//! The StereoSplat cost-volume branch (paper section 3.2) in candle: a shared CNN backbone
+//! The StereoSplat network (paper section 3.2) in candle: a shared CNN backbone
 //! and a monocular geometry encoder, a multi-view transformer, the input-invariant plane-sweep
 //! cost volume over each view's nearest views, a U-Net depth head, and per-pixel Gaussian
-//! heads. One [`Config`] holds every size; [`Config::preset`] names them.
+//! heads, and (when the preset switches it on) the 3D-volume branch of [`volume`]. One
+//! [`Config`] holds every size; [`Config::preset`] names them.
 //!
-//! [`StereoSplat::forward`] returns every Gaussian with its features (the interface the
-//! triplane branch will plug into); [`LearnedReconstructor`] prunes them to what the scene
+//! [`StereoSplat::forward`] returns every Gaussian of each branch with what training needs; [`LearnedReconstructor`] prunes them to what the scene
 //! needs (opacity floor, budget, pair fusion, [`merge`] of redundant Gaussians) and implements
 //! the project's `Reconstructor`.
 
@@ -22,10 +22,13 @@ mod reconstructor;
 mod stereosplat;
 pub(crate) mod transformer;
 pub mod volume;
+mod warm_start;
 
 pub use config::{Config, SettingError, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;
 pub use reconstructor::{
-    default_weights, images_and_cameras, to_set, LearnedReconstructor, LoadError,
+    default_weights, images_and_cameras, to_set, to_set_counted, BranchReport,
+    LearnedReconstructor, LoadError,
 };
 pub use stereosplat::{every_nth_pixel, Prediction, StereoSplat, COST_STRIDE};
+pub use warm_start::{frozen, load_matching, WarmStart};

@@ -3,6 +3,7 @@
 //! kept), so the node and `eval` use the learned model exactly as they use the baseline.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarBuilder;
@@ -11,6 +12,7 @@ use renderer::{Camera, GaussianSet};
 
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
+use super::warm_start::{frozen, load_matching, WarmStart};
 use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
@@ -43,6 +45,20 @@ pub struct LearnedReconstructor {
     net: StereoSplat,
     name: String,
     parameters: usize,
+    last: Option<BranchReport>,
+}
+
+/// How the last reconstruction went, per branch (for `bench model` and logs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct BranchReport {
+    /// Milliseconds of the cost-volume branch (all pairs).
+    pub cost_volume_ms: f64,
+    /// Milliseconds of the volume branch (fusion, encoder, head); 0 when off.
+    pub volume_ms: f64,
+    /// Output Gaussians of the cost-volume branch (after pair fusion, floor and budget).
+    pub cost_volume_gaussians: usize,
+    /// Output Gaussians of the volume branch (after floor and budget).
+    pub volume_gaussians: usize,
 }
 
 impl LearnedReconstructor {
@@ -62,6 +78,31 @@ impl LearnedReconstructor {
         Ok(Self::from_net(net, parameters))
     }
 
+    /// The network of `cfg` with every weight `path` holds and fresh ones (candle's
+    /// initialisers) for the rest: the shipped cost-volume weights under a network with the
+    /// volume branch, before the branch is trained. The report names the fresh weights.
+    pub fn warm_start(cfg: &Config, path: &Path) -> Result<(Self, WarmStart), LoadError> {
+        if !path.exists() {
+            return Err(LoadError::Missing(path.to_path_buf()));
+        }
+        let mismatch = |source| LoadError::Mismatch {
+            path: path.to_path_buf(),
+            source,
+        };
+        let varmap = candle_nn::VarMap::new();
+        StereoSplat::new(
+            VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu),
+            cfg,
+        )
+        .map_err(mismatch)?;
+        let report = load_matching(&varmap, path).map_err(mismatch)?;
+        let tensors = frozen(&varmap).map_err(mismatch)?;
+        let parameters = tensors.values().map(Tensor::elem_count).sum();
+        let vb = VarBuilder::from_tensors(tensors, DType::F32, &Device::Cpu);
+        let net = StereoSplat::new(vb, cfg).map_err(mismatch)?;
+        Ok((Self::from_net(net, parameters), report))
+    }
+
     /// The network of `cfg` with random weights (candle's initialisers): for timing presets
     /// that have no trained weights, and for tests of shapes and numerical stability.
     pub fn untrained(cfg: &Config) -> candle_core::Result<Self> {
@@ -79,7 +120,13 @@ impl LearnedReconstructor {
             net,
             name,
             parameters,
+            last: None,
         }
+    }
+
+    /// Per-branch time and Gaussians of the last reconstruction.
+    pub fn last_report(&self) -> Option<BranchReport> {
+        self.last
     }
 
     /// Number of weights.
@@ -141,24 +188,48 @@ impl Reconstructor for LearnedReconstructor {
         let (images, cameras) = images_and_cameras(views, &Device::Cpu)?;
         let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
         let cfg = self.net.config();
+        let start = Instant::now();
         let prediction = match cfg.joint_pairs || views.len() == 1 {
-            true => self.net.forward(&images, &cameras),
+            true => self.net.cost_volume(&images, &cameras),
             false => self.pair_by_pair(&images, &cameras),
         }
         .map_err(backend)?;
+        let cost_volume_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        let prediction = self
+            .net
+            .with_volume(prediction, &cameras)
+            .map_err(backend)?;
+        let volume_ms = start.elapsed().as_secs_f64() * 1e3;
+        let counts = prediction.counts();
+        // Pair fusion judges the cost-volume Gaussians against the views' depth; the volume
+        // branch's Gaussians (after them in the output) all pass it.
         let surviving = match cfg.pair_fusion_margin {
-            Some(margin) if views.len() > 1 => {
-                Some(fused(&prediction, &cameras, cfg, margin).map_err(backend)?)
+            Some(margin) if views.len() > 1 && prediction.cost_volume_output => {
+                let mut flags = fused(&prediction, &cameras, cfg, margin).map_err(backend)?;
+                flags.resize(counts.total(), true);
+                Some(flags)
             }
             _ => None,
         };
-        let set = to_set(
-            &prediction.splats,
+        let (set, kept) = to_set_counted(
+            &prediction.output().map_err(backend)?,
             surviving.as_deref(),
             cfg.opacity_floor,
             cfg.max_gaussians,
+            counts.cost_volume,
         )
         .map_err(backend)?;
+        self.last = Some(BranchReport {
+            cost_volume_ms,
+            volume_ms: if prediction.volume.is_some() {
+                volume_ms
+            } else {
+                0.0
+            },
+            cost_volume_gaussians: kept[0],
+            volume_gaussians: kept[1],
+        });
         let set = match (cfg.merge_tolerance, cameras.first()) {
             (Some(tolerance), Some(reference)) => {
                 merge_redundant(&set, reference, cfg.gaussian_stride, tolerance)
@@ -173,13 +244,14 @@ impl Reconstructor for LearnedReconstructor {
 }
 
 impl LearnedReconstructor {
-    /// Each pair (views `2k`, `2k + 1`) through the network alone, the predictions joined in
-    /// view order: the first pair's Gaussians are exactly what it gives alone.
+    /// Each pair (views `2k`, `2k + 1`) through the cost-volume branch alone, the predictions
+    /// joined in view order: the first pair's Gaussians are exactly what it gives alone. (The
+    /// volume branch then sees all views at once: it reasons in the bin frame.)
     fn pair_by_pair(&self, images: &Tensor, cameras: &[Camera]) -> candle_core::Result<Prediction> {
         let parts = (0..cameras.len() / 2)
             .map(|k| {
                 self.net
-                    .forward(&images.narrow(0, 2 * k, 2)?, &cameras[2 * k..2 * k + 2])
+                    .cost_volume(&images.narrow(0, 2 * k, 2)?, &cameras[2 * k..2 * k + 2])
             })
             .collect::<candle_core::Result<Vec<_>>>()?;
         Prediction::cat(&parts)
@@ -214,6 +286,19 @@ pub fn to_set(
     floor: f32,
     budget: usize,
 ) -> candle_core::Result<GaussianSet> {
+    Ok(to_set_counted(splats, surviving, floor, budget, 0)?.0)
+}
+
+/// [`to_set`], also counting the kept rows before `boundary` and from it (the cost-volume
+/// and the volume branch's share of the output when the first `boundary` rows are the
+/// cost-volume branch's).
+pub fn to_set_counted(
+    splats: &SplatTensors,
+    surviving: Option<&[bool]>,
+    floor: f32,
+    budget: usize,
+    boundary: usize,
+) -> candle_core::Result<(GaussianSet, [usize; 2])> {
     let rows = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
     let (means, scales, rots) = (
         rows(&splats.means)?,
@@ -249,6 +334,8 @@ pub fn to_set(
         keep.truncate(budget);
         keep.sort_unstable();
     }
+    let before = keep.partition_point(|&i| i < boundary);
+    let counted = [before, keep.len() - before];
     let mut set = GaussianSet::with_capacity(keep.len());
     let v3 = |v: &[f32], i: usize| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
     for i in keep {
@@ -270,5 +357,5 @@ pub fn to_set(
         set.colors.push(v3(&colors, i).clamp(Vec3::ZERO, Vec3::ONE));
         set.confidences.push(conf[i]);
     }
-    Ok(set)
+    Ok((set, counted))
 }

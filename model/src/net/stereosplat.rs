@@ -1,4 +1,7 @@
-//! The whole cost-volume branch: views in, per-view depth and per-pixel Gaussians out.
+//! The whole network: views in, per-view depth and per-pixel Gaussians out of the
+//! cost-volume branch, then (when `volume_branch`) the 3D-volume branch's Gaussians from the
+//! triplane the cost-volume Gaussians and the views' features fill; the output set is
+//! G = G_cv ∪ G_vol (only G_vol without `cost_volume_branch`: the paper's Branch_3D row).
 
 use candle_core::{Module, Result, Tensor};
 use candle_nn::VarBuilder;
@@ -12,26 +15,42 @@ use super::depth_head::{peak, DepthHead};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
 use super::transformer::MultiViewTransformer;
+use super::volume::{BranchInputs, GaussiansPerBranch, VolumeBranch, VolumeOutput};
 use super::Config;
 use crate::ops::{upsample_bilinear, SplatTensors};
 
 /// Image pixels per feature pixel of the cost volume (the paper's downscale factor).
 pub const COST_STRIDE: usize = 4;
 
-/// What one forward pass predicts. The triplane branch will consume the same Gaussians and
-/// `features` (its fusion is guided by the cost-volume Gaussians' positions).
+/// What one forward pass predicts.
 pub struct Prediction {
-    /// Every Gaussian, `V * Hg * Wg` rows, view-major; nothing pruned (training needs all).
+    /// The cost-volume branch's Gaussians, `V * Hg * Wg` rows, view-major; nothing pruned
+    /// (training needs all). Computed even when the branch's output is off, since their
+    /// positions and features guide the volume branch; [`Prediction::output`] is the set.
     pub splats: SplatTensors,
     /// Estimated metric depth per view at the Gaussians' resolution, `(V, 1, Hg, Wg)`.
     pub depth: Tensor,
     /// Per-Gaussian features (the heads' context), `(V, k, Hg, Wg)`.
     pub features: Tensor,
+    /// The views' features before normalisation, `(V, cost_channels, H/4, W/4)`: what the
+    /// volume branch's cross-image attention samples.
+    pub view_features: Tensor,
+    /// The volume branch's Gaussians, occupancy logits and visible voxels; `None` when the
+    /// branch is off.
+    pub volume: Option<VolumeOutput>,
+    /// Whether `splats` belong to the output (the preset's `cost_volume_branch`, or no
+    /// volume branch to replace them).
+    pub cost_volume_output: bool,
 }
 
 impl Prediction {
-    /// Predictions of disjoint view sets joined in order, as one prediction of all their views.
+    /// Cost-volume predictions of disjoint view sets joined in order, as one prediction of
+    /// all their views (the volume branch then runs once on the joined prediction, see
+    /// [`StereoSplat::with_volume`]). Errors on a part that already holds volume output.
     pub fn cat(parts: &[Prediction]) -> Result<Self> {
+        if parts.iter().any(|p| p.volume.is_some()) {
+            candle_core::bail!("predictions with volume output cannot be joined");
+        }
         let cat = |f: &dyn Fn(&Prediction) -> &Tensor| {
             Tensor::cat(&parts.iter().map(f).collect::<Vec<_>>(), 0)
         };
@@ -39,11 +58,34 @@ impl Prediction {
             splats: SplatTensors::cat(&parts.iter().map(|p| &p.splats).collect::<Vec<_>>())?,
             depth: cat(&|p| &p.depth)?,
             features: cat(&|p| &p.features)?,
+            view_features: cat(&|p| &p.view_features)?,
+            volume: None,
+            cost_volume_output: parts.iter().all(|p| p.cost_volume_output),
         })
+    }
+
+    /// The output Gaussians: the cost-volume branch's (when on) followed by the volume
+    /// branch's (when on).
+    pub fn output(&self) -> Result<SplatTensors> {
+        match (&self.volume, self.cost_volume_output) {
+            (None, _) => Ok(self.splats.clone()),
+            (Some(v), false) => Ok(v.splats.clone()),
+            (Some(v), true) => SplatTensors::cat(&[&self.splats, &v.splats]),
+        }
+    }
+
+    /// Rows of the output each branch contributes (before floor and budget).
+    pub fn counts(&self) -> GaussiansPerBranch {
+        GaussiansPerBranch::of(
+            self.cost_volume_output.then_some(&self.splats),
+            self.volume.as_ref(),
+        )
     }
 }
 
-/// The StereoSplat cost-volume network.
+/// The StereoSplat network: the cost-volume branch and, when the preset asks, the volume
+/// branch (weights under `volume.*`; a preset without it reads no such weights, so files
+/// trained before the branch existed load unchanged).
 #[derive(Clone, Debug)]
 pub struct StereoSplat {
     backbone: Backbone,
@@ -52,6 +94,7 @@ pub struct StereoSplat {
     project: Conv,
     depth_head: DepthHead,
     gaussians: GaussianHead,
+    volume: Option<VolumeBranch>,
     depths: Vec<f64>,
     cfg: Config,
 }
@@ -60,6 +103,13 @@ impl StereoSplat {
     /// The network of preset `cfg`, its variables under `vb`.
     pub fn new(vb: VarBuilder, cfg: &Config) -> Result<Self> {
         let context = 3 + cfg.cost_channels + cfg.backbone_channels / 2 + 1;
+        if !cfg.cost_volume_branch && !cfg.volume_branch {
+            candle_core::bail!("cost_volume_branch and volume_branch are both off: no output");
+        }
+        let volume = match cfg.volume_branch {
+            true => Some(VolumeBranch::new(vb.pp("volume"), cfg, context)?),
+            false => None,
+        };
         Ok(Self {
             backbone: Backbone::new(vb.pp("backbone"), cfg)?,
             geometry: GeometryEncoder::new(vb.pp("geometry"), cfg)?,
@@ -73,6 +123,7 @@ impl StereoSplat {
             )?,
             depth_head: DepthHead::new(vb.pp("depth_head"), cfg)?,
             gaussians: GaussianHead::new(vb.pp("gaussians"), cfg, context)?,
+            volume,
             depths: candidate_depths(cfg),
             cfg: cfg.clone(),
         })
@@ -84,8 +135,34 @@ impl StereoSplat {
     }
 
     /// `images` `(V, 3, H, W)` in `[0, 1]` (left and right of each pair, any order) with their
-    /// `cameras` in the bin's frame, `V >= 1`.
+    /// `cameras` in the bin's frame, `V >= 1`: both branches as the preset switches them.
     pub fn forward(&self, images: &Tensor, cameras: &[Camera]) -> Result<Prediction> {
+        let prediction = self.cost_volume(images, cameras)?;
+        self.with_volume(prediction, cameras)
+    }
+
+    /// `prediction` of the cost-volume branch (of all of `cameras`' views) with the volume
+    /// branch's output added when the preset has the branch; unchanged otherwise.
+    pub fn with_volume(
+        &self,
+        mut prediction: Prediction,
+        cameras: &[Camera],
+    ) -> Result<Prediction> {
+        if let Some(branch) = &self.volume {
+            prediction.volume = Some(branch.forward(&BranchInputs {
+                means: &prediction.splats.means,
+                features: &prediction.features,
+                view_features: &prediction.view_features,
+                cameras,
+                stride: COST_STRIDE,
+            })?);
+        }
+        Ok(prediction)
+    }
+
+    /// The cost-volume branch alone (`volume: None`): what [`StereoSplat::forward`] runs
+    /// first, and what pair-by-pair inference runs per pair.
+    pub fn cost_volume(&self, images: &Tensor, cameras: &[Camera]) -> Result<Prediction> {
         let (v, _, height, width) = images.dims4()?;
         if v != cameras.len() || v == 0 {
             candle_core::bail!("{v} images but {} cameras", cameras.len());
@@ -129,6 +206,9 @@ impl StereoSplat {
             splats: heads.splats,
             depth: heads.depth,
             features: context,
+            view_features: features,
+            volume: None,
+            cost_volume_output: self.cfg.cost_volume_branch || self.volume.is_none(),
         })
     }
 }

@@ -14,6 +14,7 @@ use crate::bins::{make_bins, Bin, BinConfig};
 use crate::frame::{DepthMap, RgbImage, Side, StereoFrame, StereoRig};
 use crate::kitti360::{Kitti360Error, Sequence};
 use crate::net::every_nth_pixel;
+use crate::net::volume::{bin_lidar_points, occupied_voxels, VolumeConfig};
 use crate::reconstruct::StereoView;
 
 /// Why training data could not be read.
@@ -50,6 +51,9 @@ pub struct SampleConfig {
     pub targets: usize,
     /// Stride of the estimated depth the depth loss compares against LiDAR.
     pub gaussian_stride: usize,
+    /// The volume branch's grid when the network has the branch: samples then carry the
+    /// occupied voxels (LiDAR of the whole bin) and each target's in-volume pixels.
+    pub volume: Option<VolumeConfig>,
 }
 
 /// A frame to render and compare with.
@@ -60,6 +64,9 @@ pub struct Target {
     pub image: Tensor,
     /// Sparse LiDAR depth, `(H, W)`, 0 where none.
     pub depth: Tensor,
+    /// `(H, W)`, 1 where the pixel's true surface point lies inside the volume (exact depth
+    /// where the drive has it, else LiDAR), 0 elsewhere; `None` without a volume branch.
+    pub in_volume: Option<Tensor>,
 }
 
 /// One training sample.
@@ -72,6 +79,9 @@ pub struct Sample {
     pub input_depth: Tensor,
     /// The frames to render.
     pub targets: Vec<Target>,
+    /// Per voxel of the volume (flat order): whether a LiDAR hit of some frame of the bin
+    /// falls in it; `None` without a volume branch.
+    pub occupied: Option<Vec<bool>>,
 }
 
 /// Every bin of every sequence under a root.
@@ -180,17 +190,35 @@ impl TrainingSet {
                 Side::Left => &frame.left,
                 Side::Right => &frame.right,
             };
+            let camera = bin_inputs.camera(&frame, side);
+            let lidar = lidar_or_empty(sequence, &frame, side);
+            let in_volume = match &cfg.volume {
+                Some(volume) => {
+                    let truth = match sequence.exact_depth(frame.index, side) {
+                        Ok(Some(exact)) => exact,
+                        _ => lidar.clone(),
+                    };
+                    Some(in_volume_mask(volume, &camera, &truth, device)?)
+                }
+                None => None,
+            };
             targets.push(Target {
-                camera: bin_inputs.camera(&frame, side),
+                camera,
                 image: image_tensor(image, device)?,
-                depth: depth_tensor(&lidar_or_empty(sequence, &frame, side), device)?.squeeze(0)?,
+                depth: depth_tensor(&lidar, device)?.squeeze(0)?,
+                in_volume,
             });
         }
+        let occupied = cfg
+            .volume
+            .as_ref()
+            .map(|v| occupied_voxels(v, &bin_lidar_points(sequence, &bin).points));
         Ok(Sample {
             images,
             cameras,
             input_depth,
             targets,
+            occupied,
         })
     }
 }
@@ -253,6 +281,32 @@ impl BinInputs {
             })
             .collect()
     }
+}
+
+/// `(H, W)`: 1 where `depth` (z in `camera`, 0 where unknown) puts the pixel's surface
+/// point inside the volume of `cfg` (bin frame), else 0.
+fn in_volume_mask(
+    cfg: &VolumeConfig,
+    camera: &Camera,
+    depth: &DepthMap,
+    device: &Device,
+) -> candle_core::Result<Tensor> {
+    let k = camera.intrinsics;
+    let to_bin = camera.rotation.transpose();
+    let (w, h) = (depth.width as usize, depth.height as usize);
+    let mut mask = vec![0f32; w * h];
+    for (i, (&z, m)) in depth.data.iter().zip(&mut mask).enumerate() {
+        if !(z.is_finite() && z > 0.0) {
+            continue;
+        }
+        let (u, v) = ((i % w) as f32, (i / w) as f32);
+        let p = glam::Vec3::new((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z);
+        let q = to_bin * p + camera.position;
+        if cfg.cell_of(q.to_array()).is_some() {
+            *m = 1.0;
+        }
+    }
+    Tensor::from_vec(mask, (h, w), device)
 }
 
 /// Every (root, sequence name) under `root`: its own sequences if it is a KITTI-360 root,

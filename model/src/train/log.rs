@@ -22,6 +22,9 @@ pub const LOG_COLUMNS: &[&str] = &[
     "pairs",
     "steps_per_s",
     "elapsed_s",
+    "occupancy",
+    "volume_l2",
+    "volume_gaussians",
 ];
 
 /// An open log.
@@ -58,7 +61,7 @@ impl TrainLog {
     pub fn append(&mut self, r: &StepReport) -> std::io::Result<()> {
         writeln!(
             self.file,
-            "{},{:.6},{:.6},{:.6},{:.4},{:.4},{:.6},{:.3e},{:.4},{},{:.4},{:.1}",
+            "{},{:.6},{:.6},{:.6},{:.4},{:.4},{:.6},{:.3e},{:.4},{},{:.4},{:.1},{:.6},{:.6},{}",
             r.step,
             r.loss,
             r.l2,
@@ -70,7 +73,10 @@ impl TrainLog {
             r.grad_norm,
             r.pairs,
             r.steps_per_s,
-            r.elapsed_s
+            r.elapsed_s,
+            r.occupancy,
+            r.volume_l2,
+            r.volume_gaussians
         )
     }
 }

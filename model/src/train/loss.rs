@@ -1,12 +1,17 @@
 //! The paper's training objective (section 3.2.5, eq. total loss) for the cost-volume branch:
 //! `lambda1 * L_rec + lambda2 * L_D-rend + lambda3 * L_conf` averaged over target views, plus
-//! `lambda4 * L_D-est`, with `L_rec = w_l2 * L2 + w_lpips * LPIPS`.
+//! `lambda4 * L_D-est`, with `L_rec = w_l2 * L2 + w_lpips * LPIPS`. With the volume
+//! branch, the render of the joint set G = G_cv ∪ G_vol takes those terms, and two more
+//! train the branch: the balanced occupancy cross-entropy against the bin's LiDAR hits, and
+//! the L2 of the volume-only render on the pixels whose true point lies inside the volume
+//! (as OmniScene: the rest of the image is the cost-volume branch's to explain).
 
 use candle_core::{Result, Tensor};
 use serde::{Deserialize, Serialize};
 
 use super::data::Sample;
 use crate::lpips::Lpips;
+use crate::net::volume::{occupancy_loss, VolumeOutput};
 use crate::net::Prediction;
 use crate::ops::{render, CH_ALPHA, CH_CONFIDENCE, CH_DEPTH, CH_R};
 use renderer::RenderSettings;
@@ -63,6 +68,21 @@ pub struct LossWeights {
     pub max_depth: f32,
     /// The error both depth losses average.
     pub depth_error: DepthError,
+    /// Weight of the volume branch's occupancy cross-entropy (LiDAR of the whole bin).
+    #[serde(default = "default_occupancy")]
+    pub occupancy: f64,
+    /// Weight of the volume-only render's L2 on the pixels whose true point lies in the
+    /// volume.
+    #[serde(default = "default_volume_render")]
+    pub volume_render: f64,
+}
+
+fn default_occupancy() -> f64 {
+    0.05
+}
+
+fn default_volume_render() -> f64 {
+    1.0
 }
 
 impl Default for LossWeights {
@@ -77,6 +97,8 @@ impl Default for LossWeights {
             beta: 10.0,
             max_depth: 80.0,
             depth_error: DepthError::Metric,
+            occupancy: default_occupancy(),
+            volume_render: default_volume_render(),
         }
     }
 }
@@ -95,6 +117,10 @@ pub struct Losses {
     pub estimated_depth: f32,
     /// Mean confidence regression error.
     pub confidence: f32,
+    /// Occupancy cross-entropy (0 without the volume branch).
+    pub occupancy: f32,
+    /// Mean masked L2 of the volume-only render (0 without the volume branch).
+    pub volume_l2: f32,
 }
 
 /// `sum(mask * |a - b|) / sum(mask)`, 0 when the mask is empty.
@@ -136,7 +162,7 @@ pub fn losses(
     weights: &LossWeights,
     settings: &RenderSettings,
 ) -> Result<Losses> {
-    let splats = prediction.splats.pack()?;
+    let splats = prediction.output()?.pack()?;
     let mut renders = Vec::with_capacity(sample.targets.len());
     let mut per_view = Vec::new();
     let (mut l2_sum, mut depth_sum, mut conf_sum) = (0f32, 0f32, 0f32);
@@ -187,6 +213,19 @@ pub fn losses(
     };
     let total = ((views + (&perceptual * (weights.reconstruction * weights.lpips))?)?
         + (&d_est * weights.estimated_depth)?)?;
+    let (total, occupancy, volume_l2) = match &prediction.volume {
+        Some(volume) => {
+            let v = volume_losses(volume, sample, settings)?;
+            let total = ((total + (&v.occupancy * weights.occupancy)?)?
+                + (&v.render * weights.volume_render)?)?;
+            (
+                total,
+                v.occupancy.to_scalar::<f32>()?,
+                v.render.to_scalar::<f32>()?,
+            )
+        }
+        None => (total, 0.0, 0.0),
+    };
     Ok(Losses {
         total,
         l2: l2_sum / n as f32,
@@ -194,7 +233,52 @@ pub fn losses(
         rendered_depth: depth_sum / n as f32,
         estimated_depth: d_est.to_scalar::<f32>()?,
         confidence: conf_sum / n as f32,
+        occupancy,
+        volume_l2,
     })
+}
+
+/// The volume branch's own terms, scalar tensors.
+struct VolumeLosses {
+    occupancy: Tensor,
+    render: Tensor,
+}
+
+/// Occupancy against the sample's occupied voxels over the visible ones, and the mean over
+/// targets of the volume-only render's L2 on their in-volume pixels (0 for a target without
+/// any, and for a branch that decoded no Gaussian).
+fn volume_losses(
+    volume: &VolumeOutput,
+    sample: &Sample,
+    settings: &RenderSettings,
+) -> Result<VolumeLosses> {
+    let logits = &volume.occupancy_logits;
+    let zero = || Tensor::zeros((), logits.dtype(), logits.device());
+    let occupancy = match &sample.occupied {
+        Some(occupied) => occupancy_loss(logits, occupied, Some(&volume.visible))?,
+        None => candle_core::bail!("the volume branch needs samples with occupied voxels"),
+    };
+    let mut terms = Vec::with_capacity(sample.targets.len());
+    if volume.gaussians() > 0 {
+        let splats = volume.splats.pack()?;
+        for target in &sample.targets {
+            let Some(mask) = &target.in_volume else {
+                candle_core::bail!("the volume branch needs targets with in-volume masks");
+            };
+            let out = render(&splats, &target.camera, settings)?;
+            let error = (out.narrow(0, CH_R, 3)? - &target.image)?
+                .sqr()?
+                .mean_keepdim(0)?;
+            let mask = mask.unsqueeze(0)?;
+            let count = mask.sum_all()?.maximum(1.0)?;
+            terms.push((error * &mask)?.sum_all()?.broadcast_div(&count)?);
+        }
+    }
+    let render = match terms.len() {
+        0 => zero()?,
+        n => (Tensor::stack(&terms, 0)?.sum_all()? / n as f64)?,
+    };
+    Ok(VolumeLosses { occupancy, render })
 }
 
 #[cfg(test)]

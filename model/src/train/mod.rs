@@ -2,7 +2,11 @@
 //! with stochastic view subsampling, renders of the predicted Gaussians through the
 //! differentiable rasterizer, the paper's losses, AdamW with betas (0.9, 0.99), linear
 //! warm-up then a constant rate, global gradient clipping, seeded everything, checkpoints
-//! with exact resume, a CSV log and the weights exported as safetensors.
+//! with exact resume, a CSV log and the weights exported as safetensors. With the volume
+//! branch on, samples carry the bin's occupied voxels and each target's in-volume pixels,
+//! and the branch's two losses join the objective (see `loss`); a run can start from a
+//! weight file that holds only part of the network (`load_weights`: the shipped cost-volume
+//! weights, the volume branch fresh).
 
 mod adamw;
 pub(crate) mod checkpoint;
@@ -28,7 +32,7 @@ pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, U
 
 use crate::bins::BinConfig;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
-use crate::net::{Config, StereoSplat};
+use crate::net::{load_matching, Config, StereoSplat, WarmStart};
 use renderer::RenderSettings;
 
 /// The log columns drawn in `loss_curve.png`.
@@ -122,6 +126,12 @@ pub struct StepReport {
     pub estimated_depth: f32,
     /// Confidence regression error.
     pub confidence: f32,
+    /// Occupancy cross-entropy of the volume branch (0 without it).
+    pub occupancy: f32,
+    /// Masked L2 of the volume-only render (0 without the branch).
+    pub volume_l2: f32,
+    /// Gaussians the volume branch decoded (0 without it).
+    pub volume_gaussians: usize,
     /// Learning rate used.
     pub lr: f64,
     /// Gradient norm before clipping.
@@ -155,6 +165,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         pair_fusion_margin: None,
         merge_tolerance: None,
         joint_pairs: false,
+        view_subsampling: true,
         ..c.clone()
     };
     training(a) == training(b)
@@ -179,11 +190,12 @@ impl Trainer {
     /// `resume`, continues from `out`'s checkpoint (weights, optimizer moments, step, log).
     pub fn new(
         net_cfg: &Config,
-        cfg: TrainConfig,
+        mut cfg: TrainConfig,
         data: &Path,
         out: &Path,
         resume: bool,
     ) -> Result<Self, TrainError> {
+        cfg.sample.volume = net_cfg.volume_branch.then(|| net_cfg.volume.clone());
         let check = |state: State| {
             if state.preset != net_cfg.name {
                 return Err(TrainError::PresetMismatch {
@@ -219,11 +231,12 @@ impl Trainer {
         })
     }
 
-    /// Replaces the weights with those of a safetensors file of the same preset (the start
-    /// of a fine-tuning run).
-    pub fn load_weights(&mut self, path: &Path) -> Result<(), TrainError> {
-        self.run.varmap.load(path)?;
-        Ok(())
+    /// Replaces the weights with those a safetensors file holds (the start of a fine-tuning
+    /// run, or a warm start: the shipped cost-volume weights under a network with the volume
+    /// branch). Variables the file lacks keep their seeded values and are named in the
+    /// report; a tensor of another shape is an error.
+    pub fn load_weights(&mut self, path: &Path) -> Result<WarmStart, TrainError> {
+        Ok(load_matching(&self.run.varmap, path)?)
     }
 
     /// Steps already taken.
@@ -264,6 +277,9 @@ impl Trainer {
                 rendered_depth: l.rendered_depth,
                 estimated_depth: l.estimated_depth,
                 confidence: l.confidence,
+                occupancy: l.occupancy,
+                volume_l2: l.volume_l2,
+                volume_gaussians: prediction.volume.as_ref().map_or(0, |v| v.gaussians()),
                 lr,
                 grad_norm,
                 pairs: sample.cameras.len() / 2,

@@ -4,9 +4,12 @@
 //! the largest of the presets run so far: run one preset per process for each alone), parameters and
 //! Gaussians emitted. A preset without shipped weights runs untrained (`"weights":
 //! "untrained"`): its time and memory are those of the trained network, its Gaussian count
-//! is not. Each report also times the volume branch's triplane encoder alone
-//! (`volume_encoder_*`: untrained, on features of the cost-volume branch's shape at stride 4,
-//! with the pair's cameras), until the branch is part of the reconstructor.
+//! is not. `--set volume_branch=true` runs the preset with the 3D-volume branch: the report
+//! gives each branch's median milliseconds and output Gaussians (`cost_volume_*`,
+//! `volume_*`); shipped weights without the branch's tensors load for the cost-volume part
+//! and the branch runs untrained (`"weights": "<file> + untrained volume branch"`). Each
+//! report also times the triplane encoder alone (`volume_encoder_*`: untrained, on features
+//! of the cost-volume branch's shape at stride 4, with the pair's cameras).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -17,7 +20,9 @@ use clap::Args;
 use model::frame::Side;
 use model::kitti360::Sequence;
 use model::net::volume::TriplaneEncoder;
-use model::net::{default_weights, Config, LearnedReconstructor, COST_STRIDE, PRESETS};
+use model::net::{
+    default_weights, BranchReport, Config, LearnedReconstructor, COST_STRIDE, PRESETS,
+};
 use model::reconstruct::{Reconstructor, StereoView};
 use model::synth::SynthConfig;
 use serde::Serialize;
@@ -31,6 +36,9 @@ pub struct BenchModelArgs {
     /// Preset to measure, or `all`.
     #[arg(long, default_value = "tiny")]
     preset: String,
+    /// Change a preset setting, `KEY=VALUE` (repeatable), e.g. `--set volume_branch=true`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    settings: Vec<String>,
     /// Image width of the stereo pair (the paper's is 544).
     #[arg(long, default_value_t = 544)]
     width: u32,
@@ -64,6 +72,11 @@ struct PresetReport {
     volume_encoder_median_ms: f64,
     volume_encoder_min_ms: f64,
     volume_encoder_parameters: usize,
+    volume_branch: bool,
+    cost_volume_median_ms: f64,
+    volume_median_ms: f64,
+    cost_volume_gaussians: usize,
+    volume_gaussians: usize,
 }
 
 /// Median and min milliseconds, over `runs` after `warmup`, of `f`.
@@ -133,12 +146,20 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
         right_camera: rig.local_camera(pose, pose, Side::Right),
     };
     for name in names {
-        let cfg = Config::preset(name)?;
+        let cfg = Config::preset(name)?.with_settings(&args.settings)?;
         let path = default_weights(name);
         let (mut rec, weights) = if path.exists() {
-            let rec = LearnedReconstructor::load(&cfg, &path)
+            let (rec, warm) = LearnedReconstructor::warm_start(&cfg, &path)
                 .with_context(|| format!("loading {}", path.display()))?;
-            (rec, path.display().to_string())
+            let weights = match warm.fresh.is_empty() {
+                true => path.display().to_string(),
+                false => format!(
+                    "{} + untrained {}",
+                    path.display(),
+                    warm.fresh_prefixes().join(", ")
+                ),
+            };
+            (rec, weights)
         } else {
             (
                 LearnedReconstructor::untrained(&cfg)?,
@@ -146,10 +167,18 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
             )
         };
         let mut gaussians = 0;
+        let mut branches = Vec::new();
         let (median_ms, min_ms) = time_runs(args.warmup, args.runs, || {
             gaussians = rec.reconstruct(&[view])?.len();
+            branches.extend(rec.last_report());
             Ok(())
         })?;
+        let median = |f: &dyn Fn(&BranchReport) -> f64| {
+            let mut v: Vec<f64> = branches.iter().skip(args.warmup).map(f).collect();
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+        };
+        let last = branches.last().copied().unwrap_or_default();
         let (volume_median, volume_min, volume_parameters) =
             time_volume_encoder(&cfg, &[view.left_camera, view.right_camera], args)?;
         let report = PresetReport {
@@ -167,6 +196,11 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
             volume_encoder_median_ms: volume_median,
             volume_encoder_min_ms: volume_min,
             volume_encoder_parameters: volume_parameters,
+            volume_branch: cfg.volume_branch,
+            cost_volume_median_ms: median(&|b| b.cost_volume_ms),
+            volume_median_ms: median(&|b| b.volume_ms),
+            cost_volume_gaussians: last.cost_volume_gaussians,
+            volume_gaussians: last.volume_gaussians,
         };
         println!("{}", serde_json::to_string(&report)?);
     }

@@ -36,8 +36,10 @@ pub struct TrainArgs {
     #[arg(long)]
     resume: bool,
     /// Start from these weights instead of a seeded initialisation (fine-tuning, e.g. the
-    /// shipped synthetic weights on real KITTI-360).
-    #[arg(long, conflicts_with = "resume")]
+    /// shipped synthetic weights on real KITTI-360). Every tensor of the file the network
+    /// has is loaded; the others stay seeded and are listed (a warm start: the shipped
+    /// cost-volume weights with `--set volume_branch=true`, the volume branch fresh).
+    #[arg(long, alias = "init-from", conflicts_with = "resume")]
     init: Option<PathBuf>,
     /// Optimizer steps in all.
     #[arg(long, default_value_t = 6000)]
@@ -61,7 +63,8 @@ pub struct TrainArgs {
     /// Most input stereo pairs per sample (the paper's K).
     #[arg(long, default_value_t = 3)]
     max_pairs: usize,
-    /// Always use the bin's first pair as input (switches stochastic view subsampling off).
+    /// Always use the bin's first pair as input (switches stochastic view subsampling off;
+    /// the same as `--set view_subsampling=false`).
     #[arg(long)]
     no_subsample: bool,
     /// Read frames at this size (intrinsics scaled), e.g. real KITTI-360 at 544x144.
@@ -80,6 +83,13 @@ pub struct TrainArgs {
     /// Weight of the estimated-depth loss (default: the paper's 0.05, for metric errors).
     #[arg(long)]
     estimated_depth_weight: Option<f64>,
+    /// Weight of the volume branch's occupancy loss (default 0.05; with the branch only).
+    #[arg(long)]
+    occupancy_weight: Option<f64>,
+    /// Weight of the volume-only render's L2 on in-volume pixels (default 1.0; with the
+    /// branch only).
+    #[arg(long)]
+    volume_render_weight: Option<f64>,
 }
 
 /// The loss weights the flags ask for: the paper's, with the depth error and weights set.
@@ -89,6 +99,8 @@ fn loss_weights(args: &TrainArgs) -> LossWeights {
         depth_error: args.depth_loss,
         rendered_depth: args.rendered_depth_weight.unwrap_or(paper.rendered_depth),
         estimated_depth: args.estimated_depth_weight.unwrap_or(paper.estimated_depth),
+        occupancy: args.occupancy_weight.unwrap_or(paper.occupancy),
+        volume_render: args.volume_render_weight.unwrap_or(paper.volume_render),
         ..paper
     }
 }
@@ -105,9 +117,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         checkpoint_every: args.checkpoint_every.max(1),
         sample: SampleConfig {
             max_pairs: args.max_pairs.max(1),
-            subsample_views: !args.no_subsample,
+            subsample_views: net.view_subsampling && !args.no_subsample,
             targets: args.targets,
             gaussian_stride: net.gaussian_stride,
+            volume: None,
         },
         loss: loss_weights(args),
         bins: BinConfig::default(),
@@ -117,9 +130,17 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     let mut trainer = Trainer::new(&net, cfg, &args.data, &args.out, args.resume)
         .with_context(|| format!("starting training in {}", args.out.display()))?;
     if let Some(init) = &args.init {
-        trainer
+        let warm = trainer
             .load_weights(init)
             .with_context(|| format!("loading {}", init.display()))?;
+        eprintln!(
+            "{}: {} tensors loaded, {} fresh ({}), {} of the file unused",
+            init.display(),
+            warm.loaded,
+            warm.fresh.len(),
+            warm.fresh_prefixes().join(", "),
+            warm.unused.len()
+        );
     }
     eprintln!(
         "training {} on {} bins from step {} to {}",
@@ -134,8 +155,8 @@ pub fn run(args: &TrainArgs) -> Result<()> {
     trainer.run(&stop, &mut |r| {
         bar.set_position(r.step);
         bar.set_message(format!(
-            "loss {:.4} l2 {:.4} lpips {:.3} depth {:.3} {:.2} it/s",
-            r.loss, r.l2, r.lpips, r.estimated_depth, r.steps_per_s
+            "loss {:.4} l2 {:.4} lpips {:.3} depth {:.3} occ {:.3} vol {:.4} {:.2} it/s",
+            r.loss, r.l2, r.lpips, r.estimated_depth, r.occupancy, r.volume_l2, r.steps_per_s
         ));
     })?;
     bar.finish();

@@ -4,6 +4,7 @@
 //! most occupied voxels inside the input frusta into Gaussians.
 
 mod anchors;
+mod branch;
 mod cida;
 mod config;
 mod cpda;
@@ -19,6 +20,7 @@ mod queries;
 pub mod voxels;
 
 pub use anchors::ViewAnchors;
+pub use branch::{BranchInputs, VolumeBranch};
 pub use cida::CrossImageAttention;
 pub use config::{Plane, VolumeConfig, VolumeLayer};
 pub use cpda::CrossPlaneAttention;

@@ -164,6 +164,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         max_gaussians: 0,
         pair_fusion_margin: None,
         merge_tolerance: None,
+        min_view_weight: None,
         joint_pairs: false,
         view_subsampling: true,
         ..c.clone()

@@ -32,6 +32,7 @@ pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, U
 
 use crate::bins::BinConfig;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
+use crate::net::volume::VolumeConfig;
 use crate::net::{load_matching, Config, StereoSplat, WarmStart};
 use renderer::RenderSettings;
 
@@ -157,7 +158,9 @@ struct State {
 }
 
 /// Whether two presets build the same network and train it alike: the settings of inference
-/// alone (opacity floor, budget, pair fusion, joint pairs, merging) do not count.
+/// alone (opacity floor, budget, pair fusion, joint pairs, merging, pruning) do not count, nor
+/// the volume branch's sizes while the branch is off (checkpoints from before the branch
+/// existed read them as `tiny`'s).
 fn same_network(a: &Config, b: &Config) -> bool {
     let training = |c: &Config| Config {
         opacity_floor: 0.0,
@@ -167,6 +170,10 @@ fn same_network(a: &Config, b: &Config) -> bool {
         min_view_weight: None,
         joint_pairs: false,
         view_subsampling: true,
+        volume: match c.volume_branch {
+            true => c.volume.clone(),
+            false => VolumeConfig::default(),
+        },
         ..c.clone()
     };
     training(a) == training(b)
@@ -363,4 +370,29 @@ pub(crate) fn reseed(varmap: &VarMap, seed: u64) -> candle_core::Result<()> {
         var.set(&Tensor::from_vec(fresh, var.shape(), var.device())?)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inference_settings_and_an_unused_volume_do_not_block_a_resume() {
+        let small = Config::small();
+        // A checkpoint written before the volume branch existed reads `tiny`'s volume sizes.
+        let old = Config {
+            volume: VolumeConfig::default(),
+            min_view_weight: Some(0.5),
+            ..small.clone()
+        };
+        assert!(same_network(&old, &small));
+        // With the branch on, its sizes are the network's.
+        let on = |c: &Config| Config {
+            volume_branch: true,
+            ..c.clone()
+        };
+        assert!(!same_network(&on(&old), &on(&small)));
+        assert!(!same_network(&small, &on(&small)));
+        assert!(!same_network(&small, &Config::tiny()));
+    }
 }

@@ -131,26 +131,39 @@ pub struct MapScores {
     pub frames: usize,
 }
 
-/// The sky layers a consumer draws behind the map ([`Keep::backdrop`]): each frame is
-/// rendered with the layer of the bin it belongs to (the latest bin map the node had
-/// published when the frame was taken).
-#[derive(Clone, Copy, Debug)]
-pub struct Backdrops<'a> {
-    /// The bin maps, in drive order.
-    pub maps: &'a [BinMap],
-    /// The rule whose far side is the layer.
-    pub keep: Keep,
+/// The sky layers a consumer draws behind the map ([`Keep::backdrop`]), one per bin, cut
+/// once: each frame is rendered with the layer of the bin it belongs to (the latest bin map
+/// the node had published when the frame was taken).
+#[derive(Clone, Debug)]
+pub struct Backdrops {
+    /// Per bin in drive order: its first frame, its pose and its far part (bin frame).
+    layers: Vec<(u32, DAffine3, GaussianSet)>,
 }
 
-impl Backdrops<'_> {
+impl Backdrops {
+    /// The far part beyond `keep` of each of `maps` (in drive order).
+    pub fn new(maps: &[BinMap], keep: Keep) -> Self {
+        Self {
+            layers: maps
+                .iter()
+                .map(|m| (m.first_frame, m.bin_to_world, keep.backdrop(&m.set)))
+                .collect(),
+        }
+    }
+
+    /// Mean Gaussians per bin layer.
+    pub fn mean_len(&self) -> f64 {
+        let total: usize = self.layers.iter().map(|(_, _, l)| l.len()).sum();
+        total as f64 / self.layers.len().max(1) as f64
+    }
+
     /// The layer for frame `frame` (that of the last bin starting at or before it; empty
     /// before the first), in the frame of `camera_to_world`.
     pub fn at(&self, frame: u32, camera_to_world: DAffine3) -> GaussianSet {
-        let Some(bin) = self.maps.iter().rev().find(|m| m.first_frame <= frame) else {
+        let Some((_, bin_to_world, far)) = self.layers.iter().rev().find(|l| l.0 <= frame) else {
             return GaussianSet::default();
         };
-        let far = self.keep.backdrop(&bin.set);
-        let to_camera = camera_to_world.inverse() * bin.bin_to_world;
+        let to_camera = camera_to_world.inverse() * *bin_to_world;
         let turn = DQuat::from_mat3(&to_camera.matrix3);
         let mut out = GaussianSet::with_capacity(far.len());
         for i in 0..far.len() {
@@ -168,7 +181,7 @@ impl Backdrops<'_> {
 /// `config`'s metrics; `progress` gets (frames done, frames in all).
 pub fn score_map(
     map: &GlobalMap,
-    backdrops: Option<Backdrops>,
+    backdrops: Option<&Backdrops>,
     sequence: &Sequence,
     raster: &mut Raster,
     config: &EvalConfig,
@@ -186,7 +199,7 @@ pub fn score_map(
         let frame = sequence.load_frame(f.index)?;
         let pose = frame.left_to_world;
         let mut set = set_around(map, pose)?;
-        if let Some(b) = &backdrops {
+        if let Some(b) = backdrops {
             let far = b.at(f.index, pose);
             for i in 0..far.len() {
                 set.push(far.get(i));

@@ -79,7 +79,7 @@ fn what_is_not_fused_for_range_is_the_sky_layer_drawn_from_its_own_bins_frames()
             set: set_of(&[far_wall]),
         },
     ];
-    let b = Backdrops { maps: &maps, keep };
+    let b = Backdrops::new(&maps, keep);
     // Frame 5 belongs to bin 0; seen from bin 0's camera the sky sits where the bin put it.
     let at5 = b.at(5, p0);
     assert_eq!(at5.len(), 1);
@@ -96,7 +96,7 @@ fn what_is_not_fused_for_range_is_the_sky_layer_drawn_from_its_own_bins_frames()
         at12.means
     );
     assert!((at12.rotations[0].length() - 1.0).abs() < 1e-5);
-    let none = Backdrops { maps: &[], keep };
+    let none = Backdrops::new(&[], keep);
     assert!(none.at(3, p0).is_empty());
 }
 

@@ -118,17 +118,11 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
     for (setting, fusion, sky) in settings(args) {
         let map = fuse(&maps, fusion)?;
         let bar = progress::bar(0, &setting);
-        let backdrops = sky.then_some(Backdrops {
-            maps: &maps,
-            keep: fusion.keep,
-        });
-        let sky_layer_gaussians = backdrops.map(|b| {
-            let total: usize = maps.iter().map(|m| b.keep.backdrop(&m.set).len()).sum();
-            total as f64 / maps.len().max(1) as f64
-        });
+        let backdrops = sky.then(|| Backdrops::new(&maps, fusion.keep));
+        let sky_layer_gaussians = backdrops.as_ref().map(Backdrops::mean_len);
         let scores = score_map(
             &map,
-            backdrops,
+            backdrops.as_ref(),
             &sequence,
             &mut raster,
             &config,

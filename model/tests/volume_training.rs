@@ -9,6 +9,7 @@
 mod finite_support;
 
 use std::path::PathBuf;
+use std::sync::OnceLock;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
@@ -51,21 +52,27 @@ fn network(cfg: &Config) -> (VarMap, StereoSplat) {
     (varmap, net)
 }
 
-/// A short generated drive (136x40), written once per test process.
+/// A short generated drive (136x40), written once per test process. The tests run in
+/// parallel threads of one process, so the first caller writes it and the rest wait for it
+/// (two writers in one folder collide on the calibration file).
 fn drive() -> PathBuf {
-    let root =
-        std::env::temp_dir().join(format!("stereosplat-volume-train-{}", std::process::id()));
-    if !root.join("data_poses").is_dir() {
-        let config = SynthConfig {
-            seed: 21,
-            frames: 24,
-            width: 136,
-            height: 40,
-            ..SynthConfig::default()
-        };
-        write_synthetic(&root, &config, &mut |_, _| {}).unwrap();
-    }
-    root
+    static DRIVE: OnceLock<PathBuf> = OnceLock::new();
+    DRIVE
+        .get_or_init(|| {
+            let root = std::env::temp_dir()
+                .join(format!("stereosplat-volume-train-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&root);
+            let config = SynthConfig {
+                seed: 21,
+                frames: 24,
+                width: 136,
+                height: 40,
+                ..SynthConfig::default()
+            };
+            write_synthetic(&root, &config, &mut |_, _| {}).unwrap();
+            root
+        })
+        .clone()
 }
 
 fn sample_of(cfg: &Config, pairs: usize, seed: u64) -> Sample {

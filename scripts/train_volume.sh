@@ -30,6 +30,6 @@ flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4 --wa
 if [ -f "$run/checkpoint/state.json" ]; then
   "$bin" train "${flags[@]}" --resume
 else
-  "$bin" train "${flags[@]}" --init-from "$base"
+  "$bin" train "${flags[@]}" --init "$base"
 fi
 echo "weights: $run/stereosplat_tiny.safetensors (evaluate with --set volume_branch=true)"

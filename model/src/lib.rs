@@ -23,6 +23,7 @@ pub mod methods;
 pub mod metrics;
 pub mod net;
 pub mod ops;
+pub mod progressive;
 pub mod reconstruct;
 pub mod synth;
 pub mod train;

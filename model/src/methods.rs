@@ -4,15 +4,20 @@
 //! - `sgm`: the classical baseline (semi-global matching).
 //! - `stereosplat`: the learned network, preset `tiny` unless another is given, with the
 //!   preset's shipped weights (`model/weights/stereosplat_<preset>.safetensors`) unless a
-//!   weight file is given.
+//!   weight file is given; with `--set progressive=true`, StereoSplat+'s progressive pass
+//!   around it (`model::progressive`) with the `tiny` enhancer
+//!   (`model/weights/enhancer_tiny.safetensors`) unless `enhancer=false`.
 
 use std::path::Path;
 
 use crate::baseline::{SgmConfig, SgmReconstructor};
+use crate::enhance;
 use crate::net::{
     default_weights, Config, LearnedReconstructor, LoadError, SettingError, UnknownPreset,
 };
+use crate::progressive::ProgressiveReconstructor;
 use crate::reconstruct::Reconstructor;
+use renderer::RenderWith;
 
 /// The names [`by_name`] knows.
 pub const NAMES: &[&str] = &["sgm", "stereosplat"];
@@ -24,6 +29,9 @@ pub const DEFAULT: &str = "stereosplat";
 
 /// The preset of `stereosplat` when none is given.
 pub const DEFAULT_PRESET: &str = "tiny";
+
+/// The enhancer preset the progressive pass loads (the one the 2-core CPU runs per bin).
+pub const ENHANCER_PRESET: &str = "tiny";
 
 /// Why a reconstructor could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -40,6 +48,15 @@ pub enum MethodError {
     /// The learned model's weights could not be loaded.
     #[error(transparent)]
     Weights(#[from] LoadError),
+    /// The progressive pass's enhancer could not be loaded.
+    #[error("enhancer weights {path}: {source} (train them with scripts/train_enhancer.sh, or run the pass without: `--set enhancer=false`)")]
+    Enhancer {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why (boxed: the enhancer's error is large).
+        #[source]
+        source: Box<crate::enhance::EnhanceError>,
+    },
 }
 
 /// The reconstructor called `name`, with its default settings.
@@ -66,7 +83,31 @@ pub fn build(
         "stereosplat" => {
             let cfg = Config::preset(preset.unwrap_or(DEFAULT_PRESET))?.with_settings(settings)?;
             let path = weights.map_or_else(|| default_weights(&cfg.name), Path::to_path_buf);
-            Ok(Box::new(LearnedReconstructor::load(&cfg, &path)?))
+            let learned = LearnedReconstructor::load(&cfg, &path)?;
+            if !cfg.progressive {
+                return Ok(Box::new(learned));
+            }
+            let enhancer = match cfg.enhancer {
+                true => {
+                    let path = cfg
+                        .enhancer_weights
+                        .clone()
+                        .unwrap_or_else(|| enhance::default_weights(ENHANCER_PRESET));
+                    let preset = enhance::Config::tiny();
+                    Some(
+                        enhance::load(&preset, &path).map_err(|e| MethodError::Enhancer {
+                            path,
+                            source: Box::new(e),
+                        })?,
+                    )
+                }
+                false => None,
+            };
+            Ok(Box::new(ProgressiveReconstructor::new(
+                learned,
+                enhancer,
+                RenderWith::Auto,
+            )))
         }
         other => Err(MethodError::Unknown(other.to_string())),
     }

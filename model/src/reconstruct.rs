@@ -40,4 +40,16 @@ pub trait Reconstructor {
 
     /// Reconstruct the scene seen by `views`; the first view is the reference.
     fn reconstruct(&mut self, views: &[StereoView<'_>]) -> Result<GaussianSet, ReconstructError>;
+
+    /// [`Reconstructor::reconstruct`] told the bin-local left cameras of the bin's frames
+    /// after the inputs (their poses known, their images not given, as in `eval`). Only the
+    /// progressive pass uses them, to place its pseudo views; the rest ignore them.
+    fn reconstruct_ahead(
+        &mut self,
+        views: &[StereoView<'_>],
+        ahead: &[Camera],
+    ) -> Result<GaussianSet, ReconstructError> {
+        let _ = ahead;
+        self.reconstruct(views)
+    }
 }

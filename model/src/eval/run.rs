@@ -177,8 +177,13 @@ fn evaluate_bin(
             right_camera: camera(f, Side::Right),
         })
         .collect();
+    // The bin's later poses are known here: the progressive pass puts its pseudo views there.
+    let ahead: Vec<Camera> = frames[inputs.len()..]
+        .iter()
+        .map(|f| camera(f, Side::Left))
+        .collect();
     let start = Instant::now();
-    let set = reconstructor.reconstruct(&inputs)?;
+    let set = reconstructor.reconstruct_ahead(&inputs, &ahead)?;
     let reconstruct_ms = start.elapsed().as_secs_f64() * 1e3;
 
     // Exact depth of the input views, when the drive has it (generated drives).

@@ -89,10 +89,49 @@ pub struct Config {
     /// --no-subsample` also asks).
     #[serde(default = "yes")]
     pub view_subsampling: bool,
+    /// Inference: StereoSplat+'s progressive pass (`model::progressive`): the bin map
+    /// G_base from the real pairs, pseudo stereo pairs rendered from it at the poses ahead,
+    /// enhanced, fed back as input pairs, and the Gaussians they add fused in by confidence.
+    #[serde(default)]
+    pub progressive: bool,
+    /// With `progressive`: pass the pseudo views through the one-step enhancer
+    /// (`model::enhance`); off re-injects the raw renders (the paper's ablation row).
+    #[serde(default = "yes")]
+    pub enhancer: bool,
+    /// With `progressive` and `enhancer`: the enhancer's weights (`None`: the shipped
+    /// `model/weights/enhancer_tiny.safetensors`).
+    #[serde(default)]
+    pub enhancer_weights: Option<std::path::PathBuf>,
+    /// With `progressive`: metres ahead of the first input camera, along the trajectory,
+    /// where the pseudo pairs go when the bin's later poses are not known (the node opens a
+    /// bin at its first frame); with them known (`eval`), the bin's centre and last poses.
+    #[serde(default = "pseudo_poses")]
+    pub pseudo_poses: Vec<f32>,
+    /// With `progressive`: a pseudo pair's Gaussian is added only where no earlier view
+    /// explains it (`pair_fusion`), here "more than this fraction behind that view's surface"
+    /// (or outside it): the disoccluded space the pass exists to fill. Tighter than the real
+    /// pairs' `pair_fusion_margin`, since a pseudo view rendered from G_base repeats G_base
+    /// wherever G_base has a surface.
+    #[serde(default = "pseudo_fusion_margin")]
+    pub pseudo_fusion_margin: f32,
+    /// Training: probability that each sampled input pair after the first is replaced by a
+    /// pseudo pair rendered from the current model (the paper's pseudo-view mixed training);
+    /// 0 trains on true pairs only.
+    #[serde(default)]
+    pub pseudo_mix: f32,
 }
 
 fn yes() -> bool {
     true
+}
+
+fn pseudo_fusion_margin() -> f32 {
+    0.1
+}
+
+/// Pseudo pairs at the centre and the end of an 8 m bin (`BinConfig::default`).
+fn pseudo_poses() -> Vec<f32> {
+    vec![4.0, 8.0]
 }
 
 /// The preset names [`Config::preset`] knows.
@@ -184,6 +223,12 @@ impl Config {
             volume_branch: false,
             volume: VolumeConfig::tiny(),
             view_subsampling: true,
+            progressive: false,
+            enhancer: true,
+            enhancer_weights: None,
+            pseudo_poses: pseudo_poses(),
+            pseudo_fusion_margin: pseudo_fusion_margin(),
+            pseudo_mix: 0.0,
         }
     }
 

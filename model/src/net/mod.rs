@@ -27,8 +27,8 @@ mod warm_start;
 pub use config::{Config, SettingError, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;
 pub use reconstructor::{
-    default_weights, images_and_cameras, to_set, to_set_counted, BranchReport,
-    LearnedReconstructor, LoadError,
+    default_weights, images_and_cameras, pair_fusion_flags, to_set, to_set_counted, BranchReport,
+    LearnedReconstructor, LoadError, Reconstruction,
 };
 pub use stereosplat::{every_nth_pixel, Prediction, StereoSplat, COST_STRIDE};
 pub use warm_start::{frozen, load_matching, WarmStart};

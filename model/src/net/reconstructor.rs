@@ -186,32 +186,52 @@ impl Reconstructor for LearnedReconstructor {
 
     fn reconstruct(&mut self, views: &[StereoView<'_>]) -> Result<GaussianSet, ReconstructError> {
         let (images, cameras) = images_and_cameras(views, &Device::Cpu)?;
+        Ok(self.reconstruct_tensors(&images, &cameras)?.set)
+    }
+}
+
+/// A bin map with the cost-volume prediction it came from (what the progressive pass joins
+/// its pseudo pairs to).
+pub struct Reconstruction {
+    /// The bin map, as [`Reconstructor::reconstruct`] returns it.
+    pub set: GaussianSet,
+    /// The cost-volume branch's prediction of the input views (no volume output).
+    pub cost_volume: Prediction,
+}
+
+impl LearnedReconstructor {
+    /// [`Reconstructor::reconstruct`] of `images` `(2K, 3, H, W)` in `[0, 1]` seen by
+    /// `cameras` (see [`images_and_cameras`]), keeping the cost-volume prediction.
+    pub fn reconstruct_tensors(
+        &mut self,
+        images: &Tensor,
+        cameras: &[Camera],
+    ) -> Result<Reconstruction, ReconstructError> {
         let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
-        let cfg = self.net.config();
+        let cfg = self.net.config().clone();
         let start = Instant::now();
-        let prediction = match cfg.joint_pairs || views.len() == 1 {
-            true => self.net.cost_volume(&images, &cameras),
-            false => self.pair_by_pair(&images, &cameras),
-        }
-        .map_err(backend)?;
+        let cost_volume = self
+            .cost_volume_prediction(images, cameras)
+            .map_err(backend)?;
         let cost_volume_ms = start.elapsed().as_secs_f64() * 1e3;
         let start = Instant::now();
         let prediction = self
             .net
-            .with_volume(prediction, &cameras)
+            .with_volume(cost_volume.clone(), cameras)
             .map_err(backend)?;
         let volume_ms = start.elapsed().as_secs_f64() * 1e3;
         let counts = prediction.counts();
         // Pair fusion judges the cost-volume Gaussians against the views' depth; the volume
         // branch's Gaussians (after them in the output) all pass it.
-        let surviving = match cfg.pair_fusion_margin {
-            Some(margin) if views.len() > 1 && prediction.cost_volume_output => {
-                let mut flags = fused(&prediction, &cameras, cfg, margin).map_err(backend)?;
-                flags.resize(counts.total(), true);
-                Some(flags)
-            }
-            _ => None,
-        };
+        let surviving = match prediction.cost_volume_output {
+            true => pair_fusion_flags(&prediction, cameras, &cfg, cfg.pair_fusion_margin)
+                .map_err(backend)?,
+            false => None,
+        }
+        .map(|mut flags| {
+            flags.resize(counts.total(), true);
+            flags
+        });
         let (set, kept) = to_set_counted(
             &prediction.output().map_err(backend)?,
             surviving.as_deref(),
@@ -236,14 +256,26 @@ impl Reconstructor for LearnedReconstructor {
             }
             _ => set,
         };
-        Ok(match cfg.min_view_weight {
-            Some(min_weight) => prune_unseen(&set, &cameras, min_weight),
+        let set = match cfg.min_view_weight {
+            Some(min_weight) => prune_unseen(&set, cameras, min_weight),
             None => set,
-        })
+        };
+        Ok(Reconstruction { set, cost_volume })
     }
-}
 
-impl LearnedReconstructor {
+    /// The cost-volume branch's prediction of the views: all together when the preset's
+    /// `joint_pairs` says so (or there is one pair), else pair by pair.
+    pub fn cost_volume_prediction(
+        &self,
+        images: &Tensor,
+        cameras: &[Camera],
+    ) -> candle_core::Result<Prediction> {
+        match self.net.config().joint_pairs || cameras.len() <= 2 {
+            true => self.net.cost_volume(images, cameras),
+            false => self.pair_by_pair(images, cameras),
+        }
+    }
+
     /// Each pair (views `2k`, `2k + 1`) through the cost-volume branch alone, the predictions
     /// joined in view order: the first pair's Gaussians are exactly what it gives alone. (The
     /// volume branch then sees all views at once: it reasons in the bin frame.)
@@ -255,6 +287,21 @@ impl LearnedReconstructor {
             })
             .collect::<candle_core::Result<Vec<_>>>()?;
         Prediction::cat(&parts)
+    }
+}
+
+/// Which of the cost-volume Gaussians of `prediction` (of `cameras`' views, pair after pair)
+/// survive the fusion of pairs (`pair_fusion`) with `margin` (the preset's
+/// `pair_fusion_margin` for real pairs): `None` with one pair or no margin (all survive).
+pub fn pair_fusion_flags(
+    prediction: &Prediction,
+    cameras: &[Camera],
+    cfg: &Config,
+    margin: Option<f32>,
+) -> candle_core::Result<Option<Vec<bool>>> {
+    match margin {
+        Some(margin) if cameras.len() > 2 => fused(prediction, cameras, cfg, margin).map(Some),
+        _ => Ok(None),
     }
 }
 

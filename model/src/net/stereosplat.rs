@@ -22,7 +22,8 @@ use crate::ops::{upsample_bilinear, SplatTensors};
 /// Image pixels per feature pixel of the cost volume (the paper's downscale factor).
 pub const COST_STRIDE: usize = 4;
 
-/// What one forward pass predicts.
+/// What one forward pass predicts (tensors share storage: a clone is cheap).
+#[derive(Clone, Debug)]
 pub struct Prediction {
     /// The cost-volume branch's Gaussians, `V * Hg * Wg` rows, view-major; nothing pruned
     /// (training needs all). Computed even when the branch's output is off, since their

@@ -1,0 +1,199 @@
+//! StereoSplat+'s progressive pass with the shipped `tiny` weights on a generated drive
+//! (136x40, never trained on): G_base is kept whole and first, the pseudo pairs add
+//! Gaussians at opacity x confidence, the pseudo views go to the bin's known later poses
+//! when given (and ahead along the trajectory otherwise), the identity-initialised enhancer
+//! gives exactly the raw renders' result, and black, saturated and identical-view inputs
+//! give finite maps. `methods::build` makes the pass from settings and names a missing
+//! enhancer file.
+
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+use candle_core::{DType, Device};
+use candle_nn::{VarBuilder, VarMap};
+use model::enhance::{self, Enhancer};
+use model::frame::{RgbImage, Side, StereoFrame};
+use model::generate::write_synthetic;
+use model::kitti360::Sequence;
+use model::methods::{build, MethodError};
+use model::net::{default_weights, Config, LearnedReconstructor};
+use model::progressive::ProgressiveReconstructor;
+use model::reconstruct::{Reconstructor, StereoView};
+use model::synth::SynthConfig;
+use renderer::{Camera, GaussianSet, RenderWith};
+
+/// A 12-frame drive, written once per test process (the tests run in parallel threads).
+fn drive() -> &'static (PathBuf, String) {
+    static DRIVE: OnceLock<(PathBuf, String)> = OnceLock::new();
+    DRIVE.get_or_init(|| {
+        let root =
+            std::env::temp_dir().join(format!("stereosplat-progressive-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let config = SynthConfig {
+            seed: 1_000_004,
+            frames: 12,
+            width: 136,
+            height: 40,
+            ..SynthConfig::default()
+        };
+        let name = write_synthetic(&root, &config, &mut |_, _| {}).unwrap();
+        (root, name)
+    })
+}
+
+/// The first frame, and the bin-local cameras of the first frame and of frames 1..12.
+fn bin() -> (StereoFrame, (Camera, Camera), Vec<Camera>) {
+    let (root, name) = drive();
+    let sequence = Sequence::open(root, name).unwrap();
+    let rig = sequence.rig();
+    let poses = sequence.frames();
+    let origin = poses[0].left_to_world;
+    let first = sequence.load_frame(poses[0].index).unwrap();
+    let cams = (
+        rig.local_camera(origin, origin, Side::Left),
+        rig.local_camera(origin, origin, Side::Right),
+    );
+    let ahead = poses[1..]
+        .iter()
+        .map(|p| rig.local_camera(origin, p.left_to_world, Side::Left))
+        .collect();
+    (first, cams, ahead)
+}
+
+fn view<'a>(left: &'a RgbImage, right: &'a RgbImage, cams: (Camera, Camera)) -> StereoView<'a> {
+    StereoView {
+        left,
+        right,
+        left_camera: cams.0,
+        right_camera: cams.1,
+    }
+}
+
+fn learned() -> LearnedReconstructor {
+    LearnedReconstructor::load(&Config::tiny(), &default_weights("tiny")).unwrap()
+}
+
+fn pass(enhancer: Option<Enhancer>) -> ProgressiveReconstructor {
+    ProgressiveReconstructor::new(learned(), enhancer, RenderWith::Cpu)
+}
+
+fn fresh_enhancer() -> Enhancer {
+    let varmap = VarMap::new();
+    let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+    Enhancer::new(vb, &enhance::Config::tiny()).unwrap()
+}
+
+fn assert_finite(set: &GaussianSet, what: &str) {
+    set.check_lengths().unwrap();
+    let finite = set.means.iter().all(|m| m.is_finite())
+        && set.log_scales.iter().all(|s| s.is_finite())
+        && set.rotations.iter().all(|q| q.is_finite())
+        && set.colors.iter().all(|c| c.is_finite())
+        && set
+            .opacities
+            .iter()
+            .chain(&set.confidences)
+            .all(|v| v.is_finite() && (0.0..=1.0).contains(v));
+    assert!(finite, "{what}: a non-finite Gaussian");
+}
+
+#[test]
+fn the_pass_keeps_g_base_first_and_adds_confidence_weighted_pseudo_gaussians() {
+    let (frame, cams, ahead) = bin();
+    let views = [view(&frame.left, &frame.right, cams)];
+    let base = learned().reconstruct(&views).unwrap();
+    let mut raw = pass(None);
+    let out = raw.reconstruct_ahead(&views, &ahead).unwrap();
+    let report = raw.last_report().unwrap();
+    assert_eq!(raw.name(), "stereosplat-tiny+raw");
+    assert_eq!(report.pseudo_pairs, 2);
+    assert_eq!(report.base_gaussians, base.len());
+    assert_eq!(out.len(), base.len() + report.added_gaussians);
+    // Fewer than the two pseudo pairs' grids (4 views of 68x20): fusion dropped what G_base
+    // explains.
+    assert!(
+        report.added_gaussians > 100 && report.added_gaussians < 4 * 68 * 20 * 3 / 4,
+        "{report:?}"
+    );
+    // G_base untouched, first.
+    assert_eq!(out.means[..base.len()], base.means[..]);
+    assert_eq!(out.opacities[..base.len()], base.opacities[..]);
+    // Every addition is at most as opaque as its confidence allows.
+    assert!((base.len()..out.len()).all(|i| out.opacities[i] <= out.confidences[i] + 1e-6));
+    assert_finite(&out, "raw pass");
+
+    // Without known poses the pseudo pairs go ahead along the camera's axis: another map.
+    let ahead_only = raw.reconstruct(&views).unwrap();
+    assert_eq!(raw.last_report().unwrap().pseudo_pairs, 2);
+    assert_ne!(ahead_only.len(), out.len());
+
+    // The enhancer starts as the identity: the same map as the raw renders give.
+    let mut enhanced = pass(Some(fresh_enhancer()));
+    assert_eq!(enhanced.name(), "stereosplat-tiny+");
+    let same = enhanced.reconstruct_ahead(&views, &ahead).unwrap();
+    // (Equal up to float rounding: the enhancer's output tensor is laid out differently.)
+    assert_eq!(same.len(), out.len());
+    assert!((0..out.len()).all(|i| {
+        let (a, b) = (same.get(i), out.get(i));
+        (a.mean - b.mean).abs().max_element() < 1e-3 && (a.opacity - b.opacity).abs() < 1e-4
+    }));
+    assert!(enhanced.last_report().unwrap().enhance_ms > 0.0);
+}
+
+#[test]
+fn black_saturated_and_identical_views_give_finite_maps() {
+    let (frame, cams, ahead) = bin();
+    let (w, h) = (frame.left.width, frame.left.height);
+    let flat = |v: f32| RgbImage {
+        width: w,
+        height: h,
+        data: vec![v; 3 * (w * h) as usize],
+    };
+    let (black, white) = (flat(0.0), flat(1.0));
+    let mut nan = flat(0.5);
+    nan.data[7] = f32::NAN;
+    let mut p = pass(Some(fresh_enhancer()));
+    for (what, left, right) in [
+        ("black", &black, &black),
+        ("saturated", &white, &white),
+        ("identical", &frame.left, &frame.left),
+        ("a NaN pixel", &nan, &nan),
+    ] {
+        let out = p
+            .reconstruct_ahead(&[view(left, right, cams)], &ahead)
+            .unwrap();
+        assert_finite(&out, what);
+        assert!(out.len() <= Config::tiny().max_gaussians);
+    }
+}
+
+#[test]
+fn settings_build_the_pass_and_a_missing_enhancer_is_named() {
+    let raw = build(
+        "stereosplat",
+        None,
+        None,
+        &["progressive=true".into(), "enhancer=false".into()],
+    )
+    .unwrap();
+    assert_eq!(raw.name(), "stereosplat-tiny+raw");
+    let missing = std::env::temp_dir().join("no-such-enhancer.safetensors");
+    let err = build(
+        "stereosplat",
+        None,
+        None,
+        &[
+            "progressive=true".into(),
+            format!("enhancer_weights={}", missing.display()),
+        ],
+    )
+    .err()
+    .unwrap();
+    assert!(matches!(&err, MethodError::Enhancer { path, .. } if *path == missing));
+    assert!(err.to_string().contains("enhancer=false"), "{err}");
+    // Off by default: the plain network.
+    assert_eq!(
+        build("stereosplat", None, None, &[]).unwrap().name(),
+        "stereosplat-tiny"
+    );
+}

@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# The paper's branch ablation (issue 15) at the `tiny` preset: four rows trained with the same
+# data (the transfer mix of scripts/transfer_data.sh), seed, schedule and warm start (the
+# shipped cost-volume weights; the volume branch starts from its seeded initialisation), then
+# evaluated on the same held-out drives as results/unseen_psnr (seeds 1000000 and 1000001,
+# 272x72, a bin every 5th frame, one input pair, LPIPS on):
+#   cv          Branch_CV: the cost-volume branch alone, no view subsampling
+#   3d          Branch_3D: the volume branch's Gaussians alone, no view subsampling
+#   cv3d        CV + 3D, no view subsampling
+#   stereosplat CV + 3D + stochastic view subsampling (1..3 input pairs per sample)
+# Every row is resumable: run the same command again after an interruption.
+#   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
+#   bash scripts/ablation_tiny.sh eval [ROW ...]      evaluate trained rows (default: all)
+#   bash scripts/ablation_tiny.sh all [STEPS]         train every row, then evaluate
+# Runs go to runs/ablation/<row>, evaluations to out/ablation/<row>.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+data=data/transfer
+heldout=data/heldout272
+base=model/weights/stereosplat_tiny.safetensors
+# STEREOSPLAT_BIN: a built binary to use as is (no cargo build), e.g. a copy that edits of
+# the tree cannot break while rows train.
+bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
+rows=(cv 3d cv3d stereosplat)
+
+# The settings of a row: the same on every train, resume and eval call.
+settings() {
+  case "$1" in
+    cv) echo "--set volume_branch=false --set view_subsampling=false" ;;
+    3d) echo "--set volume_branch=true --set cost_volume_branch=false --set view_subsampling=false" ;;
+    cv3d) echo "--set volume_branch=true --set view_subsampling=false" ;;
+    stereosplat) echo "--set volume_branch=true --set view_subsampling=true" ;;
+    *) echo "unknown row '$1' (rows: ${rows[*]})" >&2; exit 2 ;;
+  esac
+}
+
+train_row() {
+  local row="$1" steps="${2:-1500}" run="runs/ablation/$1"
+  read -ra set <<<"$(settings "$row")"
+  local flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4
+    --warmup 100 --seed 0 --depth-loss relative --rendered-depth-weight 0.5
+    --estimated-depth-weight 0.5 "${set[@]}")
+  if [ -f "$run/checkpoint/state.json" ]; then
+    "$bin" train "${flags[@]}" --resume
+  else
+    "$bin" train "${flags[@]}" --init "$base"
+  fi
+}
+
+eval_row() {
+  local row="$1"
+  read -ra set <<<"$(settings "$row")"
+  "$bin" eval --data "$heldout" --method stereosplat --preset tiny --stride 5 \
+    --weights "runs/ablation/$row/stereosplat_tiny.safetensors" "${set[@]}" \
+    --out "out/ablation/$row"
+}
+
+prepare() {
+  if [ ! -f "$data/rand_115/data_poses/synth_drive_0000115_sync/poses.txt" ]; then
+    bash scripts/transfer_data.sh "$data"
+  fi
+  if [ ! -f "$heldout/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
+    "$bin" synth-heldout --out "$heldout" --sequences 2 --frames 300 --width 272 --height 72
+  fi
+}
+
+[ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
+prepare
+case "${1:-all}" in
+  train) train_row "$2" "${3:-1500}" ;;
+  eval)
+    shift
+    for row in "${@:-${rows[@]}}"; do eval_row "$row"; done
+    ;;
+  all)
+    for row in "${rows[@]}"; do train_row "$row" "${2:-1500}"; done
+    for row in "${rows[@]}"; do eval_row "$row"; done
+    ;;
+  *) echo "usage: $0 train ROW [STEPS] | eval [ROW ...] | all [STEPS]" >&2; exit 2 ;;
+esac

@@ -168,6 +168,30 @@ fn black_saturated_and_identical_views_give_finite_maps() {
 }
 
 #[test]
+fn pseudo_views_behind_far_outside_or_of_an_empty_map_are_harmless() {
+    let (frame, cams, _) = bin();
+    let views = [view(&frame.left, &frame.right, cams)];
+    let base_len = learned().reconstruct(&views).unwrap().len();
+    // Pairs 20 m behind the input and 1e4 m ahead (far outside every Gaussian): the renders
+    // are mostly empty (all transparent), the enhancer and the network still give finite maps
+    // and G_base stays whole.
+    let cfg = Config::tiny()
+        .with_settings(&["pseudo_poses=[-20.0, 10000.0]"])
+        .unwrap();
+    let inner = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+    let mut p = ProgressiveReconstructor::new(inner, Some(fresh_enhancer()), RenderWith::Cpu);
+    let out = p.reconstruct(&views).unwrap();
+    assert_eq!(p.last_report().unwrap().pseudo_pairs, 2);
+    assert!(out.len() >= base_len);
+    assert_finite(&out, "behind and far");
+    // G_base empty (a budget of 0): nothing to render, nothing may be added, no error.
+    let cfg = Config::tiny().with_settings(&["max_gaussians=0"]).unwrap();
+    let inner = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+    let mut p = ProgressiveReconstructor::new(inner, Some(fresh_enhancer()), RenderWith::Cpu);
+    assert!(p.reconstruct(&views).unwrap().is_empty());
+}
+
+#[test]
 fn settings_build_the_pass_and_a_missing_enhancer_is_named() {
     let raw = build(
         "stereosplat",

@@ -20,8 +20,8 @@ pub struct PseudoPair {
 /// the bin frame): at the centre and last of `ahead` (bin-local left cameras of the bin's
 /// later frames) when given, else at each of `distances` metres ahead. "Ahead" is the
 /// direction from the first to the last real left camera when they are more than 1 cm
-/// apart, else the first camera's viewing axis. Non-finite or negative distances are
-/// skipped; an empty `real` gives none.
+/// apart, else the first camera's viewing axis; a negative distance puts the pair behind.
+/// Non-finite distances are skipped; an empty `real` gives none.
 pub fn pseudo_pairs(
     real: &[(Camera, Camera)],
     ahead: &[Camera],
@@ -58,7 +58,7 @@ pub fn pseudo_pairs(
     };
     distances
         .iter()
-        .filter(|d| d.is_finite() && **d >= 0.0)
+        .filter(|d| d.is_finite())
         .map(|&d| {
             pair(Camera {
                 position: last_left.position + direction * d,
@@ -108,9 +108,9 @@ mod tests {
         let turn = Quat::from_rotation_y(-1.2);
         let one = [rig_at(turn, far)];
         let pairs = pseudo_pairs(&one, &[], &[4.0, 8.0, f32::NAN, -1.0]);
-        assert_eq!(pairs.len(), 2);
+        assert_eq!(pairs.len(), 3);
         let forward = turn * Vec3::Z;
-        for (p, d) in pairs.iter().zip([4.0, 8.0]) {
+        for (p, d) in pairs.iter().zip([4.0, 8.0, -1.0]) {
             let moved = p.left.position - far;
             assert!((moved - forward * d).length() < 0.02, "{moved:?}");
             assert!((p.right.position - p.left.position).length() - 0.6 < 1e-2);

@@ -13,6 +13,7 @@ pub(crate) mod checkpoint;
 mod data;
 mod log;
 mod loss;
+mod pseudo_mix;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -29,6 +30,7 @@ pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Targ
 pub(crate) use data::{draw_targets, BinInputs};
 pub use log::{TrainLog, LOG_COLUMNS};
 pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};
+pub use pseudo_mix::mix_pseudo_pairs;
 
 use crate::bins::BinConfig;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
@@ -158,8 +160,9 @@ struct State {
 }
 
 /// Whether two presets build the same network and train it alike: the settings of inference
-/// alone (opacity floor, budget, pair fusion, joint pairs, merging, pruning) do not count, nor
-/// the volume branch's sizes while the branch is off (checkpoints from before the branch
+/// alone (opacity floor, budget, pair fusion, joint pairs, merging, pruning, the progressive
+/// pass) do not count, nor the schedule-like view subsampling and pseudo-view mixing (a run
+/// may change them when it resumes), nor the volume branch's sizes while the branch is off (checkpoints from before the branch
 /// existed read them as `tiny`'s).
 fn same_network(a: &Config, b: &Config) -> bool {
     let training = |c: &Config| Config {
@@ -170,6 +173,12 @@ fn same_network(a: &Config, b: &Config) -> bool {
         min_view_weight: None,
         joint_pairs: false,
         view_subsampling: true,
+        progressive: false,
+        enhancer: true,
+        enhancer_weights: None,
+        pseudo_poses: Vec::new(),
+        pseudo_fusion_margin: 0.0,
+        pseudo_mix: 0.0,
         volume: match c.volume_branch {
             true => c.volume.clone(),
             false => VolumeConfig::default(),
@@ -270,7 +279,13 @@ impl Trainer {
         while self.run.optimizer.step < self.cfg.steps && !stop() {
             let step = self.run.optimizer.step + 1;
             let mut rng = ChaCha8Rng::seed_from_u64(mix(self.cfg.seed, step));
-            let sample = self.data.sample(&mut rng, &self.cfg.sample, &Device::Cpu)?;
+            let mut sample = self.data.sample(&mut rng, &self.cfg.sample, &Device::Cpu)?;
+            mix_pseudo_pairs(
+                &self.net,
+                &mut sample,
+                self.net.config().pseudo_mix,
+                &mut rng,
+            )?;
             let prediction = self.net.forward(&sample.images, &sample.cameras)?;
             let l = losses(&prediction, &sample, &self.lpips, &self.cfg.loss, &settings)?;
             let (lr, grad_norm) =
@@ -386,6 +401,12 @@ mod tests {
             ..small.clone()
         };
         assert!(same_network(&old, &small));
+        // Nor do the progressive pass's settings, inference and training alike.
+        let plus = small
+            .clone()
+            .with_settings(&["progressive=true", "pseudo_mix=0.5", "pseudo_poses=[3.0]"])
+            .unwrap();
+        assert!(same_network(&plus, &small));
         // With the branch on, its sizes are the network's.
         let on = |c: &Config| Config {
             volume_branch: true,

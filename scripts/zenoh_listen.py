@@ -134,7 +134,8 @@ def summarize(typename, msg):
             'bin_id', 'first_frame_arrival_ns', 'bin_close_ns', 'model_start_ns',
             'model_end_ns', 'render_end_ns', 'publish_ns', 'queue_depth', 'drops',
             'bad_messages', 'check_verdict', 'check_action', 'fallback_verdict',
-            'check_samples')}
+            'check_samples', 'base_end_ns', 'pseudo_render_end_ns', 'enhance_end_ns',
+            'plus_end_ns', 'fuse_end_ns')}
         fields.update({name: float(getattr(msg, name))
                        for name in ('check_score', 'fallback_score')})
         return fields

@@ -33,6 +33,22 @@ pub enum ReconstructError {
     Backend(String),
 }
 
+/// Where the last reconstruction's time went, stage by stage, in milliseconds (the
+/// progressive pass reports it; the node turns it into `BinLatency` stamps).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ModelSplit {
+    /// G_base: the network on the real pairs, their fusion, floor and budget.
+    pub base_ms: f64,
+    /// Rendering the pseudo views from G_base.
+    pub pseudo_render_ms: f64,
+    /// The enhancer on the pseudo views (0 with it off).
+    pub enhance_ms: f64,
+    /// The pseudo pairs through the network (G_plus's new part).
+    pub plus_ms: f64,
+    /// Confidence-guided fusion of G_base and G_plus.
+    pub fuse_ms: f64,
+}
+
 /// Turns one or more stereo views of a stretch of road into Gaussians in the views' frame.
 pub trait Reconstructor {
     /// A short name for tables and logs (`sgm`, `stereosplat-tiny`).
@@ -51,5 +67,11 @@ pub trait Reconstructor {
     ) -> Result<GaussianSet, ReconstructError> {
         let _ = ahead;
         self.reconstruct(views)
+    }
+
+    /// The stage times of the last reconstruction when the reconstructor splits them (the
+    /// progressive pass); `None` otherwise, or when the last reconstruction failed.
+    fn last_split(&self) -> Option<ModelSplit> {
+        None
     }
 }

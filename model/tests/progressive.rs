@@ -137,7 +137,13 @@ fn the_pass_keeps_g_base_first_and_adds_confidence_weighted_pseudo_gaussians() {
         let (a, b) = (same.get(i), out.get(i));
         (a.mean - b.mean).abs().max_element() < 1e-3 && (a.opacity - b.opacity).abs() < 1e-4
     }));
-    assert!(enhanced.last_report().unwrap().enhance_ms > 0.0);
+    let split = enhanced.last_split().unwrap();
+    assert!(
+        split.enhance_ms > 0.0 && split.base_ms > 0.0 && split.plus_ms > 0.0,
+        "{split:?}"
+    );
+    assert_eq!(raw.last_split().unwrap().enhance_ms, 0.0);
+    assert_eq!(learned().last_split(), None);
 }
 
 #[test]

@@ -163,6 +163,7 @@ fn bin_latency() -> BinLatency {
         check_samples: 900,
         check_score: 0.93,
         fallback_score: 0.0,
+        ..BinLatency::default()
     }
 }
 

@@ -31,8 +31,22 @@ fn every_sample_round_trips_through_cdr() {
         s.diagnostics
     );
     // BinLatency: u64 + 6 i64 + u32 (+4 pad) + 2 u64, then 3 u8 (+1 pad) + u32 + 2 f64,
-    // after the 4-byte header.
-    assert_eq!(s.latency.encode().len(), 4 + 8 + 48 + 8 + 16 + 4 + 4 + 16);
+    // after the 4-byte header; version 2 appends 5 i64.
+    let v2 = s.latency.encode();
+    assert_eq!(v2.len(), 4 + 8 + 48 + 8 + 16 + 4 + 4 + 16 + 40);
+    // A version-1 payload (recordings from before the split) is version 2 cut short, with
+    // or without a writer's end padding: it decodes with the stage stamps 0.
+    let v1 = BinLatency {
+        base_end_ns: 0,
+        pseudo_render_end_ns: 0,
+        enhance_end_ns: 0,
+        plus_end_ns: 0,
+        fuse_end_ns: 0,
+        ..s.latency
+    };
+    for cut in [40, 32] {
+        assert_eq!(BinLatency::decode(&v2[..v2.len() - cut]).unwrap(), v1);
+    }
 }
 
 #[test]

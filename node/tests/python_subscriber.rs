@@ -254,6 +254,11 @@ async fn a_python_zenoh_subscriber_decodes_with_rosbags_what_a_rust_subscriber_d
             ("check_action", r.check_action as i128),
             ("fallback_verdict", r.fallback_verdict as i128),
             ("check_samples", r.check_samples as i128),
+            ("base_end_ns", r.base_end_ns as i128),
+            ("pseudo_render_end_ns", r.pseudo_render_end_ns as i128),
+            ("enhance_end_ns", r.enhance_end_ns as i128),
+            ("plus_end_ns", r.plus_end_ns as i128),
+            ("fuse_end_ns", r.fuse_end_ns as i128),
         ];
         for (name, value) in fields {
             assert_eq!(p[name].as_i64().map(i128::from), Some(value), "{name}");

@@ -165,3 +165,22 @@ fn a_panic_is_reported_on_its_bin_and_the_worker_goes_on() {
     assert!(out[2].result.is_ok());
     worker.shutdown();
 }
+
+#[test]
+fn the_progressive_pass_splits_the_model_time_into_its_stages() {
+    let (tx, rx) = mpsc::channel();
+    let settings = ["progressive=true".to_string(), "enhancer=false".to_string()];
+    let plus = model::methods::build("stereosplat", None, None, &settings).unwrap();
+    let worker = Worker::spawn(plus, RenderWith::Cpu, 4, OnCheckFail::Flag, maps_to(tx));
+    worker.submit(jobs(1).remove(0));
+    let o = collect(&rx, 1).remove(0);
+    assert!(o.result.as_ref().unwrap().len() > 1000);
+    let s = o.stamps;
+    // G_base, pseudo render, enhance (off: no time), plus, fuse: in order within the model.
+    let ends = s.stage_end_ns;
+    assert!(s.model_start_ns < ends[0], "{s:?}");
+    assert!(ends.windows(2).all(|w| w[0] <= w[1]), "{s:?}");
+    assert_eq!(ends[1], ends[2], "the enhancer is off");
+    assert!(ends[4] <= s.model_end_ns, "{s:?}");
+    worker.shutdown();
+}

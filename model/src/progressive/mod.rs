@@ -27,20 +27,14 @@ use renderer::{Camera, GaussianSet, Raster, RenderOutput, RenderSettings, Render
 
 use crate::enhance::Enhancer;
 use crate::net::{images_and_cameras, pair_fusion_flags, to_set, LearnedReconstructor, Prediction};
-use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
+use crate::reconstruct::{ModelSplit, ReconstructError, Reconstructor, StereoView};
 use pseudo_poses::{pseudo_pairs, PseudoPair};
 
 /// Where the time of the last pass went, and what it added.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ProgressiveReport {
-    /// Milliseconds of G_base (both branches, fusion of real pairs, floor, budget).
-    pub base_ms: f64,
-    /// Milliseconds rendering the pseudo views.
-    pub render_ms: f64,
-    /// Milliseconds in the enhancer (0 with it off).
-    pub enhance_ms: f64,
-    /// Milliseconds of the pseudo pairs' cost-volume prediction and the fusion.
-    pub plus_ms: f64,
+    /// Milliseconds per stage.
+    pub split: ModelSplit,
     /// Pseudo stereo pairs made.
     pub pseudo_pairs: usize,
     /// Gaussians of G_base.
@@ -92,12 +86,16 @@ impl ProgressiveReconstructor {
         ahead: &[Camera],
     ) -> Result<GaussianSet, ReconstructError> {
         let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
+        self.last = None;
         let start = Instant::now();
         let (images, cameras) = images_and_cameras(views, &Device::Cpu)?;
         let base = self.inner.reconstruct_tensors(&images, &cameras)?;
         let cfg = self.inner.net().config().clone();
         let mut report = ProgressiveReport {
-            base_ms: ms(start),
+            split: ModelSplit {
+                base_ms: ms(start),
+                ..Default::default()
+            },
             base_gaussians: base.set.len(),
             ..Default::default()
         };
@@ -124,7 +122,7 @@ impl ProgressiveReconstructor {
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| ReconstructError::Backend(format!("pseudo view render: {e}")))?;
         let rendered = render_tensor(&renders).map_err(backend)?;
-        report.render_ms = ms(start);
+        report.split.pseudo_render_ms = ms(start);
 
         let start = Instant::now();
         let pseudo_images = match &self.enhancer {
@@ -134,7 +132,7 @@ impl ProgressiveReconstructor {
                     .and_then(|first| first.repeat((pseudo_cameras.len(), 1, 1, 1)))
                     .map_err(backend)?;
                 let out = enhancer.forward(&rendered, &reference).map_err(backend)?;
-                report.enhance_ms = ms(start);
+                report.split.enhance_ms = ms(start);
                 out
             }
             None => rendered
@@ -159,8 +157,10 @@ impl ProgressiveReconstructor {
         flags[..base_rows].fill(false);
         let added =
             to_set(&joined.splats, Some(&flags), cfg.opacity_floor, usize::MAX).map_err(backend)?;
+        report.split.plus_ms = ms(start);
+        let start = Instant::now();
         let fused = fusion::fuse(&base.set, &added, cfg.opacity_floor, cfg.max_gaussians);
-        report.plus_ms = ms(start);
+        report.split.fuse_ms = ms(start);
         report.pseudo_pairs = pseudo.len();
         report.added_gaussians = fused.len() - report.base_gaussians;
         self.last = Some(report);
@@ -183,6 +183,10 @@ impl Reconstructor for ProgressiveReconstructor {
         ahead: &[Camera],
     ) -> Result<GaussianSet, ReconstructError> {
         self.run(views, ahead)
+    }
+
+    fn last_split(&self) -> Option<ModelSplit> {
+        self.last.map(|r| r.split)
     }
 }
 

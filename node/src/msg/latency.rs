@@ -11,7 +11,11 @@
 //! `int64 model_start_ns`, `int64 model_end_ns`, `int64 render_end_ns`, `int64 publish_ns`,
 //! `uint32 queue_depth`, `uint64 drops`, `uint64 bad_messages`, `uint8 check_verdict`,
 //! `uint8 check_action`, `uint8 fallback_verdict`, `uint32 check_samples`,
-//! `float64 check_score`, `float64 fallback_score`.
+//! `float64 check_score`, `float64 fallback_score`, and since version 2 (stop 25) the
+//! progressive pass's stage stamps `int64 base_end_ns`, `int64 pseudo_render_end_ns`,
+//! `int64 enhance_end_ns`, `int64 plus_end_ns`, `int64 fuse_end_ns`. Version 2 only appends,
+//! so a version-1 payload (recordings from before) is a version-2 payload cut short: the
+//! reader takes a payload that ends after `fallback_score` as version 1, its stage stamps 0.
 //!
 //! `stereosplat_msgs/msg/Diagnostics`: `int64 stamp_ns`, `Counter[] counters`, where
 //! `stereosplat_msgs/msg/Counter` is `string kind`, `uint64 count`.
@@ -65,6 +69,30 @@ pub struct BinLatency {
     pub check_score: f64,
     /// The same for SGM's map when `check_action` is 3, else 0.
     pub fallback_score: f64,
+    /// The progressive pass's stages, splitting `model_start_ns..model_end_ns` (0 without
+    /// the pass, and in version-1 payloads): G_base done.
+    pub base_end_ns: i64,
+    /// Pseudo views rendered.
+    pub pseudo_render_end_ns: i64,
+    /// Pseudo views enhanced (equal to `pseudo_render_end_ns` with the enhancer off).
+    pub enhance_end_ns: i64,
+    /// Pseudo pairs through the network (G_plus).
+    pub plus_end_ns: i64,
+    /// G_base and G_plus fused (the self-check follows, up to `model_end_ns`).
+    pub fuse_end_ns: i64,
+}
+
+impl BinLatency {
+    /// The stage stamps version 2 appended, in wire order.
+    fn stage_stamps(&self) -> [i64; 5] {
+        [
+            self.base_end_ns,
+            self.pseudo_render_end_ns,
+            self.enhance_end_ns,
+            self.plus_end_ns,
+            self.fuse_end_ns,
+        ]
+    }
 }
 
 impl Message for BinLatency {
@@ -91,10 +119,13 @@ impl Message for BinLatency {
         w.u32(self.check_samples);
         w.f64(self.check_score);
         w.f64(self.fallback_score);
+        for t in self.stage_stamps() {
+            w.i64(t);
+        }
     }
 
     fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
-        Ok(Self {
+        let mut l = Self {
             bin_id: r.u64("bin_id")?,
             first_frame_arrival_ns: r.i64("first_frame_arrival_ns")?,
             bin_close_ns: r.i64("bin_close_ns")?,
@@ -111,7 +142,18 @@ impl Message for BinLatency {
             check_samples: r.u32("check_samples")?,
             check_score: r.f64("check_score")?,
             fallback_score: r.f64("fallback_score")?,
-        })
+            ..Self::default()
+        };
+        // Version 1 ends here (a writer may pad a payload's end to 4 or 8 bytes: version 2's
+        // 40 bytes of stamps are there or not).
+        if r.remaining() >= 5 * 8 {
+            l.base_end_ns = r.i64("base_end_ns")?;
+            l.pseudo_render_end_ns = r.i64("pseudo_render_end_ns")?;
+            l.enhance_end_ns = r.i64("enhance_end_ns")?;
+            l.plus_end_ns = r.i64("plus_end_ns")?;
+            l.fuse_end_ns = r.i64("fuse_end_ns")?;
+        }
+        Ok(l)
     }
 }
 

@@ -16,7 +16,7 @@ use std::thread::JoinHandle;
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 use glam::DAffine3;
 use model::frame::{RgbImage, Side, StereoFrame, StereoRig};
-use model::reconstruct::{Reconstructor, StereoView};
+use model::reconstruct::{ModelSplit, Reconstructor, StereoView};
 use renderer::{GaussianSet, Raster, RenderSettings};
 
 use super::self_check::{CheckOutcome, OnCheckFail, SelfCheck};
@@ -78,6 +78,27 @@ pub struct Stamps {
     pub render_end_ns: i64,
     /// The map was published.
     pub publish_ns: i64,
+    /// The progressive pass's stage ends within the model, in `BinLatency`'s order (G_base,
+    /// pseudo render, enhance, G_plus, fuse); all 0 without the pass.
+    pub stage_end_ns: [i64; 5],
+}
+
+impl Stamps {
+    /// Places the stages of `split` after `model_start_ns`, one after another.
+    pub fn set_split(&mut self, split: &ModelSplit) {
+        let mut t = self.model_start_ns;
+        let durations = [
+            split.base_ms,
+            split.pseudo_render_ms,
+            split.enhance_ms,
+            split.plus_ms,
+            split.fuse_ms,
+        ];
+        for (end, ms) in self.stage_end_ns.iter_mut().zip(durations) {
+            t += (ms * 1e6) as i64;
+            *end = t;
+        }
+    }
 }
 
 /// One bin for the worker: its first stereo frame and the rig.
@@ -291,6 +312,9 @@ fn run_job(
     stamps.model_start_ns = now_ns();
     let (result, check) = bin_map(reconstructor, self_check, &[view]);
     stamps.model_end_ns = now_ns();
+    if let Some(split) = reconstructor.last_split().filter(|_| result.is_ok()) {
+        stamps.set_split(&split);
+    }
     // The set goes out with the map; the render needs only a copy of what it draws.
     let to_render = match (&raster, &result) {
         (Some(_), Ok(set)) => Some(set.clone()),

@@ -1,7 +1,7 @@
 //! Percentiles of the node's per-bin latency ([`BinLatency`] messages), for `monitor`, the
 //! demo's summary and `bench node`.
 //!
-//! Every [`BinLatency`] gives up to five stage durations (nanoseconds on the node's clock):
+//! Every [`BinLatency`] gives up to ten stage durations (nanoseconds on the node's clock):
 //!
 //! | stage | from | to |
 //! | --- | --- | --- |
@@ -10,6 +10,11 @@
 //! | `model` | model start | model end |
 //! | `render` | model end | render end |
 //! | `close_to_publish` | bin close | map published |
+//! | `base` | model start | G_base done (progressive pass only, as the next four) |
+//! | `pseudo_render` | G_base done | pseudo views rendered |
+//! | `enhance` | pseudo views rendered | pseudo views enhanced |
+//! | `plus` | pseudo views enhanced | pseudo pairs through the network |
+//! | `fuse` | pseudo pairs done | G_base and G_plus fused |
 //!
 //! A stage is left out for a bin when either of its stamps is 0 (the bin never reached it).
 //! `close_to_publish` is usually **negative**: the bin's first stereo pair goes to the worker
@@ -87,7 +92,7 @@ impl CheckCounts {
 type Stamps = fn(&BinLatency) -> (i64, i64);
 
 /// Names and stamps of the stages, in the order of the module's table.
-const STAGES: [(&str, Stamps); 5] = [
+const STAGES: [(&str, Stamps); 10] = [
     ("arrival_to_publish", |l| {
         (l.first_frame_arrival_ns, l.publish_ns)
     }),
@@ -95,7 +100,16 @@ const STAGES: [(&str, Stamps); 5] = [
     ("model", |l| (l.model_start_ns, l.model_end_ns)),
     ("render", |l| (l.model_end_ns, l.render_end_ns)),
     ("close_to_publish", |l| (l.bin_close_ns, l.publish_ns)),
+    ("base", |l| (l.model_start_ns, l.base_end_ns)),
+    ("pseudo_render", |l| (l.base_end_ns, l.pseudo_render_end_ns)),
+    ("enhance", |l| (l.pseudo_render_end_ns, l.enhance_end_ns)),
+    ("plus", |l| (l.enhance_end_ns, l.plus_end_ns)),
+    ("fuse", |l| (l.plus_end_ns, l.fuse_end_ns)),
 ];
+
+/// The stages after this index split the model's time; they are shown only when some bin
+/// had the progressive pass.
+const SPLIT_FROM: usize = 5;
 
 /// Each stage's duration for one bin in nanoseconds, in [`STAGES`] order, `None` where a
 /// stamp is 0.
@@ -107,10 +121,15 @@ fn stage_ns(latency: &BinLatency) -> [Option<i64>; STAGES.len()] {
 }
 
 /// One bin's stage durations in milliseconds with the stages' names, in the order of the
-/// module's table, `None` where the bin lacks a stamp (for a live line per bin).
-pub fn bin_stages_ms(latency: &BinLatency) -> [(&'static str, Option<f64>); STAGES.len()] {
-    let durations = stage_ns(latency);
-    std::array::from_fn(|i| (STAGES[i].0, durations[i].map(|ns| ns as f64 / 1e6)))
+/// module's table, `None` where the bin lacks a stamp (for a live line per bin); the
+/// progressive pass's stages only when the bin had the pass.
+pub fn bin_stages_ms(latency: &BinLatency) -> Vec<(&'static str, Option<f64>)> {
+    stage_ns(latency)
+        .into_iter()
+        .enumerate()
+        .filter(|(i, ns)| *i < SPLIT_FROM || ns.is_some())
+        .map(|(i, ns)| (STAGES[i].0, ns.map(|ns| ns as f64 / 1e6)))
+        .collect()
 }
 
 impl LatencyStats {
@@ -145,6 +164,11 @@ impl LatencyStats {
             model: stage(2),
             render: stage(3),
             close_to_publish: stage(4),
+            base: stage(5),
+            pseudo_render: stage(6),
+            enhance: stage(7),
+            plus: stage(8),
+            fuse: stage(9),
             max_queue_depth: self.max_queue_depth,
             drops: self.last.map_or(0, |l| l.drops),
             bad_messages: self.last.map_or(0, |l| l.bad_messages),
@@ -207,6 +231,16 @@ pub struct LatencySummary {
     pub render: Option<StageSummary>,
     /// Bin close to map published; negative when the map was out before the bin closed.
     pub close_to_publish: Option<StageSummary>,
+    /// The progressive pass's G_base (`null` without the pass, as the next four).
+    pub base: Option<StageSummary>,
+    /// Rendering the pseudo views.
+    pub pseudo_render: Option<StageSummary>,
+    /// The enhancer on the pseudo views.
+    pub enhance: Option<StageSummary>,
+    /// The pseudo pairs through the network.
+    pub plus: Option<StageSummary>,
+    /// Fusing G_base and G_plus.
+    pub fuse: Option<StageSummary>,
     /// Largest worker queue depth any bin reported.
     pub max_queue_depth: u32,
     /// Bins dropped by the worker queue, as of the last bin pushed (the node counts since
@@ -220,13 +254,18 @@ pub struct LatencySummary {
 
 impl LatencySummary {
     /// Every stage with its name, in the order of the module's table.
-    pub fn stages(&self) -> [(&'static str, Option<StageSummary>); 5] {
+    pub fn stages(&self) -> [(&'static str, Option<StageSummary>); STAGES.len()] {
         [
             (STAGES[0].0, self.arrival_to_publish),
             (STAGES[1].0, self.wait),
             (STAGES[2].0, self.model),
             (STAGES[3].0, self.render),
             (STAGES[4].0, self.close_to_publish),
+            (STAGES[5].0, self.base),
+            (STAGES[6].0, self.pseudo_render),
+            (STAGES[7].0, self.enhance),
+            (STAGES[8].0, self.plus),
+            (STAGES[9].0, self.fuse),
         ]
     }
 }
@@ -240,7 +279,11 @@ impl fmt::Display for LatencySummary {
             "{:<20} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9}",
             "stage (ms)", "count", "p50", "p90", "p99", "max", "mean"
         )?;
-        for (name, stage) in self.stages() {
+        let progressive = self.base.is_some();
+        for (i, (name, stage)) in self.stages().into_iter().enumerate() {
+            if i >= SPLIT_FROM && !progressive {
+                continue;
+            }
             match stage {
                 Some(s) => writeln!(
                     f,
@@ -381,6 +424,41 @@ mod tests {
                 ("close_to_publish", None),
             ]
         );
+    }
+
+    #[test]
+    fn the_progressive_pass_splits_the_model_stage() {
+        let mut l = bin(0, 10, 3, 40, 0, 100);
+        let start = l.model_start_ns;
+        [
+            l.base_end_ns,
+            l.pseudo_render_end_ns,
+            l.enhance_end_ns,
+            l.plus_end_ns,
+            l.fuse_end_ns,
+        ] = [12, 15, 15, 30, 31].map(|ms| start + ms * MS);
+        let stages = bin_stages_ms(&l);
+        assert_eq!(
+            stages[5..],
+            [
+                ("base", Some(12.0)),
+                ("pseudo_render", Some(3.0)),
+                ("enhance", Some(0.0)),
+                ("plus", Some(15.0)),
+                ("fuse", Some(1.0)),
+            ]
+        );
+        let mut stats = LatencyStats::new();
+        stats.push(&l);
+        let s = stats.summary();
+        assert_eq!(s.plus.unwrap().p50_ms, 15.0);
+        assert!(s.to_string().contains("pseudo_render"));
+        // Without the pass those stages are neither listed nor printed.
+        let plain = bin(1, 10, 3, 40, 0, 100);
+        assert_eq!(bin_stages_ms(&plain).len(), 5);
+        let mut stats = LatencyStats::new();
+        stats.push(&plain);
+        assert!(!stats.summary().to_string().contains("pseudo_render"));
     }
 
     #[test]

@@ -363,6 +363,11 @@ impl<'a> Outputs<'a> {
                 check_samples: check.primary.map_or(0, |r| r.samples),
                 check_score: score(check.primary.as_ref()) as f64,
                 fallback_score: score(check.fallback.as_ref()) as f64,
+                base_end_ns: s.stage_end_ns[0],
+                pseudo_render_end_ns: s.stage_end_ns[1],
+                enhance_end_ns: s.stage_end_ns[2],
+                plus_end_ns: s.stage_end_ns[3],
+                fuse_end_ns: s.stage_end_ns[4],
             };
             self.put(keys::LATENCY, msg.encode()).await?;
             let diagnostics = self.counters.diagnostics(now_ns());

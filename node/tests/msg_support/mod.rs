@@ -99,6 +99,11 @@ pub fn samples() -> Samples {
             check_samples: 1023,
             check_score: 0.125,
             fallback_score: 0.9375,
+            base_end_ns: stamp + 1_100_000_000,
+            pseudo_render_end_ns: stamp + 1_120_000_000,
+            enhance_end_ns: stamp + 1_150_000_000,
+            plus_end_ns: stamp + 1_240_000_000,
+            fuse_end_ns: stamp + 1_245_000_000,
         },
         diagnostics: Diagnostics {
             stamp_ns: -42,

@@ -77,7 +77,9 @@ pub fn latency(m: &BinLatency) -> Value {
            "bad_messages": m.bad_messages, "check_verdict": m.check_verdict,
            "check_action": m.check_action, "fallback_verdict": m.fallback_verdict,
            "check_samples": m.check_samples, "check_score": m.check_score,
-           "fallback_score": m.fallback_score})
+           "fallback_score": m.fallback_score, "base_end_ns": m.base_end_ns,
+           "pseudo_render_end_ns": m.pseudo_render_end_ns, "enhance_end_ns": m.enhance_end_ns,
+           "plus_end_ns": m.plus_end_ns, "fuse_end_ns": m.fuse_end_ns})
 }
 
 /// A `Diagnostics` as its JSON field values.

@@ -198,6 +198,29 @@ fn pseudo_views_behind_far_outside_or_of_an_empty_map_are_harmless() {
 }
 
 #[test]
+fn every_nth_bin_gets_the_pass_when_asked() {
+    let (frame, cams, ahead) = bin();
+    let views = [view(&frame.left, &frame.right, cams)];
+    let base = learned().reconstruct(&views).unwrap();
+    let cfg = Config::tiny()
+        .with_settings(&["progressive_every=3"])
+        .unwrap();
+    let inner = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+    let mut p = ProgressiveReconstructor::new(inner, None, RenderWith::Cpu);
+    let passes: Vec<usize> = (0..4)
+        .map(|_| {
+            let out = p.reconstruct_ahead(&views, &ahead).unwrap();
+            let report = p.last_report().unwrap();
+            if report.pseudo_pairs == 0 {
+                assert_eq!(out, base);
+            }
+            report.pseudo_pairs
+        })
+        .collect();
+    assert_eq!(passes, [2, 0, 0, 2]);
+}
+
+#[test]
 fn settings_build_the_pass_and_a_missing_enhancer_is_named() {
     let raw = build(
         "stereosplat",

@@ -102,6 +102,11 @@ pub struct Config {
     /// `model/weights/enhancer_tiny.safetensors`).
     #[serde(default)]
     pub enhancer_weights: Option<std::path::PathBuf>,
+    /// With `progressive`: run the pass on every n-th bin only (1: every bin), the others
+    /// publish G_base; the node's per-bin choice when the whole pass cannot keep up with the
+    /// drive (the worker queue's keep-newest policy and drop counters stay as they are).
+    #[serde(default = "one")]
+    pub progressive_every: usize,
     /// With `progressive`: metres ahead of the first input camera, along the trajectory,
     /// where the pseudo pairs go when the bin's later poses are not known (the node opens a
     /// bin at its first frame); with them known (`eval`), the bin's centre and last poses.
@@ -123,6 +128,10 @@ pub struct Config {
 
 fn yes() -> bool {
     true
+}
+
+fn one() -> usize {
+    1
 }
 
 fn pseudo_fusion_margin() -> f32 {
@@ -224,6 +233,7 @@ impl Config {
             volume: VolumeConfig::tiny(),
             view_subsampling: true,
             progressive: false,
+            progressive_every: 1,
             enhancer: true,
             enhancer_weights: None,
             pseudo_poses: pseudo_poses(),

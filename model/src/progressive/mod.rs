@@ -51,6 +51,8 @@ pub struct ProgressiveReconstructor {
     raster: Option<Raster>,
     name: String,
     last: Option<ProgressiveReport>,
+    /// Reconstructions so far (the preset's `progressive_every` picks the bins by it).
+    bins: u64,
 }
 
 impl ProgressiveReconstructor {
@@ -71,6 +73,7 @@ impl ProgressiveReconstructor {
             raster: None,
             name,
             last: None,
+            bins: 0,
         }
     }
 
@@ -103,7 +106,13 @@ impl ProgressiveReconstructor {
             .iter()
             .map(|v| (v.left_camera, v.right_camera))
             .collect();
-        let pseudo = pseudo_pairs(&real, ahead, &cfg.pseudo_poses);
+        let every = cfg.progressive_every as u64;
+        let due = every > 0 && self.bins.is_multiple_of(every);
+        self.bins += 1;
+        let pseudo = match due {
+            true => pseudo_pairs(&real, ahead, &cfg.pseudo_poses),
+            false => Vec::new(),
+        };
         if pseudo.is_empty() || !base.cost_volume.cost_volume_output {
             self.last = Some(report);
             return Ok(base.set);

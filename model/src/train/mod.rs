@@ -174,6 +174,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         joint_pairs: false,
         view_subsampling: true,
         progressive: false,
+        progressive_every: 1,
         enhancer: true,
         enhancer_weights: None,
         pseudo_poses: Vec::new(),

@@ -298,6 +298,38 @@ fn shipped_tiny_weights_warm_start_the_cost_volume_part() {
     assert_eq!(values(&a.splats.colors), values(&b.splats.colors));
 }
 
+#[test]
+fn volume_fusion_drops_only_volume_gaussians_the_input_views_explain() {
+    let (varmap, _) = network(&config(&[]));
+    let sample = sample_of(&config(&[]), 1, 7);
+    let images = images_of(&sample);
+    let view = model::reconstruct::StereoView {
+        left: &images[0],
+        right: &images[1],
+        left_camera: sample.cameras[0],
+        right_camera: sample.cameras[1],
+    };
+    // The same weights under both settings.
+    let report = |settings: &[&str]| {
+        let cfg = config(settings);
+        let tensors = VarBuilder::from_tensors(frozen(&varmap), DType::F32, &Device::Cpu);
+        let mut rec = LearnedReconstructor::from_net(StereoSplat::new(tensors, &cfg).unwrap(), 0);
+        use model::reconstruct::Reconstructor;
+        let set = rec.reconstruct(&[view]).unwrap();
+        assert!(set.means.iter().all(|m| m.is_finite()));
+        rec.last_report().unwrap()
+    };
+    // All of the branch's Gaussians (no opacity floor); a margin so wide that anything in
+    // an input image counts as explained by these random weights' depth.
+    let all = report(&["opacity_floor=0.0"]);
+    let fused = report(&["opacity_floor=0.0", "volume_fusion_margin=1000.0"]);
+    assert_eq!(all.cost_volume_gaussians, fused.cost_volume_gaussians);
+    assert!(
+        fused.volume_gaussians < all.volume_gaussians,
+        "{all:?} {fused:?}"
+    );
+}
+
 fn frozen(varmap: &VarMap) -> std::collections::HashMap<String, Tensor> {
     model::net::frozen(varmap).unwrap()
 }

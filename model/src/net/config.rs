@@ -81,6 +81,12 @@ pub struct Config {
     /// Whether the 3D-volume (triplane) branch runs and adds its Gaussians.
     #[serde(default)]
     pub volume_branch: bool,
+    /// Drop the volume branch's Gaussians that an input view already explains: inside its
+    /// image and less than this fraction behind its estimated surface (`pair_fusion`), so
+    /// the volume adds only what the views did not see; `None` keeps them all. Inference
+    /// only: training renders every Gaussian.
+    #[serde(default)]
+    pub volume_fusion_margin: Option<f32>,
     /// Sizes of the volume branch (`--set volume.top_k=2000` changes one).
     #[serde(default)]
     pub volume: VolumeConfig,
@@ -230,6 +236,7 @@ impl Config {
             min_view_weight: None,
             cost_volume_branch: true,
             volume_branch: false,
+            volume_fusion_margin: None,
             volume: VolumeConfig::tiny(),
             view_subsampling: true,
             progressive: false,

@@ -55,6 +55,37 @@ pub fn surviving(
         .collect()
 }
 
+/// Which of `points` (3 values each, bin frame; Gaussians of no view, such as the volume
+/// branch's) no view explains: each is tested against every view of `cameras`, whose
+/// estimated depths on its `hg` x `wg` grid (view-major) are `depths`, with `margin` as in
+/// [`surviving`]. Non-finite points survive here (the pruning drops them).
+pub fn unexplained(
+    points: &[f32],
+    depths: &[f32],
+    cameras: &[Camera],
+    (hg, wg): (usize, usize),
+    stride: usize,
+    margin: f32,
+) -> Vec<bool> {
+    let per_view = hg * wg;
+    points
+        .chunks_exact(3)
+        .map(|p| {
+            let mean = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            !cameras.iter().enumerate().any(|(view, camera)| {
+                explained(
+                    mean,
+                    camera,
+                    &depths[view * per_view..(view + 1) * per_view],
+                    (hg, wg),
+                    stride,
+                    margin,
+                )
+            })
+        })
+        .collect()
+}
+
 /// Whether `camera`, whose estimated depths on its Gaussian grid are `depths`, sees `mean`
 /// in its image and not clearly behind its surface.
 fn explained(
@@ -93,6 +124,41 @@ mod tests {
             c
         };
         vec![test_camera(0.0), test_camera(0.5), ahead(0.0), ahead(0.5)]
+    }
+
+    #[test]
+    fn points_of_no_view_survive_only_where_no_view_explains_them() {
+        let cams = cameras();
+        let (hg, wg, stride) = (2, 4, 20);
+        let depths = vec![10.0f32; 4 * hg * wg];
+        // On the wall of view 0, in front of it, 50% behind it, beside every view, behind
+        // the cameras, NaN.
+        let points = [
+            0.0,
+            0.0,
+            10.0,
+            0.0,
+            0.0,
+            4.0,
+            0.0,
+            0.0,
+            16.0,
+            500.0,
+            0.0,
+            10.0,
+            0.0,
+            0.0,
+            -5.0,
+            f32::NAN,
+            0.0,
+            0.0,
+        ];
+        let kept = unexplained(&points, &depths, &cams, (hg, wg), stride, 0.1);
+        assert_eq!(kept, [false, false, true, true, true, true]);
+        // No view: every point survives.
+        assert!(unexplained(&points, &[], &[], (hg, wg), stride, 0.1)
+            .iter()
+            .all(|k| *k));
     }
 
     #[test]

@@ -12,6 +12,7 @@ use renderer::{Camera, GaussianSet};
 
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
+use super::volume::VolumeOutput;
 use super::warm_start::{frozen, load_matching, WarmStart};
 use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
@@ -222,16 +223,29 @@ impl LearnedReconstructor {
         let volume_ms = start.elapsed().as_secs_f64() * 1e3;
         let counts = prediction.counts();
         // Pair fusion judges the cost-volume Gaussians against the views' depth; the volume
-        // branch's Gaussians (after them in the output) all pass it.
-        let surviving = match prediction.cost_volume_output {
+        // branch's Gaussians (after them in the output) are judged against every input view
+        // when `volume_fusion_margin` is set, and all pass otherwise.
+        let cost_volume_flags = match prediction.cost_volume_output {
             true => pair_fusion_flags(&prediction, cameras, &cfg, cfg.pair_fusion_margin)
                 .map_err(backend)?,
             false => None,
-        }
-        .map(|mut flags| {
-            flags.resize(counts.total(), true);
-            flags
-        });
+        };
+        let volume_flags = match (cfg.volume_fusion_margin, &prediction.volume) {
+            (Some(margin), Some(volume)) => Some(
+                volume_fusion_flags(&prediction, volume, cameras, &cfg, margin).map_err(backend)?,
+            ),
+            _ => None,
+        };
+        let surviving = match (cost_volume_flags, volume_flags) {
+            (None, None) => None,
+            (cv, vol) => Some(
+                [
+                    cv.unwrap_or_else(|| vec![true; counts.cost_volume]),
+                    vol.unwrap_or_else(|| vec![true; counts.volume]),
+                ]
+                .concat(),
+            ),
+        };
         let (set, kept) = to_set_counted(
             &prediction.output().map_err(backend)?,
             surviving.as_deref(),
@@ -316,6 +330,27 @@ fn fused(
     let values = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
     Ok(pair_fusion::surviving(
         &values(&prediction.splats.means)?,
+        &values(&prediction.depth)?,
+        cameras,
+        (hg, wg),
+        cfg.gaussian_stride,
+        margin,
+    ))
+}
+
+/// Which of the volume branch's Gaussians no input view explains (`pair_fusion::unexplained`
+/// with `margin`): the volume's job is what the views did not see.
+fn volume_fusion_flags(
+    prediction: &Prediction,
+    volume: &VolumeOutput,
+    cameras: &[Camera],
+    cfg: &Config,
+    margin: f32,
+) -> candle_core::Result<Vec<bool>> {
+    let (_, _, hg, wg) = prediction.depth.dims4()?;
+    let values = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
+    Ok(pair_fusion::unexplained(
+        &values(&volume.splats.means)?,
         &values(&prediction.depth)?,
         cameras,
         (hg, wg),

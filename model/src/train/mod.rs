@@ -173,6 +173,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         min_view_weight: None,
         joint_pairs: false,
         view_subsampling: true,
+        volume_fusion_margin: None,
         progressive: false,
         progressive_every: 1,
         enhancer: true,

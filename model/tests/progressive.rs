@@ -244,6 +244,16 @@ fn settings_build_the_pass_and_a_missing_enhancer_is_named() {
     .unwrap();
     assert!(matches!(&err, MethodError::Enhancer { path, .. } if *path == missing));
     assert!(err.to_string().contains("enhancer=false"), "{err}");
+    // The tiny-plus preset: tiny's weights with the pass on (here without the enhancer).
+    assert!(Config::preset("tiny-plus").unwrap().progressive);
+    assert_eq!(default_weights("tiny-plus"), default_weights("tiny"));
+    let plus = build(
+        "stereosplat",
+        Some("tiny-plus"),
+        None,
+        &["enhancer=false".into()],
+    );
+    assert_eq!(plus.unwrap().name(), "stereosplat-tiny-plus+raw");
     // Off by default: the plain network.
     assert_eq!(
         build("stereosplat", None, None, &[]).unwrap().name(),

@@ -34,8 +34,8 @@ fn every_sample_round_trips_through_cdr() {
     // after the 4-byte header; version 2 appends 5 i64.
     let v2 = s.latency.encode();
     assert_eq!(v2.len(), 4 + 8 + 48 + 8 + 16 + 4 + 4 + 16 + 40);
-    // A version-1 payload (recordings from before the split) is version 2 cut short, with
-    // or without a writer's end padding: it decodes with the stage stamps 0.
+    // A version-1 payload (recordings from before the split) is version 2 cut short: it
+    // decodes with the stage stamps 0; a payload ending inside the stamps is truncated.
     let v1 = BinLatency {
         base_end_ns: 0,
         pseudo_render_end_ns: 0,
@@ -44,8 +44,12 @@ fn every_sample_round_trips_through_cdr() {
         fuse_end_ns: 0,
         ..s.latency
     };
-    for cut in [40, 32] {
-        assert_eq!(BinLatency::decode(&v2[..v2.len() - cut]).unwrap(), v1);
+    assert_eq!(BinLatency::decode(&v2[..v2.len() - 40]).unwrap(), v1);
+    for cut in [32, 8, 1] {
+        assert!(
+            BinLatency::decode(&v2[..v2.len() - cut]).is_err(),
+            "cut {cut}"
+        );
     }
 }
 

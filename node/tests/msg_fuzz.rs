@@ -7,7 +7,8 @@ mod msg_support;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use node::msg::DecodeError;
+use node::msg::latency::BinLatency;
+use node::msg::{DecodeError, Message};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -39,6 +40,11 @@ fn every_truncation_is_a_typed_error() {
         assert!(decode(&bytes).is_ok(), "{name} decodes whole");
         for len in 0..bytes.len() {
             let err = decode(&bytes[..len]);
+            // BinLatency version 2 cut to exactly version 1 is a version-1 payload.
+            if name == BinLatency::KIND.ros_name() && len == bytes.len() - 40 {
+                assert!(err.is_ok(), "{name} cut to version 1 decodes");
+                continue;
+            }
             // The only trailing bytes a payload may lose are padding after the last field,
             // and none of the samples ends in padding.
             assert!(

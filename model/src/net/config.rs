@@ -150,7 +150,13 @@ fn pseudo_poses() -> Vec<f32> {
 }
 
 /// The preset names [`Config::preset`] knows.
-pub const PRESETS: &[&str] = &["tiny", "small", "paper"];
+pub const PRESETS: &[&str] = &["tiny", "small", "paper", "tiny-plus"];
+
+/// The presets named `<base>-plus` are `<base>` with StereoSplat+'s progressive pass on: the
+/// same network, so they load `<base>`'s weights. The preset whose weights `name` uses.
+pub fn weights_preset(name: &str) -> &str {
+    name.strip_suffix("-plus").unwrap_or(name)
+}
 
 /// A preset name [`Config::preset`] does not know.
 #[derive(Debug, thiserror::Error)]
@@ -293,12 +299,23 @@ impl Config {
         }
     }
 
+    /// `tiny` with StereoSplat+'s progressive pass on, the enhancer included (the shipped
+    /// `tiny` weights and `model/weights/enhancer_tiny.safetensors`).
+    pub fn tiny_plus() -> Self {
+        Self {
+            name: "tiny-plus".into(),
+            progressive: true,
+            ..Self::tiny()
+        }
+    }
+
     /// The preset called `name`.
     pub fn preset(name: &str) -> Result<Self, UnknownPreset> {
         match name {
             "tiny" => Ok(Self::tiny()),
             "small" => Ok(Self::small()),
             "paper" => Ok(Self::paper()),
+            "tiny-plus" => Ok(Self::tiny_plus()),
             other => Err(UnknownPreset(other.to_string())),
         }
     }

@@ -24,7 +24,7 @@ pub(crate) mod transformer;
 pub mod volume;
 mod warm_start;
 
-pub use config::{Config, SettingError, UnknownPreset, PRESETS};
+pub use config::{weights_preset, Config, SettingError, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;
 pub use reconstructor::{
     default_weights, images_and_cameras, pair_fusion_flags, to_set, to_set_counted, BranchReport,

@@ -10,6 +10,7 @@ use candle_nn::VarBuilder;
 use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
+use super::config::weights_preset;
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
 use super::volume::VolumeOutput;
@@ -18,11 +19,15 @@ use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
 
-/// The shipped weights of a preset: `model/weights/stereosplat_<preset>.safetensors`.
+/// The shipped weights of a preset: `model/weights/stereosplat_<preset>.safetensors` (a
+/// `-plus` preset's are its base preset's, see [`weights_preset`]).
 pub fn default_weights(preset: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("weights")
-        .join(format!("stereosplat_{preset}.safetensors"))
+        .join(format!(
+            "stereosplat_{}.safetensors",
+            weights_preset(preset)
+        ))
 }
 
 /// Why weights could not be loaded.

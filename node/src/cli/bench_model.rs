@@ -21,7 +21,8 @@ use model::frame::Side;
 use model::kitti360::Sequence;
 use model::net::volume::TriplaneEncoder;
 use model::net::{
-    default_weights, BranchReport, Config, LearnedReconstructor, COST_STRIDE, PRESETS,
+    default_weights, weights_preset, BranchReport, Config, LearnedReconstructor, COST_STRIDE,
+    PRESETS,
 };
 use model::reconstruct::{Reconstructor, StereoView};
 use model::synth::SynthConfig;
@@ -125,7 +126,13 @@ fn time_volume_encoder(
 /// Runs the benchmark.
 pub fn run(args: &BenchModelArgs) -> Result<()> {
     let names: Vec<&str> = match args.preset.as_str() {
-        "all" => PRESETS.to_vec(),
+        // The networks: a `-plus` preset is its base network with the progressive pass, which
+        // `bench node` and `bench pareto` time (this times the network alone).
+        "all" => PRESETS
+            .iter()
+            .copied()
+            .filter(|p| weights_preset(p) == *p)
+            .collect(),
         one => vec![one],
     };
     let config = SynthConfig {

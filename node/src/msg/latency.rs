@@ -15,7 +15,8 @@
 //! progressive pass's stage stamps `int64 base_end_ns`, `int64 pseudo_render_end_ns`,
 //! `int64 enhance_end_ns`, `int64 plus_end_ns`, `int64 fuse_end_ns`. Version 2 only appends,
 //! so a version-1 payload (recordings from before) is a version-2 payload cut short: the
-//! reader takes a payload that ends after `fallback_score` as version 1, its stage stamps 0.
+//! reader takes a payload that ends right after `fallback_score` as version 1, its stage
+//! stamps 0; one that ends inside the stamps is a truncation error.
 //!
 //! `stereosplat_msgs/msg/Diagnostics`: `int64 stamp_ns`, `Counter[] counters`, where
 //! `stereosplat_msgs/msg/Counter` is `string kind`, `uint64 count`.
@@ -144,9 +145,9 @@ impl Message for BinLatency {
             fallback_score: r.f64("fallback_score")?,
             ..Self::default()
         };
-        // Version 1 ends here (a writer may pad a payload's end to 4 or 8 bytes: version 2's
-        // 40 bytes of stamps are there or not).
-        if r.remaining() >= 5 * 8 {
+        // Version 1 ends here (no padding follows a final, 8-aligned f64); a payload with
+        // part of version 2's stamps is truncated, and reading them says so.
+        if r.remaining() > 0 {
             l.base_end_ns = r.i64("base_end_ns")?;
             l.pseudo_render_end_ns = r.i64("pseudo_render_end_ns")?;
             l.enhance_end_ns = r.i64("enhance_end_ns")?;

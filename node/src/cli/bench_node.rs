@@ -15,6 +15,7 @@ use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 use serde::Serialize;
 
+use super::method_args::MethodArgs;
 use super::progress;
 use super::stream::{rate_of, RenderArg};
 use super::synth::{cached_drive, first_sequence};
@@ -45,9 +46,9 @@ pub struct BenchNodeArgs {
     /// Replay rates to run, one node each (0 = as fast as possible, 1 = recorded rate).
     #[arg(long, default_values_t = [0.0, 1.0])]
     rate: Vec<f64>,
-    /// The reconstructor.
-    #[arg(long, default_value = model::methods::DEFAULT)]
-    method: String,
+    /// The reconstructor, its preset, weights and settings.
+    #[command(flatten)]
+    method: MethodArgs,
     /// Rasterizer of the per-bin renders.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
@@ -86,8 +87,7 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
     let runtime = tokio::runtime::Runtime::new()?;
     let mut runs = Vec::new();
     for &rate in &args.rate {
-        let config = NodeConfig {
-            method: args.method.clone(),
+        let config = args.method.node_config(NodeConfig {
             renders: args.renders.into(),
             queue_capacity: args.queue,
             binner: BinnerConfig::default(),
@@ -96,7 +96,7 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
                 ..FusionConfig::default()
             },
             ..NodeConfig::default()
-        };
+        });
         let bar = progress::bar(sequence.frames().len(), &format!("rate {rate}"));
         let report = runtime.block_on(run_loopback(
             config,
@@ -155,7 +155,9 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
     let out = serde_json::json!({
         "sequence": name,
         "size": [sequence.rig().intrinsics.width, sequence.rig().intrinsics.height],
-        "method": args.method,
+        "method": args.method.method,
+        "preset": args.method.preset,
+        "settings": args.method.settings,
         "renders": format!("{:?}", args.renders).to_lowercase(),
         "threads": std::thread::available_parallelism().map_or(1, |n| n.get()),
         "max_gaussians": args.max_gaussians,

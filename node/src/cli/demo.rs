@@ -13,6 +13,7 @@ use model::kitti360::images::write_png;
 use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 
+use super::method_args::MethodArgs;
 use super::progress;
 use super::shutdown::shutdown_signal;
 use super::stream::{rate_of, OnCheckFailArg, RenderArg};
@@ -46,9 +47,9 @@ pub struct DemoArgs {
     /// Replay speed: 1 = recorded rate, 2 = twice as fast, 0 = as fast as possible.
     #[arg(long, default_value_t = 1.0)]
     rate: f64,
-    /// The reconstructor.
-    #[arg(long, default_value = model::methods::DEFAULT)]
-    method: String,
+    /// The reconstructor, its preset, weights and settings.
+    #[command(flatten)]
+    method: MethodArgs,
     /// What to do with a bin whose map fails the self-check (see `run --help`).
     #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
     on_check_fail: OnCheckFailArg,
@@ -80,8 +81,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let bins_dir = args.out.join("bins");
     std::fs::create_dir_all(&bins_dir)
         .with_context(|| format!("creating {}", bins_dir.display()))?;
-    let config = NodeConfig {
-        method: args.method.clone(),
+    let config = args.method.node_config(NodeConfig {
         on_check_fail: args.on_check_fail.into(),
         renders: args.renders.into(),
         out_dir: Some(args.out.join("map")),
@@ -89,7 +89,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         start_map: StartMap::Fresh,
         checkpoint_every: 0,
         ..NodeConfig::default()
-    };
+    });
     let keys = config.keys.clone();
     let bar = progress::bar(sequence.frames().len(), "replay");
     let mut write_error = None;

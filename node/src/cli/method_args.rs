@@ -1,5 +1,6 @@
 //! The flags that pick a reconstructor (`--method`, `--preset`, `--weights`, `--set`), shared
-//! by the commands that run one on files (`eval`, `reconstruct`).
+//! by the commands that run one on files (`eval`, `reconstruct`) and those that run the node
+//! (`run`, `demo`, `bench node`).
 
 use std::path::PathBuf;
 
@@ -7,13 +8,15 @@ use clap::Args;
 use model::methods::MethodError;
 use model::reconstruct::Reconstructor;
 
+use crate::service::NodeConfig;
+
 /// Which reconstructor, with which preset, weights and settings.
 #[derive(Args, Clone, Debug)]
 pub struct MethodArgs {
     /// The reconstructor (see `model::methods`).
     #[arg(long, default_value = model::methods::DEFAULT)]
     pub method: String,
-    /// Network preset of a learned method (tiny, small, paper; default tiny).
+    /// Network preset of a learned method (tiny, small, paper, tiny-plus; default tiny).
     #[arg(long)]
     pub preset: Option<String>,
     /// Weights of a learned method (default: the preset's shipped file).
@@ -34,5 +37,16 @@ impl MethodArgs {
             self.weights.as_deref(),
             &self.settings,
         )
+    }
+
+    /// `config` with the node's reconstructor set to what these flags name.
+    pub fn node_config(&self, config: NodeConfig) -> NodeConfig {
+        NodeConfig {
+            method: self.method.clone(),
+            preset: self.preset.clone(),
+            weights: self.weights.clone(),
+            settings: self.settings.clone(),
+            ..config
+        }
     }
 }

@@ -17,6 +17,7 @@ use clap::Args;
 use model::kitti360::Sequence;
 
 use super::logs::{self, BagReplayArgs};
+use super::method_args::MethodArgs;
 use super::progress;
 use super::shutdown::shutdown_signal;
 use super::view::{self, ViewFlags};
@@ -167,9 +168,9 @@ impl ZenohArgs {
 pub struct RunArgs {
     #[command(flatten)]
     zenoh: ZenohArgs,
-    /// The reconstructor.
-    #[arg(long, default_value = model::methods::DEFAULT)]
-    method: String,
+    /// The reconstructor, its preset, weights and settings.
+    #[command(flatten)]
+    method: MethodArgs,
     /// What to do with a bin whose map fails the self-check (its own stereo pair does not
     /// agree with the map's geometry; README, "Self-check").
     #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
@@ -260,7 +261,7 @@ impl LimitsArgs {
 
 /// Runs the node until Ctrl-C or SIGTERM.
 pub fn run(args: &RunArgs) -> Result<()> {
-    let config = NodeConfig {
+    let config = args.method.node_config(NodeConfig {
         transport: args.zenoh.transport(),
         keys: args.zenoh.keys(),
         sync: SyncConfig {
@@ -277,7 +278,6 @@ pub fn run(args: &RunArgs) -> Result<()> {
             ..BinnerConfig::default()
         },
         queue_capacity: args.queue,
-        method: args.method.clone(),
         on_check_fail: args.on_check_fail.into(),
         fusion: FusionConfig {
             keep: Keep {
@@ -296,7 +296,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         snapshot_every: args.snapshot_every,
         limits: args.limits.limits()?,
         ..NodeConfig::default()
-    };
+    });
     let runtime = tokio::runtime::Runtime::new()?;
     let namespace = config.keys.namespace.clone();
     let keys = config.keys.clone();

@@ -38,6 +38,13 @@ pub struct NodeConfig {
     pub queue_capacity: usize,
     /// The reconstructor (see `model::methods`).
     pub method: String,
+    /// A learned method's preset (`None`: `model::methods::DEFAULT_PRESET`); `tiny-plus`
+    /// runs StereoSplat+'s progressive pass per bin.
+    pub preset: Option<String>,
+    /// A learned method's weights (`None`: the preset's shipped file).
+    pub weights: Option<PathBuf>,
+    /// A learned method's `KEY=VALUE` preset settings (`Config::with_settings`).
+    pub settings: Vec<String>,
     /// What to do with a bin whose map fails its self-check (see
     /// [`crate::pipeline::self_check`]).
     pub on_check_fail: OnCheckFail,
@@ -79,6 +86,9 @@ impl Default for NodeConfig {
             binner: BinnerConfig::default(),
             queue_capacity: 4,
             method: model::methods::DEFAULT.into(),
+            preset: None,
+            weights: None,
+            settings: Vec::new(),
             on_check_fail: OnCheckFail::default(),
             fusion: FusionConfig::default(),
             out_dir: None,
@@ -193,7 +203,12 @@ pub async fn run_announced(
 
     let (out_tx, mut out_rx) = mpsc::unbounded_channel::<WorkerEvent>();
     let worker = Worker::spawn(
-        model::methods::by_name(&config.method)?,
+        model::methods::build(
+            &config.method,
+            config.preset.as_deref(),
+            config.weights.as_deref(),
+            &config.settings,
+        )?,
         config.renders,
         config.queue_capacity,
         config.on_check_fail,

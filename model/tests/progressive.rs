@@ -6,14 +6,14 @@
 //! give finite maps. `methods::build` makes the pass from settings and names a missing
 //! enhancer file.
 
+mod drive_support;
+
 use std::path::PathBuf;
-use std::sync::OnceLock;
 
 use candle_core::{DType, Device};
 use candle_nn::{VarBuilder, VarMap};
 use model::enhance::{self, Enhancer};
 use model::frame::{RgbImage, Side, StereoFrame};
-use model::generate::write_synthetic;
 use model::kitti360::Sequence;
 use model::methods::{build, MethodError};
 use model::net::{default_weights, Config, LearnedReconstructor};
@@ -22,29 +22,22 @@ use model::reconstruct::{Reconstructor, StereoView};
 use model::synth::SynthConfig;
 use renderer::{Camera, GaussianSet, RenderWith};
 
-/// A 12-frame drive, written once per test process (the tests run in parallel threads).
-fn drive() -> &'static (PathBuf, String) {
-    static DRIVE: OnceLock<(PathBuf, String)> = OnceLock::new();
-    DRIVE.get_or_init(|| {
-        let root =
-            std::env::temp_dir().join(format!("stereosplat-progressive-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
-        let config = SynthConfig {
-            seed: 1_000_004,
-            frames: 12,
-            width: 136,
-            height: 40,
-            ..SynthConfig::default()
-        };
-        let name = write_synthetic(&root, &config, &mut |_, _| {}).unwrap();
-        (root, name)
-    })
+/// A 12-frame drive, written once per test process.
+fn drive() -> (PathBuf, String) {
+    let config = SynthConfig {
+        seed: 1_000_004,
+        frames: 12,
+        width: 136,
+        height: 40,
+        ..SynthConfig::default()
+    };
+    drive_support::once("progressive", &config)
 }
 
 /// The first frame, and the bin-local cameras of the first frame and of frames 1..12.
 fn bin() -> (StereoFrame, (Camera, Camera), Vec<Camera>) {
     let (root, name) = drive();
-    let sequence = Sequence::open(root, name).unwrap();
+    let sequence = Sequence::open(&root, &name).unwrap();
     let rig = sequence.rig();
     let poses = sequence.frames();
     let origin = poses[0].left_to_world;

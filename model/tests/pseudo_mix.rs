@@ -4,16 +4,15 @@
 //! nothing changes and no random number is drawn; a training step on a mixed sample has a
 //! finite loss and finite gradients.
 
+mod drive_support;
 mod finite_support;
 
 use std::path::PathBuf;
-use std::sync::OnceLock;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use finite_support::assert_finite_gradients;
 use model::bins::BinConfig;
-use model::generate::write_synthetic;
 use model::lpips::{Lpips, DEFAULT_WEIGHTS};
 use model::net::{Config, StereoSplat};
 use model::synth::SynthConfig;
@@ -24,23 +23,14 @@ use renderer::RenderSettings;
 
 /// A short generated drive (136x40), written once per test process.
 fn drive() -> PathBuf {
-    static DRIVE: OnceLock<PathBuf> = OnceLock::new();
-    DRIVE
-        .get_or_init(|| {
-            let root =
-                std::env::temp_dir().join(format!("stereosplat-pseudo-mix-{}", std::process::id()));
-            let _ = std::fs::remove_dir_all(&root);
-            let config = SynthConfig {
-                seed: 23,
-                frames: 24,
-                width: 136,
-                height: 40,
-                ..SynthConfig::default()
-            };
-            write_synthetic(&root, &config, &mut |_, _| {}).unwrap();
-            root
-        })
-        .clone()
+    let config = SynthConfig {
+        seed: 23,
+        frames: 24,
+        width: 136,
+        height: 40,
+        ..SynthConfig::default()
+    };
+    drive_support::once("pseudo-mix", &config).0
 }
 
 /// A sample with exactly `pairs` input pairs.

@@ -6,17 +6,16 @@
 //! tiny weights warm-start the cost-volume part (the volume part fresh) and give its
 //! Gaussians exactly as the plain network does.
 
+mod drive_support;
 mod finite_support;
 
 use std::path::PathBuf;
-use std::sync::OnceLock;
 
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use finite_support::{assert_finite, assert_finite_gradients};
 use glam::{Quat, Vec3};
 use model::bins::BinConfig;
-use model::generate::write_synthetic;
 use model::lpips::{Lpips, DEFAULT_WEIGHTS};
 use model::net::volume::voxels::voxel_count;
 use model::net::{default_weights, Config, LearnedReconstructor, StereoSplat};
@@ -52,27 +51,16 @@ fn network(cfg: &Config) -> (VarMap, StereoSplat) {
     (varmap, net)
 }
 
-/// A short generated drive (136x40), written once per test process. The tests run in
-/// parallel threads of one process, so the first caller writes it and the rest wait for it
-/// (two writers in one folder collide on the calibration file).
+/// A short generated drive (136x40), written once per test process.
 fn drive() -> PathBuf {
-    static DRIVE: OnceLock<PathBuf> = OnceLock::new();
-    DRIVE
-        .get_or_init(|| {
-            let root = std::env::temp_dir()
-                .join(format!("stereosplat-volume-train-{}", std::process::id()));
-            let _ = std::fs::remove_dir_all(&root);
-            let config = SynthConfig {
-                seed: 21,
-                frames: 24,
-                width: 136,
-                height: 40,
-                ..SynthConfig::default()
-            };
-            write_synthetic(&root, &config, &mut |_, _| {}).unwrap();
-            root
-        })
-        .clone()
+    let config = SynthConfig {
+        seed: 21,
+        frames: 24,
+        width: 136,
+        height: 40,
+        ..SynthConfig::default()
+    };
+    drive_support::once("volume-train", &config).0
 }
 
 fn sample_of(cfg: &Config, pairs: usize, seed: u64) -> Sample {

@@ -17,6 +17,10 @@
 use glam::DVec3;
 use renderer::Camera;
 
+/// A fusion rule ([`surviving`], [`unexplained`]): centres, the views' estimated depths on
+/// their grids, the views' cameras, the grid, its stride, the margin; a flag per centre.
+pub type Rule = fn(&[f32], &[f32], &[Camera], (usize, usize), usize, f32) -> Vec<bool>;
+
 /// Which Gaussians survive the fusion. `means` holds 3 values per Gaussian (bin frame), one
 /// Gaussian per pixel of an `hg` x `wg` grid with `stride` per view, view-major, views in
 /// pairs (left, right, left, ...) as `cameras`; `depths` holds each view's estimated camera
@@ -32,27 +36,9 @@ pub fn surviving(
     margin: f32,
 ) -> Vec<bool> {
     let per_view = hg * wg;
-    let count = means.len() / 3;
-    (0..count)
-        .map(|i| {
-            let pair = i / per_view / 2;
-            let mean = DVec3::new(
-                means[3 * i] as f64,
-                means[3 * i + 1] as f64,
-                means[3 * i + 2] as f64,
-            );
-            !(0..2 * pair).any(|view| {
-                explained(
-                    mean,
-                    &cameras[view],
-                    &depths[view * per_view..(view + 1) * per_view],
-                    (hg, wg),
-                    stride,
-                    margin,
-                )
-            })
-        })
-        .collect()
+    kept(means, depths, cameras, (hg, wg), stride, margin, |i| {
+        2 * (i / per_view / 2)
+    })
 }
 
 /// Which of `points` (3 values each, bin frame; Gaussians of no view, such as the volume
@@ -63,19 +49,35 @@ pub fn unexplained(
     points: &[f32],
     depths: &[f32],
     cameras: &[Camera],
+    grid: (usize, usize),
+    stride: usize,
+    margin: f32,
+) -> Vec<bool> {
+    kept(points, depths, cameras, grid, stride, margin, |_| {
+        cameras.len()
+    })
+}
+
+/// Which of `points` no view before `views_before(i)` (for point `i`) explains.
+fn kept(
+    points: &[f32],
+    depths: &[f32],
+    cameras: &[Camera],
     (hg, wg): (usize, usize),
     stride: usize,
     margin: f32,
+    views_before: impl Fn(usize) -> usize,
 ) -> Vec<bool> {
     let per_view = hg * wg;
     points
         .chunks_exact(3)
-        .map(|p| {
+        .enumerate()
+        .map(|(i, p)| {
             let mean = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-            !cameras.iter().enumerate().any(|(view, camera)| {
+            !(0..views_before(i)).any(|view| {
                 explained(
                     mean,
-                    camera,
+                    &cameras[view],
                     &depths[view * per_view..(view + 1) * per_view],
                     (hg, wg),
                     stride,

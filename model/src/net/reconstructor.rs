@@ -13,7 +13,6 @@ use renderer::{Camera, GaussianSet};
 use super::config::weights_preset;
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
-use super::volume::VolumeOutput;
 use super::warm_start::{frozen, load_matching, WarmStart};
 use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
@@ -236,9 +235,12 @@ impl LearnedReconstructor {
             false => None,
         };
         let volume_flags = match (cfg.volume_fusion_margin, &prediction.volume) {
-            (Some(margin), Some(volume)) => Some(
-                volume_fusion_flags(&prediction, volume, cameras, &cfg, margin).map_err(backend)?,
-            ),
+            (Some(margin), Some(volume)) => {
+                // The volume's job is what the views did not see (`pair_fusion::unexplained`).
+                let means = &volume.splats.means;
+                let rule = pair_fusion::unexplained;
+                Some(judged(&prediction, means, cameras, &cfg, margin, rule).map_err(backend)?)
+            }
             _ => None,
         };
         let surviving = match (cost_volume_flags, volume_flags) {
@@ -319,43 +321,36 @@ pub fn pair_fusion_flags(
     margin: Option<f32>,
 ) -> candle_core::Result<Option<Vec<bool>>> {
     match margin {
-        Some(margin) if cameras.len() > 2 => fused(prediction, cameras, cfg, margin).map(Some),
+        Some(margin) if cameras.len() > 2 => {
+            let means = &prediction.splats.means;
+            judged(
+                prediction,
+                means,
+                cameras,
+                cfg,
+                margin,
+                pair_fusion::surviving,
+            )
+            .map(Some)
+        }
         _ => Ok(None),
     }
 }
 
-/// Which of the prediction's Gaussians survive the fusion of pairs (`pair_fusion`).
-fn fused(
+/// A `pair_fusion` rule applied to the centres `means` `(G, 3)` against the depth the
+/// prediction estimated for its views.
+fn judged(
     prediction: &Prediction,
+    means: &Tensor,
     cameras: &[Camera],
     cfg: &Config,
     margin: f32,
+    rule: pair_fusion::Rule,
 ) -> candle_core::Result<Vec<bool>> {
     let (_, _, hg, wg) = prediction.depth.dims4()?;
     let values = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
-    Ok(pair_fusion::surviving(
-        &values(&prediction.splats.means)?,
-        &values(&prediction.depth)?,
-        cameras,
-        (hg, wg),
-        cfg.gaussian_stride,
-        margin,
-    ))
-}
-
-/// Which of the volume branch's Gaussians no input view explains (`pair_fusion::unexplained`
-/// with `margin`): the volume's job is what the views did not see.
-fn volume_fusion_flags(
-    prediction: &Prediction,
-    volume: &VolumeOutput,
-    cameras: &[Camera],
-    cfg: &Config,
-    margin: f32,
-) -> candle_core::Result<Vec<bool>> {
-    let (_, _, hg, wg) = prediction.depth.dims4()?;
-    let values = |t: &Tensor| t.to_dtype(DType::F32)?.flatten_all()?.to_vec1::<f32>();
-    Ok(pair_fusion::unexplained(
-        &values(&volume.splats.means)?,
+    Ok(rule(
+        &values(means)?,
         &values(&prediction.depth)?,
         cameras,
         (hg, wg),

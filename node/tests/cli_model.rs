@@ -148,3 +148,24 @@ fn bench_model_prints_json_per_preset() {
     );
     let _ = std::fs::remove_dir_all(&cache);
 }
+
+#[test]
+fn a_node_whose_reconstructor_cannot_be_made_fails_at_once_and_says_why() {
+    // The progressive pass with an enhancer file that does not exist: `demo` (the node on
+    // loopback) must exit with the reason, not wait for a node that never started.
+    let out = temp_dir("demo-no-enhancer");
+    let missing = out.join("no-such-enhancer.safetensors");
+    let setting = format!("enhancer_weights={}", missing.display());
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_stereosplat"))
+        .args(["demo", "--frames", "12", "--width", "136", "--height", "40"])
+        .args(["--preset", "tiny-plus", "--set", &setting, "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("enhancer weights") && stderr.contains("enhancer=false"),
+        "{stderr}"
+    );
+}

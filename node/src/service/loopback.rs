@@ -114,6 +114,9 @@ pub async fn run_loopback(
     };
     let bins_expected = make_bins(&poses, &bins).len() as u64 + u64::from(!poses.is_empty());
 
+    // A reconstructor that cannot be made (missing weights, a bad setting) fails here, not
+    // after the client sessions below wait for a node that never listens.
+    config.reconstructor().map_err(ServiceError::from)?;
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let node = tokio::spawn(run_announced(
         config,

@@ -73,6 +73,21 @@ pub struct NodeConfig {
     pub limits: InputLimits,
 }
 
+impl NodeConfig {
+    /// The reconstructor the method, preset, weights and settings name.
+    pub fn reconstructor(
+        &self,
+    ) -> Result<Box<dyn model::reconstruct::Reconstructor + Send>, model::methods::MethodError>
+    {
+        model::methods::build(
+            &self.method,
+            self.preset.as_deref(),
+            self.weights.as_deref(),
+            &self.settings,
+        )
+    }
+}
+
 impl Default for NodeConfig {
     /// Loopback peer, namespace `stereosplat`, the default method (the learned network, with
     /// bins failing the self-check replaced by SGM's), a
@@ -203,12 +218,7 @@ pub async fn run_announced(
 
     let (out_tx, mut out_rx) = mpsc::unbounded_channel::<WorkerEvent>();
     let worker = Worker::spawn(
-        model::methods::build(
-            &config.method,
-            config.preset.as_deref(),
-            config.weights.as_deref(),
-            &config.settings,
-        )?,
+        config.reconstructor()?,
         config.renders,
         config.queue_capacity,
         config.on_check_fail,

@@ -149,28 +149,52 @@ pub fn run(args: &TrainArgs) -> Result<()> {
         trainer.step(),
         args.steps
     );
+    let weights = exported_weights(&args.out, &args.preset);
+    let steps = (trainer.step(), args.steps);
+    train_under_bar(steps, &weights, |stop, show| {
+        trainer.run(stop, &mut |r| {
+            show(
+                r.step,
+                format!(
+                    "loss {:.4} l2 {:.4} lpips {:.3} depth {:.3} occ {:.3} vol {:.4} {:.2} it/s",
+                    r.loss,
+                    r.l2,
+                    r.lpips,
+                    r.estimated_depth,
+                    r.occupancy,
+                    r.volume_l2,
+                    r.steps_per_s
+                ),
+            )
+        })?;
+        Ok(trainer.step())
+    })
+}
+
+/// Runs a training loop (`train` or `train-enhancer`) from step `from` to `to` under a
+/// progress bar on stderr, stopping at the first SIGINT or SIGTERM (the loop checkpoints
+/// after its current step); `run` gets the stop test and a `show(step, message)` callback
+/// and returns the step it reached, which is printed on stdout with the exported `weights`.
+pub(crate) fn train_under_bar(
+    (from, to): (u64, u64),
+    weights: &std::path::Path,
+    run: impl FnOnce(&dyn Fn() -> bool, &mut dyn FnMut(u64, String)) -> Result<u64>,
+) -> Result<()> {
     let stop = stop_on_signal();
-    let bar = progress::bar(args.steps as usize, "train");
-    bar.set_position(trainer.step());
-    trainer.run(&stop, &mut |r| {
-        bar.set_position(r.step);
-        bar.set_message(format!(
-            "loss {:.4} l2 {:.4} lpips {:.3} depth {:.3} occ {:.3} vol {:.4} {:.2} it/s",
-            r.loss, r.l2, r.lpips, r.estimated_depth, r.occupancy, r.volume_l2, r.steps_per_s
-        ));
+    let bar = progress::bar(to as usize, "train");
+    bar.set_position(from);
+    let reached = run(&stop, &mut |step, message| {
+        bar.set_position(step);
+        bar.set_message(message);
     })?;
     bar.finish();
-    println!(
-        "step {}: weights {}",
-        trainer.step(),
-        exported_weights(&args.out, &args.preset).display()
-    );
+    println!("step {reached}: weights {}", weights.display());
     Ok(())
 }
 
 /// A stop test for a training loop: true once SIGINT or SIGTERM has come (the run then
 /// checkpoints and ends after its current step).
-pub(crate) fn stop_on_signal() -> impl Fn() -> bool {
+fn stop_on_signal() -> impl Fn() -> bool {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     ctrlc_hook(move || flag.store(true, Ordering::SeqCst));

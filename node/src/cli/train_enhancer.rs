@@ -11,8 +11,7 @@ use model::enhance::train::{exported_weights, TrainConfig, Trainer};
 use model::enhance::Config;
 use model::train::AdamWConfig;
 
-use super::progress;
-use super::train::stop_on_signal;
+use super::train::train_under_bar;
 
 /// Flags of `train-enhancer`.
 #[derive(Args, Clone, Debug)]
@@ -89,21 +88,18 @@ pub fn run(args: &TrainEnhancerArgs) -> Result<()> {
         trainer.step(),
         args.steps
     );
-    let stop = stop_on_signal();
-    let bar = progress::bar(args.steps as usize, "train");
-    bar.set_position(trainer.step());
-    trainer.run(&stop, &mut |r| {
-        bar.set_position(r.step);
-        bar.set_message(format!(
-            "loss {:.4} l2 {:.5} (raw {:.5}) lpips {:.3} style {:.5} {:.2} it/s",
-            r.loss, r.l2, r.raw_l2, r.lpips, r.style, r.steps_per_s
-        ));
-    })?;
-    bar.finish();
-    println!(
-        "step {}: weights {}",
-        trainer.step(),
-        exported_weights(&args.out, &args.preset).display()
-    );
-    Ok(())
+    let weights = exported_weights(&args.out, &args.preset);
+    let steps = (trainer.step(), args.steps);
+    train_under_bar(steps, &weights, |stop, show| {
+        trainer.run(stop, &mut |r| {
+            show(
+                r.step,
+                format!(
+                    "loss {:.4} l2 {:.5} (raw {:.5}) lpips {:.3} style {:.5} {:.2} it/s",
+                    r.loss, r.l2, r.raw_l2, r.lpips, r.style, r.steps_per_s
+                ),
+            )
+        })?;
+        Ok(trainer.step())
+    })
 }

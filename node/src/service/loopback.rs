@@ -13,7 +13,7 @@ use model::kitti360::Sequence;
 use renderer::GaussianSet;
 
 use super::keys::Keys;
-use super::node::{run_announced, NodeConfig, NodeSummary, ServiceError};
+use super::node::{run_with, NodeConfig, NodeSummary, ServiceError};
 use super::replay::replay;
 use crate::bag::Rate;
 use crate::msg::gaussians::gaussians_from_cloud;
@@ -116,10 +116,11 @@ pub async fn run_loopback(
 
     // A reconstructor that cannot be made (missing weights, a bad setting) fails here, not
     // after the client sessions below wait for a node that never listens.
-    config.reconstructor().map_err(ServiceError::from)?;
+    let reconstructor = config.reconstructor().map_err(ServiceError::from)?;
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let node = tokio::spawn(run_announced(
+    let node = tokio::spawn(run_with(
         config,
+        reconstructor,
         async {
             let _ = stop_rx.await;
         },

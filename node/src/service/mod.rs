@@ -30,7 +30,7 @@ pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
 pub use limits::{InputLimits, Refusal};
 pub use map_files::{RestoreError, StartMap};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
-pub use node::{run, run_announced, NodeConfig, NodeSummary, ServiceError};
+pub use node::{run, run_announced, run_with, NodeConfig, NodeSummary, ServiceError};
 pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};
 pub use replay::{replay, ReplaySummary, UnreadFrame};
 pub use replay_bag::{replay_bag, BagReplayOptions, BagReplaySummary};

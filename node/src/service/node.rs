@@ -174,6 +174,19 @@ pub async fn run_announced(
     stop: impl Future<Output = ()>,
     ready: impl FnOnce(&zenoh::Session),
 ) -> Result<NodeSummary, ServiceError> {
+    let reconstructor = config.reconstructor()?;
+    run_with(config, reconstructor, stop, ready).await
+}
+
+/// [`run_announced`] with a reconstructor the caller has already made from `config` (the
+/// loopback run makes it before it opens its client sessions, so a missing weights file fails
+/// there, and the network is loaded once).
+pub async fn run_with(
+    config: NodeConfig,
+    reconstructor: Box<dyn model::reconstruct::Reconstructor + Send>,
+    stop: impl Future<Output = ()>,
+    ready: impl FnOnce(&zenoh::Session),
+) -> Result<NodeSummary, ServiceError> {
     let start = start_map(config.out_dir.as_deref(), config.fusion, config.start_map)?;
     if let Some(path) = &start.resumed_from {
         let m = &start.map;
@@ -218,7 +231,7 @@ pub async fn run_announced(
 
     let (out_tx, mut out_rx) = mpsc::unbounded_channel::<WorkerEvent>();
     let worker = Worker::spawn(
-        config.reconstructor()?,
+        reconstructor,
         config.renders,
         config.queue_capacity,
         config.on_check_fail,

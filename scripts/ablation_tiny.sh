@@ -8,6 +8,11 @@
 #   3d          Branch_3D: the volume branch's Gaussians alone, no view subsampling
 #   cv3d        CV + 3D, no view subsampling
 #   stereosplat CV + 3D + stochastic view subsampling (1..3 input pairs per sample)
+# and, for issue 16's pseudo-view mixed training (not rows of the paper's table), two
+# cost-volume-only rows with view subsampling, without and with pseudo_mix=0.5 (each input
+# pair after the first replaced by renders of the network's own prediction half the time):
+#   cv_subsample   Branch_CV + view subsampling
+#   cv_mix         Branch_CV + view subsampling + pseudo_mix=0.5
 # Every row is resumable: run the same command again after an interruption.
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
 #   bash scripts/ablation_tiny.sh eval [ROW ...]      evaluate trained rows (default: all)
@@ -30,7 +35,9 @@ settings() {
     3d) echo "--set volume_branch=true --set cost_volume_branch=false --set view_subsampling=false" ;;
     cv3d) echo "--set volume_branch=true --set view_subsampling=false" ;;
     stereosplat) echo "--set volume_branch=true --set view_subsampling=true" ;;
-    *) echo "unknown row '$1' (rows: ${rows[*]})" >&2; exit 2 ;;
+    cv_subsample) echo "--set volume_branch=false --set view_subsampling=true" ;;
+    cv_mix) echo "--set volume_branch=false --set view_subsampling=true --set pseudo_mix=0.5" ;;
+    *) echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix)" >&2; exit 2 ;;
   esac
 }
 

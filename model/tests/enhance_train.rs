@@ -1,7 +1,8 @@
 //! The enhancer's data and training end to end on a small generated drive: `make_pairs`
 //! writes the pairs asked for (five pictures each, an index row each), is seeded and resumes
 //! after its last whole draw; a training run stopped at step 3 and resumed to 5 ends with the
-//! weights of a run that went straight to 5; an evaluation scores raw and enhanced renders.
+//! weights of a run that went straight to 5; an evaluation scores raw and enhanced renders;
+//! the shipped enhancer lowers LPIPS and fills unseen regions on a street no run trained on.
 
 use std::path::{Path, PathBuf};
 
@@ -159,6 +160,51 @@ fn pairs_are_written_as_asked_and_training_resumes_exactly() {
     assert!(report.raw.psnr.is_finite() && report.enhanced.psnr.is_finite());
     assert!(report.raw.lpips > 0.0 && report.enhanced.lpips > 0.0);
     for dir in [data, made, straight, stopped, whole] {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+#[test]
+fn the_shipped_enhancer_improves_renders_of_a_street_it_never_saw() {
+    // A drive of a seed no training run used (the script's are 20-27 and 1000000-1000001),
+    // at the size the enhancer was trained at; renders by the shipped StereoSplat.
+    let data = temp("shipped-data");
+    let config = SynthConfig {
+        seed: 1_000_007,
+        frames: 30,
+        width: 272,
+        height: 72,
+        ..SynthConfig::default()
+    };
+    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+    let made = temp("shipped-pairs");
+    assert_eq!(pairs(&data, &made, 12), 12);
+    let enhancer = load(&Config::tiny(), &model::enhance::default_weights("tiny")).unwrap();
+    let set = PairSet::open(&made).unwrap();
+    let lpips = Lpips::load_default().unwrap();
+    let report = evaluate(&enhancer, &set, &lpips, 4, &mut |_, _| {}).unwrap();
+    assert!(
+        report.enhanced.lpips < report.raw.lpips - 0.02,
+        "LPIPS {} -> {}",
+        report.raw.lpips,
+        report.enhanced.lpips
+    );
+    // Where the render saw nothing, the enhancer fills in (here +2.0 dB); over the whole
+    // image PSNR moves little on 12 pairs (-0.06 dB here, +0.21 dB on the 300 held-out
+    // pairs of results/enhancer_tiny/), so the test bounds it rather than its sign.
+    assert!(
+        report.enhanced.psnr_unseen > report.raw.psnr_unseen + 1.0,
+        "unseen PSNR {} -> {}",
+        report.raw.psnr_unseen,
+        report.enhanced.psnr_unseen
+    );
+    assert!(
+        report.enhanced.psnr > report.raw.psnr - 0.3,
+        "PSNR {} -> {}",
+        report.raw.psnr,
+        report.enhanced.psnr
+    );
+    for dir in [data, made] {
         let _ = std::fs::remove_dir_all(dir);
     }
 }

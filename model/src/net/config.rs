@@ -113,9 +113,10 @@ pub struct Config {
     /// drive (the worker queue's keep-newest policy and drop counters stay as they are).
     #[serde(default = "one")]
     pub progressive_every: usize,
-    /// With `progressive`: metres ahead of the first input camera, along the trajectory,
-    /// where the pseudo pairs go when the bin's later poses are not known (the node opens a
-    /// bin at its first frame); with them known (`eval`), the bin's centre and last poses.
+    /// With `progressive`: one pseudo pair per entry, at these metres ahead of the last
+    /// input camera along the trajectory when the bin's later poses are not known (the node
+    /// opens a bin at its first frame); with them known (`eval`), at the bin's own later
+    /// poses, evenly spaced and ending at the last (`[4, 8]`: centre and last).
     #[serde(default = "pseudo_poses")]
     pub pseudo_poses: Vec<f32>,
     /// With `progressive`: a pseudo pair's Gaussian is added only where no earlier view

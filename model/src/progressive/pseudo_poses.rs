@@ -1,7 +1,8 @@
-//! Where the progressive pass puts its pseudo stereo pairs: at the bin's centre and last
-//! poses when they are known (`eval` knows the whole bin's trajectory), otherwise at given
-//! distances ahead of the first input camera along the trajectory (the node opens a bin at
-//! its first frame and knows nothing later). The pseudo right camera sits where the rig puts
+//! Where the progressive pass puts its pseudo stereo pairs: one pair per entry of the
+//! `pseudo_poses` setting, at the bin's own later poses when they are known (`eval` knows
+//! the whole bin's trajectory: evenly spaced, ending at the last, so `[4, 8]` gives the
+//! centre and the last), otherwise at those distances ahead of the last input camera along
+//! the trajectory (the node opens a bin at its first frame and knows nothing later). The pseudo right camera sits where the rig puts
 //! it: the real pair's left-to-right offset, carried in the pseudo left camera's frame.
 
 use glam::Vec3;
@@ -17,8 +18,10 @@ pub struct PseudoPair {
 }
 
 /// The pseudo pairs for a bin whose real input pairs are `real` (left, right; the first is
-/// the bin frame): at the centre and last of `ahead` (bin-local left cameras of the bin's
-/// later frames) when given, else at each of `distances` metres ahead. "Ahead" is the
+/// the bin frame), one per finite entry of `distances`: at evenly spaced cameras of `ahead`
+/// (bin-local left cameras of the bin's later frames; the k-th of n at index
+/// ceil(k m / n) - 1 of m, duplicates once) when given, else at each distance in metres
+/// ahead. "Ahead" is the
 /// direction from the first to the last real left camera when they are more than 1 cm
 /// apart, else the first camera's viewing axis; a negative distance puts the pair behind.
 /// Non-finite distances are skipped; an empty `real` gives none.
@@ -39,14 +42,12 @@ pub fn pseudo_pairs(
             ..left
         },
     };
+    let wanted = distances.iter().filter(|d| d.is_finite()).count();
     if !ahead.is_empty() {
-        let centre = ahead[(ahead.len() - 1) / 2];
-        let last = ahead[ahead.len() - 1];
-        let mut lefts = vec![centre];
-        if last != centre {
-            lefts.push(last);
-        }
-        return lefts.into_iter().map(pair).collect();
+        let m = ahead.len();
+        let mut picked: Vec<usize> = (1..=wanted).map(|k| (k * m).div_ceil(wanted) - 1).collect();
+        picked.dedup();
+        return picked.into_iter().map(|i| pair(ahead[i])).collect();
     }
     let last_left = real[real.len() - 1].0;
     let travelled = last_left.position - first_left.position;
@@ -82,13 +83,13 @@ mod tests {
     }
 
     #[test]
-    fn with_known_poses_the_pairs_sit_at_the_centre_and_last_with_the_rigs_baseline() {
+    fn with_known_poses_the_pairs_sit_evenly_up_to_the_last_with_the_rigs_baseline() {
         let turn = Quat::from_rotation_y(0.3);
         let real = [rig_at(Quat::IDENTITY, Vec3::ZERO)];
         let ahead: Vec<Camera> = (1..=5)
             .map(|i| rig_at(turn, Vec3::new(0.0, 0.0, 2.0 * i as f32)).0)
             .collect();
-        let pairs = pseudo_pairs(&real, &ahead, &[100.0]);
+        let pairs = pseudo_pairs(&real, &ahead, &[4.0, 100.0]);
         assert_eq!(pairs.len(), 2);
         assert_eq!(pairs[0].left, ahead[2]);
         assert_eq!(pairs[1].left, ahead[4]);
@@ -98,8 +99,16 @@ mod tests {
             assert!((p.right.position - expected).length() < 1e-5);
             assert_eq!(p.right.rotation, p.left.rotation);
         }
-        // One frame ahead: one pair.
-        assert_eq!(pseudo_pairs(&real, &ahead[..1], &[]).len(), 1);
+        // One entry: the last pose; three: evenly spaced; one frame ahead: one pair; no
+        // entries: none.
+        assert_eq!(pseudo_pairs(&real, &ahead, &[8.0])[0].left, ahead[4]);
+        let three: Vec<Camera> = pseudo_pairs(&real, &ahead, &[1.0, 2.0, f32::NAN, 3.0])
+            .iter()
+            .map(|p| p.left)
+            .collect();
+        assert_eq!(three, [ahead[1], ahead[3], ahead[4]]);
+        assert_eq!(pseudo_pairs(&real, &ahead[..1], &[4.0, 8.0]).len(), 1);
+        assert!(pseudo_pairs(&real, &ahead, &[]).is_empty());
     }
 
     #[test]

@@ -29,6 +29,20 @@ fn temp(case: &str) -> PathBuf {
     dir
 }
 
+/// A generated drive of `frames` frames of `width x height` in a fresh folder.
+fn drive(case: &str, seed: u64, frames: u32, (width, height): (u32, u32)) -> PathBuf {
+    let data = temp(case);
+    let config = SynthConfig {
+        seed,
+        frames,
+        width,
+        height,
+        ..SynthConfig::default()
+    };
+    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+    data
+}
+
 fn data_config(pairs: usize) -> DataConfig {
     DataConfig {
         pairs,
@@ -78,15 +92,7 @@ fn train(pairs: &Path, out: &Path, steps: u64, resume: bool) -> Vec<f32> {
 
 #[test]
 fn pairs_are_written_as_asked_and_training_resumes_exactly() {
-    let data = temp("data");
-    let config = SynthConfig {
-        seed: 11,
-        frames: 40,
-        width: 136,
-        height: 40,
-        ..SynthConfig::default()
-    };
-    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+    let data = drive("data", 11, 40, (136, 40));
 
     // 6 pairs: two draws of up to 4 targets, the second cut short by the bound.
     let (made, straight) = (temp("pairs"), temp("pairs-straight"));
@@ -168,15 +174,7 @@ fn pairs_are_written_as_asked_and_training_resumes_exactly() {
 fn the_shipped_enhancer_improves_renders_of_a_street_it_never_saw() {
     // A drive of a seed no training run used (the script's are 20-27 and 1000000-1000001),
     // at the size the enhancer was trained at; renders by the shipped StereoSplat.
-    let data = temp("shipped-data");
-    let config = SynthConfig {
-        seed: 1_000_007,
-        frames: 30,
-        width: 272,
-        height: 72,
-        ..SynthConfig::default()
-    };
-    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+    let data = drive("shipped-data", 1_000_007, 30, (272, 72));
     let made = temp("shipped-pairs");
     assert_eq!(pairs(&data, &made, 12), 12);
     let enhancer = load(&Config::tiny(), &model::enhance::default_weights("tiny")).unwrap();

@@ -257,6 +257,18 @@ mod tests {
     }
 
     #[test]
+    fn the_shipped_points_file_parses_and_its_weight_files_are_in_the_repository() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let points = load_points(&root.join("launch/pareto.toml")).unwrap();
+        assert!(points.len() >= 20, "{}", points.len());
+        for p in &points {
+            if let Some(w) = &p.weights {
+                assert!(root.join(w).is_file(), "{}: {}", p.name, w.display());
+            }
+        }
+    }
+
+    #[test]
     fn a_missing_weight_file_is_reported_not_fatal() {
         let p = &parse_points(
             "[[point]]\nname = \"small\"\npreset = \"small\"\nweights = \"/nonexistent/w.safetensors\"",

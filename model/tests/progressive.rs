@@ -238,7 +238,9 @@ fn settings_build_the_pass_and_a_missing_enhancer_is_named() {
     assert!(matches!(&err, MethodError::Enhancer { path, .. } if *path == missing));
     assert!(err.to_string().contains("enhancer=false"), "{err}");
     // The tiny-plus preset: tiny's weights with the pass on (here without the enhancer).
-    assert!(Config::preset("tiny-plus").unwrap().progressive);
+    let preset = Config::preset("tiny-plus").unwrap();
+    assert!(preset.progressive && preset.enhancer);
+    assert_eq!(preset.pseudo_poses, [8.0], "one pseudo pair keeps the node real time");
     assert_eq!(default_weights("tiny-plus"), default_weights("tiny"));
     let plus = build(
         "stereosplat",

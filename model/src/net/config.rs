@@ -126,6 +126,11 @@ pub struct Config {
     /// wherever G_base has a surface.
     #[serde(default = "pseudo_fusion_margin")]
     pub pseudo_fusion_margin: f32,
+    /// With `progressive`: an added pseudo Gaussian's opacity is multiplied by its
+    /// confidence to this power (1: opacity x confidence; 0: confidence ignored; 2: doubtful
+    /// guesses fade faster).
+    #[serde(default = "one_f32")]
+    pub pseudo_confidence_power: f32,
     /// Training: probability that each sampled input pair after the first is replaced by a
     /// pseudo pair rendered from the current model (the paper's pseudo-view mixed training);
     /// 0 trains on true pairs only.
@@ -139,6 +144,10 @@ fn yes() -> bool {
 
 fn one() -> usize {
     1
+}
+
+fn one_f32() -> f32 {
+    1.0
 }
 
 fn pseudo_fusion_margin() -> f32 {
@@ -252,6 +261,7 @@ impl Config {
             enhancer_weights: None,
             pseudo_poses: pseudo_poses(),
             pseudo_fusion_margin: pseudo_fusion_margin(),
+            pseudo_confidence_power: 1.0,
             pseudo_mix: 0.0,
         }
     }

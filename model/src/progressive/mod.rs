@@ -168,7 +168,15 @@ impl ProgressiveReconstructor {
             to_set(&joined.splats, Some(&flags), cfg.opacity_floor, usize::MAX).map_err(backend)?;
         report.split.plus_ms = ms(start);
         let start = Instant::now();
-        let fused = fusion::fuse(&base.set, &added, cfg.opacity_floor, cfg.max_gaussians);
+        let fused = fusion::fuse(
+            &base.set,
+            &added,
+            &fusion::FuseSettings {
+                floor: cfg.opacity_floor,
+                budget: cfg.max_gaussians,
+                confidence_power: cfg.pseudo_confidence_power,
+            },
+        );
         report.split.fuse_ms = ms(start);
         report.pseudo_pairs = pseudo.len();
         report.added_gaussians = fused.len() - report.base_gaussians;

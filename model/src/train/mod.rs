@@ -180,6 +180,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         enhancer_weights: None,
         pseudo_poses: Vec::new(),
         pseudo_fusion_margin: 0.0,
+        pseudo_confidence_power: 0.0,
         pseudo_mix: 0.0,
         volume: match c.volume_branch {
             true => c.volume.clone(),

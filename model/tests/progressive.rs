@@ -66,8 +66,19 @@ fn learned() -> LearnedReconstructor {
     LearnedReconstructor::load(&Config::tiny(), &default_weights("tiny")).unwrap()
 }
 
+/// The pass with the pseudo pairs' fusion margin at 0.1, so that this small bin gets
+/// additions (the default, 1, adds none here).
 fn pass(enhancer: Option<Enhancer>) -> ProgressiveReconstructor {
-    ProgressiveReconstructor::new(learned(), enhancer, RenderWith::Cpu)
+    pass_with_margin(enhancer, 0.1)
+}
+
+fn pass_with_margin(enhancer: Option<Enhancer>, margin: f32) -> ProgressiveReconstructor {
+    let cfg = Config {
+        pseudo_fusion_margin: margin,
+        ..Config::tiny()
+    };
+    let learned = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+    ProgressiveReconstructor::new(learned, enhancer, RenderWith::Cpu)
 }
 
 fn fresh_enhancer() -> Enhancer {
@@ -114,6 +125,11 @@ fn the_pass_keeps_g_base_first_and_adds_confidence_weighted_pseudo_gaussians() {
     // Every addition is at most as opaque as its confidence allows.
     assert!((base.len()..out.len()).all(|i| out.opacities[i] <= out.confidences[i] + 1e-6));
     assert_finite(&out, "raw pass");
+
+    // A wider margin explains more by G_base and adds fewer.
+    let mut wide = pass_with_margin(None, 1.0);
+    wide.reconstruct_ahead(&views, &ahead).unwrap();
+    assert!(wide.last_report().unwrap().added_gaussians < report.added_gaussians / 2);
 
     // Without known poses the pseudo pairs go ahead along the camera's axis: another map.
     let ahead_only = raw.reconstruct(&views).unwrap();
@@ -240,7 +256,11 @@ fn settings_build_the_pass_and_a_missing_enhancer_is_named() {
     // The tiny-plus preset: tiny's weights with the pass on (here without the enhancer).
     let preset = Config::preset("tiny-plus").unwrap();
     assert!(preset.progressive && preset.enhancer);
-    assert_eq!(preset.pseudo_poses, [8.0], "one pseudo pair keeps the node real time");
+    assert_eq!(
+        preset.pseudo_poses,
+        [8.0],
+        "one pseudo pair keeps the node real time"
+    );
     assert_eq!(default_weights("tiny-plus"), default_weights("tiny"));
     let plus = build(
         "stereosplat",

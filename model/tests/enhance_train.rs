@@ -14,12 +14,12 @@ use model::enhance::make_pairs::{make_pairs, DataConfig, Source};
 use model::enhance::pairs::PairSet;
 use model::enhance::train::{exported_weights, TrainConfig, Trainer};
 use model::enhance::{load, Config};
-use model::generate::write_synthetic;
 use model::lpips::Lpips;
 use model::net::default_weights;
 use model::synth::SynthConfig;
 use model::train::AdamWConfig;
 
+mod drive_support;
 mod train_support;
 use train_support::{assert_same_weights, logged_steps};
 
@@ -29,9 +29,8 @@ fn temp(case: &str) -> PathBuf {
     dir
 }
 
-/// A generated drive of `frames` frames of `width x height` in a fresh folder.
-fn drive(case: &str, seed: u64, frames: u32, (width, height): (u32, u32)) -> PathBuf {
-    let data = temp(case);
+/// A generated drive of `frames` frames of `width x height`, written once per process.
+fn drive(tag: &str, seed: u64, frames: u32, (width, height): (u32, u32)) -> PathBuf {
     let config = SynthConfig {
         seed,
         frames,
@@ -39,8 +38,7 @@ fn drive(case: &str, seed: u64, frames: u32, (width, height): (u32, u32)) -> Pat
         height,
         ..SynthConfig::default()
     };
-    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
-    data
+    drive_support::once(tag, &config).0
 }
 
 fn data_config(pairs: usize) -> DataConfig {
@@ -92,7 +90,7 @@ fn train(pairs: &Path, out: &Path, steps: u64, resume: bool) -> Vec<f32> {
 
 #[test]
 fn pairs_are_written_as_asked_and_training_resumes_exactly() {
-    let data = drive("data", 11, 40, (136, 40));
+    let data = drive("enh-data", 11, 40, (136, 40));
 
     // 6 pairs: two draws of up to 4 targets, the second cut short by the bound.
     let (made, straight) = (temp("pairs"), temp("pairs-straight"));
@@ -174,7 +172,7 @@ fn pairs_are_written_as_asked_and_training_resumes_exactly() {
 fn the_shipped_enhancer_improves_renders_of_a_street_it_never_saw() {
     // A drive of a seed no training run used (the script's are 20-27 and 1000000-1000001),
     // at the size the enhancer was trained at; renders by the shipped StereoSplat.
-    let data = drive("shipped-data", 1_000_007, 30, (272, 72));
+    let data = drive("enh-shipped-data", 1_000_007, 30, (272, 72));
     let made = temp("shipped-pairs");
     assert_eq!(pairs(&data, &made, 12), 12);
     let enhancer = load(&Config::tiny(), &model::enhance::default_weights("tiny")).unwrap();

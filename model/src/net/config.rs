@@ -262,7 +262,7 @@ impl Config {
             enhancer_weights: None,
             pseudo_poses: pseudo_poses(),
             pseudo_fusion_margin: pseudo_fusion_margin(),
-            pseudo_confidence_power: 1.0,
+            pseudo_confidence_power: one_f32(),
             pseudo_mix: 0.0,
         }
     }

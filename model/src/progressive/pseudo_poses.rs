@@ -2,8 +2,9 @@
 //! `pseudo_poses` setting, at the bin's own later poses when they are known (`eval` knows
 //! the whole bin's trajectory: evenly spaced, ending at the last, so `[4, 8]` gives the
 //! centre and the last), otherwise at those distances ahead of the last input camera along
-//! the trajectory (the node opens a bin at its first frame and knows nothing later). The pseudo right camera sits where the rig puts
-//! it: the real pair's left-to-right offset, carried in the pseudo left camera's frame.
+//! the trajectory (the node opens a bin at its first frame and knows nothing later). The
+//! pseudo right camera sits where the rig puts it: the real pair's left-to-right offset,
+//! carried in the pseudo left camera's frame.
 
 use glam::Vec3;
 use renderer::Camera;
@@ -21,9 +22,9 @@ pub struct PseudoPair {
 /// the bin frame), one per finite entry of `distances`: at evenly spaced cameras of `ahead`
 /// (bin-local left cameras of the bin's later frames; the k-th of n at index
 /// ceil(k m / n) - 1 of m, duplicates once) when given, else at each distance in metres
-/// ahead. "Ahead" is the
-/// direction from the first to the last real left camera when they are more than 1 cm
-/// apart, else the first camera's viewing axis; a negative distance puts the pair behind.
+/// ahead. "Ahead" is the direction from the first to the last real left camera when they
+/// are more than 1 cm apart, else the first camera's viewing axis; a negative distance puts
+/// the pair behind.
 /// Non-finite distances are skipped; an empty `real` gives none.
 pub fn pseudo_pairs(
     real: &[(Camera, Camera)],

@@ -11,6 +11,7 @@
 
 pub mod baseline;
 pub mod bins;
+pub mod compute;
 pub mod consistency;
 pub mod curve;
 pub mod enhance;

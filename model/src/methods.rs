@@ -94,12 +94,13 @@ pub fn build(
                         .clone()
                         .unwrap_or_else(|| enhance::default_weights(ENHANCER_PRESET));
                     let preset = enhance::Config::tiny();
-                    Some(
-                        enhance::load(&preset, &path).map_err(|e| MethodError::Enhancer {
+                    let device = learned.device();
+                    Some(enhance::load(&preset, &path, &device).map_err(|e| {
+                        MethodError::Enhancer {
                             path,
                             source: Box::new(e),
-                        })?,
-                    )
+                        }
+                    })?)
                 }
                 false => None,
             };

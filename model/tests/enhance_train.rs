@@ -151,7 +151,12 @@ fn pairs_are_written_as_asked_and_training_resumes_exactly() {
     // Another preset's checkpoint is refused.
     assert!(Trainer::new(&Config::small(), train_config(6), &made, &stopped, true).is_err());
 
-    let enhancer = load(&Config::tiny(), &exported_weights(&stopped, "tiny")).unwrap();
+    let enhancer = load(
+        &Config::tiny(),
+        &exported_weights(&stopped, "tiny"),
+        &Device::Cpu,
+    )
+    .unwrap();
     let report = evaluate(
         &enhancer,
         &resumed,
@@ -175,7 +180,12 @@ fn the_shipped_enhancer_improves_renders_of_a_street_it_never_saw() {
     let data = drive("enh-shipped-data", 1_000_007, 30, (272, 72));
     let made = temp("shipped-pairs");
     assert_eq!(pairs(&data, &made, 12), 12);
-    let enhancer = load(&Config::tiny(), &model::enhance::default_weights("tiny")).unwrap();
+    let enhancer = load(
+        &Config::tiny(),
+        &model::enhance::default_weights("tiny"),
+        &Device::Cpu,
+    )
+    .unwrap();
     let set = PairSet::open(&made).unwrap();
     let lpips = Lpips::load_default().unwrap();
     let report = evaluate(&enhancer, &set, &lpips, 4, &mut |_, _| {}).unwrap();

@@ -1,9 +1,10 @@
 //! `model::ops::grid_sample` and `upsample_bilinear`: forward against a direct nested-loop
 //! reference, gradients (through candle's `backward`) against central finite differences in
-//! f64, zeros padding outside the image, and no NaN from extreme or NaN coordinates.
+//! f64, zeros padding outside the image, and no NaN from extreme or NaN coordinates; and the
+//! gather formulation other devices use (`grid_sample_by_gathers`) against the CPU kernel.
 
 use candle_core::{DType, Device, Tensor, Var};
-use model::ops::{grid_sample, upsample_bilinear};
+use model::ops::{grid_sample, grid_sample_by_gathers, upsample_bilinear};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -200,14 +201,24 @@ fn gradients_match_central_finite_differences_in_f64() {
     }
 }
 
+/// A grid sampler: the CPU kernel or the gather formulation.
+type Sampler = fn(&Tensor, &Tensor) -> candle_core::Result<Tensor>;
+
+/// Both samplers, each test runs on.
+const SAMPLERS: [Sampler; 2] = [grid_sample, grid_sample_by_gathers];
+
 /// One point per case on a single 1x1-channel 3x4 image; returns the samples and the
 /// gradients of their sum with respect to input and grid.
-fn sample_points(points: &[[f64; 2]], dtype: DType) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+fn sample_points(
+    sample: Sampler,
+    points: &[[f64; 2]],
+    dtype: DType,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let image: Vec<f64> = (1..=12).map(|v| v as f64).collect();
     let vi = Var::from_tensor(&tensor(&image, &[1, 1, 3, 4], dtype)).unwrap();
     let flat: Vec<f64> = points.iter().flatten().copied().collect();
     let vg = Var::from_tensor(&tensor(&flat, &[1, 1, points.len(), 2], dtype)).unwrap();
-    let out = grid_sample(vi.as_tensor(), vg.as_tensor()).unwrap();
+    let out = sample(vi.as_tensor(), vg.as_tensor()).unwrap();
     let grads = out.sum_all().unwrap().backward().unwrap();
     (
         values(&out),
@@ -227,18 +238,21 @@ fn points_a_pixel_or_more_outside_sample_zero_and_edges_blend_with_zero() {
         [-7.5, 0.5],
         [2.5, 40.0],
     ];
-    let (out, d_input, d_grid) = sample_points(&outside, DType::F64);
-    assert_eq!(out, vec![0.0; outside.len()]);
-    assert_eq!(d_input, vec![0.0; 12]);
-    assert_eq!(d_grid, vec![0.0; 2 * outside.len()]);
+    for sample in SAMPLERS {
+        let (out, d_input, d_grid) = sample_points(sample, &outside, DType::F64);
+        assert_eq!(out, vec![0.0; outside.len()]);
+        assert_eq!(d_input, vec![0.0; 12]);
+        assert_eq!(d_grid, vec![0.0; 2 * outside.len()]);
 
-    // Half a pixel outside blends the edge pixel with zero; a pixel centre reads it exactly.
-    let (out, _, _) = sample_points(
-        &[[-0.5, 0.0], [3.5, 2.0], [1.0, 2.5], [3.0, 2.0], [1.25, 0.5]],
-        DType::F64,
-    );
-    let want = [0.5, 0.5 * 12.0, 0.5 * 10.0, 12.0, 0.5 * (2.25 + 6.25)];
-    assert!(max_abs_diff(&out, &want) < 1e-12, "{out:?}");
+        // Half a pixel outside blends the edge pixel with zero; a pixel centre reads it.
+        let (out, _, _) = sample_points(
+            sample,
+            &[[-0.5, 0.0], [3.5, 2.0], [1.0, 2.5], [3.0, 2.0], [1.25, 0.5]],
+            DType::F64,
+        );
+        let want = [0.5, 0.5 * 12.0, 0.5 * 10.0, 12.0, 0.5 * (2.25 + 6.25)];
+        assert!(max_abs_diff(&out, &want) < 1e-12, "{out:?}");
+    }
 }
 
 #[test]
@@ -253,8 +267,11 @@ fn nan_and_extreme_coordinates_sample_zero_with_finite_gradients() {
         [-(f32::MAX as f64), 1.0],
         [1.5, 1.5], // an ordinary point beside them still samples
     ];
-    for dtype in [DType::F32, DType::F64] {
-        let (out, d_input, d_grid) = sample_points(&extreme, dtype);
+    for (dtype, sample) in [DType::F32, DType::F64]
+        .into_iter()
+        .flat_map(|d| SAMPLERS.map(|s| (d, s)))
+    {
+        let (out, d_input, d_grid) = sample_points(sample, &extreme, dtype);
         assert!(
             out.iter()
                 .chain(&d_input)
@@ -315,4 +332,41 @@ fn upsampling_matches_the_half_pixel_formula_and_has_a_backward() {
     // Same size is the identity.
     let same = upsample_bilinear(&tensor(&x, &[1, 2, h, w], DType::F32), h, w).unwrap();
     assert!(max_abs_diff(&values(&same), &x) < 1e-7);
+}
+
+#[test]
+fn the_gather_formulation_matches_the_cpu_kernel_in_value_and_both_gradients() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let input = random(&mut rng, N * C * H * W, -1.0, 1.0);
+    // Not smoothed: integer coordinates take the same one-sided derivative in both.
+    let mut grid = random_grid(&mut rng, false);
+    grid[0] = 2.0;
+    grid[1] = 3.0;
+    let weights = random(&mut rng, N * C * HO * WO, -1.0, 1.0);
+    let run = |sample: Sampler| {
+        let vi = Var::from_tensor(&tensor(&input, &[N, C, H, W], DType::F64)).unwrap();
+        let vg = Var::from_tensor(&tensor(&grid, &[N, HO, WO, 2], DType::F64)).unwrap();
+        let out = sample(vi.as_tensor(), vg.as_tensor()).unwrap();
+        let loss = (&out * tensor(&weights, &[N, C, HO, WO], DType::F64))
+            .unwrap()
+            .sum_all()
+            .unwrap();
+        let grads = loss.backward().unwrap();
+        [
+            values(&out),
+            values(grads.get(vi.as_tensor()).unwrap()),
+            values(grads.get(vg.as_tensor()).unwrap()),
+        ]
+    };
+    let (kernel, gathers) = (run(grid_sample), run(grid_sample_by_gathers));
+    for (what, (a, b)) in ["value", "input gradient", "grid gradient"]
+        .iter()
+        .zip(kernel.iter().zip(&gathers))
+    {
+        assert!(max_abs_diff(a, b) < 1e-12, "{what}: {}", max_abs_diff(a, b));
+    }
+    assert!(
+        kernel[2].iter().any(|g| g.abs() > 0.1),
+        "the grid gradient is not trivial"
+    );
 }

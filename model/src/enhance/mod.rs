@@ -38,14 +38,14 @@ pub fn default_weights(preset: &str) -> PathBuf {
         .join(format!("enhancer_{preset}.safetensors"))
 }
 
-/// The enhancer of `cfg` with weights from `path` (safetensors, f32), on the CPU.
-pub fn load(cfg: &Config, path: &Path) -> Result<Enhancer, EnhanceError> {
-    let tensors = candle_core::safetensors::load(path, &candle_core::Device::Cpu)?;
-    let vb = candle_nn::VarBuilder::from_tensors(
-        tensors,
-        candle_core::DType::F32,
-        &candle_core::Device::Cpu,
-    );
+/// The enhancer of `cfg` with weights from `path` (safetensors, f32), on `device`.
+pub fn load(
+    cfg: &Config,
+    path: &Path,
+    device: &candle_core::Device,
+) -> Result<Enhancer, EnhanceError> {
+    let tensors = candle_core::safetensors::load(path, device)?;
+    let vb = candle_nn::VarBuilder::from_tensors(tensors, candle_core::DType::F32, device);
     Ok(Enhancer::new(vb, cfg)?)
 }
 

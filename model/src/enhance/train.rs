@@ -137,6 +137,7 @@ impl Trainer {
         };
         let (run, net) = Run::start(
             out,
+            &Device::Cpu,
             cfg.seed,
             cfg.adamw.clone(),
             LOG_COLUMNS,

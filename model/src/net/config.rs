@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::volume::VolumeConfig;
+use crate::compute::ComputeDevice;
 
 /// Sizes and ranges of the StereoSplat cost-volume network.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -137,6 +138,10 @@ pub struct Config {
     /// 0 trains on true pairs only.
     #[serde(default)]
     pub pseudo_mix: f32,
+    /// Where the network runs: `cpu` (default) or `cuda` / `cuda:N` (a build with the `cuda`
+    /// feature; `crate::compute`). Not part of the network: weights load on either.
+    #[serde(default)]
+    pub device: ComputeDevice,
 }
 
 fn yes() -> bool {
@@ -264,6 +269,7 @@ impl Config {
             pseudo_fusion_margin: pseudo_fusion_margin(),
             pseudo_confidence_power: one_f32(),
             pseudo_mix: 0.0,
+            device: ComputeDevice::Cpu,
         }
     }
 

@@ -35,6 +35,9 @@ pub enum LoadError {
     /// No file there (the preset has no shipped weights: train them with `stereosplat train`).
     #[error("no weights at {0} (train them with `stereosplat train`)")]
     Missing(PathBuf),
+    /// The `device` setting names a device this build or machine does not have.
+    #[error("device: {0}")]
+    Device(#[source] candle_core::Error),
     /// The file is not safetensors or does not fit the preset's network.
     #[error("weights {path} do not fit the network: {source}")]
     Mismatch {
@@ -67,18 +70,19 @@ pub struct BranchReport {
 }
 
 impl LearnedReconstructor {
-    /// The network of `cfg` with weights from `path` (safetensors, f32), on the CPU.
+    /// The network of `cfg` with weights from `path` (safetensors, f32), on `cfg.device`.
     pub fn load(cfg: &Config, path: &Path) -> Result<Self, LoadError> {
         if !path.exists() {
             return Err(LoadError::Missing(path.to_path_buf()));
         }
+        let device = cfg.device.open().map_err(LoadError::Device)?;
         let mismatch = |source| LoadError::Mismatch {
             path: path.to_path_buf(),
             source,
         };
-        let tensors = candle_core::safetensors::load(path, &Device::Cpu).map_err(mismatch)?;
+        let tensors = candle_core::safetensors::load(path, &device).map_err(mismatch)?;
         let parameters = tensors.values().map(Tensor::elem_count).sum();
-        let vb = VarBuilder::from_tensors(tensors, DType::F32, &Device::Cpu);
+        let vb = VarBuilder::from_tensors(tensors, DType::F32, &device);
         let net = StereoSplat::new(vb, cfg).map_err(mismatch)?;
         Ok(Self::from_net(net, parameters))
     }
@@ -103,7 +107,13 @@ impl LearnedReconstructor {
         let report = load_matching(&varmap, path).map_err(mismatch)?;
         let tensors = frozen(&varmap).map_err(mismatch)?;
         let parameters = tensors.values().map(Tensor::elem_count).sum();
-        let vb = VarBuilder::from_tensors(tensors, DType::F32, &Device::Cpu);
+        let device = cfg.device.open().map_err(LoadError::Device)?;
+        let tensors = tensors
+            .into_iter()
+            .map(|(k, t)| Ok((k, t.to_device(&device)?)))
+            .collect::<candle_core::Result<_>>()
+            .map_err(mismatch)?;
+        let vb = VarBuilder::from_tensors(tensors, DType::F32, &device);
         let net = StereoSplat::new(vb, cfg).map_err(mismatch)?;
         Ok((Self::from_net(net, parameters), report))
     }
@@ -112,7 +122,7 @@ impl LearnedReconstructor {
     /// that have no trained weights, and for tests of shapes and numerical stability.
     pub fn untrained(cfg: &Config) -> candle_core::Result<Self> {
         let varmap = candle_nn::VarMap::new();
-        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &cfg.device.open()?);
         let net = StereoSplat::new(vb, cfg)?;
         let parameters = varmap.all_vars().iter().map(|v| v.elem_count()).sum();
         Ok(Self::from_net(net, parameters))
@@ -142,6 +152,11 @@ impl LearnedReconstructor {
     /// The network.
     pub fn net(&self) -> &StereoSplat {
         &self.net
+    }
+
+    /// The device the network's weights live on (its inputs go there too).
+    pub fn device(&self) -> Device {
+        self.net.device()
     }
 }
 
@@ -190,7 +205,7 @@ impl Reconstructor for LearnedReconstructor {
     }
 
     fn reconstruct(&mut self, views: &[StereoView<'_>]) -> Result<GaussianSet, ReconstructError> {
-        let (images, cameras) = images_and_cameras(views, &Device::Cpu)?;
+        let (images, cameras) = images_and_cameras(views, &self.device())?;
         Ok(self.reconstruct_tensors(&images, &cameras)?.set)
     }
 }

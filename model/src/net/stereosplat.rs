@@ -3,7 +3,7 @@
 //! triplane the cost-volume Gaussians and the views' features fill; the output set is
 //! G = G_cv ∪ G_vol (only G_vol without `cost_volume_branch`: the paper's Branch_3D row).
 
-use candle_core::{Module, Result, Tensor};
+use candle_core::{Device, Module, Result, Tensor};
 use candle_nn::VarBuilder;
 
 use crate::ops::Conv;
@@ -98,6 +98,7 @@ pub struct StereoSplat {
     volume: Option<VolumeBranch>,
     depths: Vec<f64>,
     cfg: Config,
+    device: Device,
 }
 
 impl StereoSplat {
@@ -127,12 +128,19 @@ impl StereoSplat {
             volume,
             depths: candidate_depths(cfg),
             cfg: cfg.clone(),
+            device: vb.device().clone(),
         })
     }
 
     /// The preset.
     pub fn config(&self) -> &Config {
         &self.cfg
+    }
+
+    /// The device its weights live on (`Config::device` when loaded through the project's
+    /// loaders).
+    pub fn device(&self) -> Device {
+        self.device.clone()
     }
 
     /// `images` `(V, 3, H, W)` in `[0, 1]` (left and right of each pair, any order) with their

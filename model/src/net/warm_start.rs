@@ -46,7 +46,7 @@ pub fn load_matching(varmap: &VarMap, path: &Path) -> candle_core::Result<WarmSt
     for (name, var) in data.iter() {
         match file.get(name) {
             Some(t) if t.dims() == var.dims() => {
-                var.set(&t.to_dtype(var.dtype())?)?;
+                var.set(&t.to_dtype(var.dtype())?.to_device(var.device())?)?;
                 report.loaded += 1;
             }
             Some(t) => candle_core::bail!(

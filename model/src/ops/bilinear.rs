@@ -23,8 +23,11 @@ use super::cpu::{float_dtype, float_kernel, slice, Float, OpError};
 /// Samples `input` `(N, C, H, W)` bilinearly at the pixel coordinates in `grid`
 /// `(N, Ho, Wo, 2)` (last axis `x, y`; see the module doc for the convention), giving
 /// `(N, C, Ho, Wo)`. Differentiable with respect to both `input` and `grid`; `f32` or `f64`
-/// CPU tensors of one dtype.
+/// tensors of one dtype. Off the CPU it is [`super::grid_sample_by_gathers`].
 pub fn grid_sample(input: &Tensor, grid: &Tensor) -> Result<Tensor> {
+    if !input.device().is_cpu() {
+        return super::grid_sample_by_gathers(input, grid);
+    }
     let (n, _, h, w) = input.dims4()?;
     let (gn, _, _, two) = grid.dims4()?;
     if gn != n || two != 2 {

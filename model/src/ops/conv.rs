@@ -147,9 +147,10 @@ impl Module for Conv {
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let (cout, cin, k, _) = self.weight.dims4()?;
         let n = x.dim(0)?;
-        if let (Some(folded), false) = (&self.folded, x.track_op()) {
+        if let (Some(folded), false, true) = (&self.folded, x.track_op(), x.device().is_cpu()) {
             // No gradient wanted (inference, fixed inputs to LPIPS): one parallel im2col
-            // pass with a row of ones for the bias column.
+            // pass with a row of ones for the bias column (a CPU kernel; other devices
+            // take the gather below).
             let patches = self.patches(self.bias.is_some());
             let (ho, wo) = patches.output_size(x.dim(2)?, x.dim(3)?);
             return folded

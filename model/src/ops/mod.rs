@@ -10,13 +10,16 @@
 //! - [`transpose_last2`]: a tiled transpose (candle's strided copy of a permuted tensor is
 //!   slow on the CPU).
 //!
-//! The kernels run on CPU tensors of `f32` (training) or `f64` (gradient checks). Second
+//! The kernels run on CPU tensors of `f32` (training) or `f64` (gradient checks); on other
+//! devices each op follows the rule in `crate::compute` ([`grid_sample_by_gathers`] is
+//! `grid_sample` off the CPU). Second
 //! derivatives are not supported: the gradients these ops return are not themselves
 //! differentiable.
 
 mod bilinear;
 mod conv;
 mod cpu;
+mod gather_sample;
 mod im2col;
 mod render;
 mod transpose;
@@ -24,6 +27,7 @@ mod transpose;
 pub use bilinear::{grid_sample, upsample_bilinear};
 pub use conv::Conv;
 pub use cpu::OpError;
+pub use gather_sample::grid_sample_by_gathers;
 pub use im2col::{im2col, Patches};
 pub use render::{
     render, SplatTensors, CH_ALPHA, CH_B, CH_CONFIDENCE, CH_DEPTH, CH_G, CH_R, COL_COLOR,

@@ -146,7 +146,8 @@ impl SplatTensors {
 
 /// Renders the packed Gaussians `splats` `(G, PARAMS)` through `camera` with the CPU
 /// rasterizer, giving `(OUT_CHANNELS, H, W)` (see the module doc for both layouts).
-/// Differentiable with respect to `splats`; `f32` or `f64`, CPU.
+/// Differentiable with respect to `splats`; `f32` or `f64`. Splats on another device are
+/// rasterized on the CPU and the images (and gradients) copied back (`crate::compute`).
 pub fn render(splats: &Tensor, camera: &Camera, settings: &RenderSettings) -> Result<Tensor> {
     let (_, cols) = splats.dims2()?;
     if cols != PARAMS {
@@ -155,11 +156,19 @@ pub fn render(splats: &Tensor, camera: &Camera, settings: &RenderSettings) -> Re
             format!("splats {:?} must be (G, {PARAMS})", splats.dims()),
         ));
     }
-    splats.contiguous()?.apply_op1(Render {
+    let op = Render {
         camera: *camera,
         settings: *settings,
         forward: Mutex::new(None),
-    })
+    };
+    match splats.device() {
+        Device::Cpu => splats.contiguous()?.apply_op1(op),
+        device => splats
+            .to_device(&Device::Cpu)?
+            .contiguous()?
+            .apply_op1(op)?
+            .to_device(device),
+    }
 }
 
 /// The op: camera and settings, and the forward pass kept for the backward pass (a

@@ -12,9 +12,12 @@ use super::cpu::{float_dtype, float_kernel, slice, Float};
 const TILE: usize = 64;
 
 /// `x` `(B, R, C)` as the contiguous `(B, C, R)` with `out[b, c, r] = x[b, r, c]`;
-/// differentiable; `f32` or `f64`, CPU.
+/// differentiable; `f32` or `f64`. Off the CPU, candle's own strided copy (fast there).
 pub fn transpose_last2(x: &Tensor) -> Result<Tensor> {
     x.dims3()?;
+    if !x.device().is_cpu() {
+        return x.transpose(1, 2)?.contiguous();
+    }
     x.contiguous()?.apply_op1(TransposeLast2)
 }
 

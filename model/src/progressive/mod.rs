@@ -91,7 +91,8 @@ impl ProgressiveReconstructor {
         let backend = |e: candle_core::Error| ReconstructError::Backend(e.to_string());
         self.last = None;
         let start = Instant::now();
-        let (images, cameras) = images_and_cameras(views, &Device::Cpu)?;
+        let device = self.inner.device();
+        let (images, cameras) = images_and_cameras(views, &device)?;
         let base = self.inner.reconstruct_tensors(&images, &cameras)?;
         let cfg = self.inner.net().config().clone();
         let mut report = ProgressiveReport {
@@ -130,7 +131,7 @@ impl ProgressiveReconstructor {
             .map(|cam| raster.render(&base.set, cam, &settings))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| ReconstructError::Backend(format!("pseudo view render: {e}")))?;
-        let rendered = render_tensor(&renders).map_err(backend)?;
+        let rendered = render_tensor(&renders, &device).map_err(backend)?;
         report.split.pseudo_render_ms = ms(start);
 
         let start = Instant::now();
@@ -213,7 +214,7 @@ fn ms(start: Instant) -> f64 {
 
 /// Renders as the enhancer's input, `(N, 5, H, W)`: RGB, alpha, confidence, each clamped to
 /// `[0, 1]` (non-finite values become 0).
-pub fn render_tensor(renders: &[RenderOutput]) -> candle_core::Result<Tensor> {
+pub fn render_tensor(renders: &[RenderOutput], device: &Device) -> candle_core::Result<Tensor> {
     let unit = |v: f32| {
         if v.is_finite() {
             v.clamp(0.0, 1.0)
@@ -225,11 +226,11 @@ pub fn render_tensor(renders: &[RenderOutput]) -> candle_core::Result<Tensor> {
         .iter()
         .map(|r| {
             let (h, w) = (r.height as usize, r.width as usize);
-            let rgb = Tensor::from_iter(r.rgb.iter().map(|&v| unit(v)), &Device::Cpu)?
+            let rgb = Tensor::from_iter(r.rgb.iter().map(|&v| unit(v)), device)?
                 .reshape((h, w, 3))?
                 .permute((2, 0, 1))?;
             let plane = |v: &[f32]| {
-                Tensor::from_iter(v.iter().map(|&x| unit(x)), &Device::Cpu)?.reshape((1, h, w))
+                Tensor::from_iter(v.iter().map(|&x| unit(x)), device)?.reshape((1, h, w))
             };
             Tensor::cat(&[&rgb, &plane(&r.alpha)?, &plane(&r.confidence)?], 0)
         })

@@ -155,8 +155,9 @@ impl AdamW {
                     .cloned()
                     .ok_or_else(|| candle_core::Error::Msg(format!("optimizer state lacks {k}")))
             };
-            s.m = get(format!("m.{}", s.name))?;
-            s.v = get(format!("v.{}", s.name))?;
+            // Moments live where their variable does (the file is read on the CPU).
+            s.m = get(format!("m.{}", s.name))?.to_device(s.m.device())?;
+            s.v = get(format!("v.{}", s.name))?.to_device(s.v.device())?;
         }
         self.step = step;
         Ok(())

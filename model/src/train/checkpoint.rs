@@ -30,12 +30,15 @@ pub(crate) struct Run {
 }
 
 impl Run {
-    /// Starts a run in `out`: `build` makes the network on fresh variables, which are then
+    /// Starts a run in `out` on `device`: `build` makes the network on fresh variables, which are then
     /// drawn from `seed`; with `resume` and a checkpoint there, `check` vets its state and
     /// returns its step and seconds, and the weights and moments are loaded. The log
     /// (`columns`) keeps its rows up to that step.
+    // Two trainers share it; each argument is one thing a run needs (no natural grouping).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn start<N, S: DeserializeOwned>(
         out: &Path,
+        device: &Device,
         seed: u64,
         adamw: AdamWConfig,
         columns: &[&str],
@@ -45,7 +48,7 @@ impl Run {
     ) -> Result<(Self, N), TrainError> {
         std::fs::create_dir_all(checkpoint_dir(out)).map_err(io_error(out))?;
         let varmap = VarMap::new();
-        let net = build(VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu))?;
+        let net = build(VarBuilder::from_varmap(&varmap, DType::F32, device))?;
         reseed(&varmap, seed)?;
         let mut optimizer = AdamW::new(variables(&varmap), adamw)?;
         let state = match resume {

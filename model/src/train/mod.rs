@@ -18,7 +18,7 @@ mod pseudo_mix;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use candle_core::{DType, Device, Tensor};
+use candle_core::{DType, Tensor};
 use candle_nn::VarMap;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -33,6 +33,7 @@ pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, U
 pub use pseudo_mix::mix_pseudo_pairs;
 
 use crate::bins::BinConfig;
+use crate::compute::ComputeDevice;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
 use crate::net::volume::VolumeConfig;
 use crate::net::{load_matching, Config, StereoSplat, WarmStart};
@@ -162,7 +163,7 @@ struct State {
 /// Whether two presets build the same network and train it alike: the settings of inference
 /// alone (opacity floor, budget, pair fusion, joint pairs, merging, pruning, the progressive
 /// pass) do not count, nor the schedule-like view subsampling and pseudo-view mixing (a run
-/// may change them when it resumes), nor the volume branch's sizes while the branch is off (checkpoints from before the branch
+/// may change them when it resumes), nor the device it runs on, nor the volume branch's sizes while the branch is off (checkpoints from before the branch
 /// existed read them as `tiny`'s).
 fn same_network(a: &Config, b: &Config) -> bool {
     let training = |c: &Config| Config {
@@ -182,6 +183,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         pseudo_fusion_margin: 0.0,
         pseudo_confidence_power: 0.0,
         pseudo_mix: 0.0,
+        device: ComputeDevice::Cpu,
         volume: match c.volume_branch {
             true => c.volume.clone(),
             false => VolumeConfig::default(),
@@ -233,8 +235,10 @@ impl Trainer {
             }
             Ok((state.step, state.elapsed_s))
         };
+        let device = net_cfg.device.open()?;
         let (run, net) = checkpoint::Run::start(
             out,
+            &device,
             cfg.seed,
             cfg.adamw.clone(),
             LOG_COLUMNS,
@@ -243,7 +247,7 @@ impl Trainer {
             check,
         )?;
         Ok(Self {
-            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu)?,
+            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
             data: TrainingSet::open(data, &cfg.bins, cfg.resize)?,
             run,
             net,
@@ -282,7 +286,8 @@ impl Trainer {
         while self.run.optimizer.step < self.cfg.steps && !stop() {
             let step = self.run.optimizer.step + 1;
             let mut rng = ChaCha8Rng::seed_from_u64(mix(self.cfg.seed, step));
-            let mut sample = self.data.sample(&mut rng, &self.cfg.sample, &Device::Cpu)?;
+            let device = self.net.device();
+            let mut sample = self.data.sample(&mut rng, &self.cfg.sample, &device)?;
             mix_pseudo_pairs(
                 &self.net,
                 &mut sample,

@@ -2,14 +2,17 @@
 //!
 //! Times whole calls: the CPU forward pass, the CPU backward pass (loss = sum of RGB), and the
 //! wgpu forward pass including upload and read-back of every output image, so the figure is
-//! what a caller of `GpuRasterizer::render` waits for. Warm-up runs are not counted.
+//! what a caller of `GpuRasterizer::render` waits for. Warm-up runs are not counted. The wgpu
+//! frame is then split by `render_profiled` (median of the same number of runs): upload,
+//! projection with its count read-back, the kernels after it and the image read-back, each
+//! waited for, plus per-stage GPU timestamps where the adapter writes them.
 
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
 use renderer::cpu::{self, OutputGrads};
-use renderer::gpu::GpuRasterizer;
+use renderer::gpu::{FrameProfile, GpuRasterizer};
 use renderer::RenderSettings;
 use serde::Serialize;
 
@@ -58,6 +61,8 @@ struct GpuReport {
     backend: String,
     device_type: String,
     forward: Timing,
+    /// The frame split into phases and stages (medians over the timed runs).
+    profile: ProfileReport,
     /// Largest absolute RGB difference from the CPU render of the same frame (when both ran).
     max_abs_rgb_diff_vs_cpu: Option<f32>,
 }
@@ -71,6 +76,52 @@ struct Report {
     height: u32,
     cpu: Option<CpuReport>,
     gpu: Option<GpuReport>,
+}
+
+/// Medians of profiled frames, milliseconds.
+#[derive(Serialize)]
+struct ProfileReport {
+    upload_ms: f64,
+    project_and_count_readback_ms: f64,
+    kernels_ms: f64,
+    readback_ms: f64,
+    /// GPU timestamps per stage, in order (empty where the adapter has none).
+    stages: Vec<(String, f64)>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Renders `runs` profiled frames and reports each phase's and stage's median.
+fn profile(
+    gpu: &mut GpuRasterizer,
+    set: &renderer::GaussianSet,
+    cam: &renderer::Camera,
+    settings: &RenderSettings,
+    runs: usize,
+) -> Result<ProfileReport> {
+    let frames = (0..runs.max(1))
+        .map(|_| Ok(gpu.render_profiled(set, cam, settings)?.1))
+        .collect::<Result<Vec<FrameProfile>>>()?;
+    let of = |f: fn(&FrameProfile) -> f64| median(frames.iter().map(f).collect());
+    let stages = frames[0]
+        .stages
+        .iter()
+        .enumerate()
+        .map(|(i, (name, _))| {
+            let times = frames.iter().filter_map(|f| f.stages.get(i).map(|s| s.1));
+            (name.to_string(), median(times.collect()))
+        })
+        .collect();
+    Ok(ProfileReport {
+        upload_ms: of(|f| f.upload_ms),
+        project_and_count_readback_ms: of(|f| f.project_ms),
+        kernels_ms: of(|f| f.kernels_ms),
+        readback_ms: of(|f| f.readback_ms),
+        stages,
+    })
 }
 
 fn time(warmup: usize, runs: usize, mut f: impl FnMut() -> Result<()>) -> Result<Timing> {
@@ -137,6 +188,7 @@ pub fn run_render(args: &BenchRenderArgs) -> Result<()> {
             std::hint::black_box(gpu.render(&set, &cam, &settings)?);
             Ok(())
         })?;
+        let profile = profile(&mut gpu, &set, &cam, &settings, args.runs)?;
         let out = gpu.render(&set, &cam, &settings)?;
         let diff = out
             .rgb
@@ -148,6 +200,7 @@ pub fn run_render(args: &BenchRenderArgs) -> Result<()> {
             backend: format!("{:?}", info.backend),
             device_type: format!("{:?}", info.device_type),
             forward,
+            profile,
             max_abs_rgb_diff_vs_cpu: Some(diff),
         })
     };

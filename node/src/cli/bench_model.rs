@@ -9,13 +9,14 @@
 //! `volume_*`); shipped weights without the branch's tensors load for the cost-volume part
 //! and the branch runs untrained (`"weights": "<file> + untrained volume branch"`). Each
 //! report also times the triplane encoder alone (`volume_encoder_*`: untrained, on features
-//! of the cost-volume branch's shape at stride 4, with the pair's cameras).
+//! of the cost-volume branch's shape at stride 4, with the pair's cameras). `--set
+//! device=cuda` runs the network on the GPU (a build with the `cuda` feature).
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use candle_core::{Device, Tensor};
+use candle_core::Tensor;
 use clap::Args;
 use model::frame::Side;
 use model::kitti360::Sequence;
@@ -60,6 +61,8 @@ pub struct BenchModelArgs {
 #[derive(Serialize)]
 struct PresetReport {
     preset: String,
+    /// Where the network ran (`--set device=...`).
+    device: String,
     weights: String,
     width: u32,
     height: u32,
@@ -110,14 +113,12 @@ fn time_volume_encoder(
         (args.height as usize).div_ceil(COST_STRIDE),
         (args.width as usize).div_ceil(COST_STRIDE),
     );
-    let features = Tensor::randn(
-        0f32,
-        1.0,
-        (cameras.len(), cfg.cost_channels, h, w),
-        &Device::Cpu,
-    )?;
+    let device = cfg.device.open()?;
+    let features = Tensor::randn(0f32, 1.0, (cameras.len(), cfg.cost_channels, h, w), &device)?;
     let (median, min) = time_runs(args.warmup, args.runs, || {
         encoder.forward(None, &features, cameras, COST_STRIDE)?;
+        // A GPU queues the work: wait for it, so the time is the pass's.
+        device.synchronize()?;
         Ok(())
     })?;
     Ok((median, min, parameters))
@@ -190,6 +191,7 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
             time_volume_encoder(&cfg, &[view.left_camera, view.right_camera], args)?;
         let report = PresetReport {
             preset: name.to_string(),
+            device: String::from(cfg.device),
             weights,
             width: args.width,
             height: args.height,

@@ -40,8 +40,8 @@ pub fn run(args: &EvalEnhancerArgs) -> Result<()> {
         .weights
         .clone()
         .unwrap_or_else(|| default_weights(&args.preset));
-    let enhancer =
-        load(&cfg, &weights).with_context(|| format!("loading {}", weights.display()))?;
+    let enhancer = load(&cfg, &weights, &candle_core::Device::Cpu)
+        .with_context(|| format!("loading {}", weights.display()))?;
     let set = PairSet::open(&args.pairs)?;
     let lpips = Lpips::load_default()?;
     let bar = progress::bar(set.len(), "pairs");

@@ -44,10 +44,14 @@ impl Context {
             max_buffer_size: available.max_buffer_size,
             ..wgpu::Limits::default()
         };
+        // Encoder timestamps, when the adapter has them, serve `render_profiled` only.
+        let timestamps =
+            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
         let (device, queue) =
             pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
                 label: Some("gaussian rasterizer"),
                 required_limits: limits.clone(),
+                required_features: adapter.features() & timestamps,
                 ..Default::default()
             }))?;
         Ok(Self {

@@ -19,17 +19,22 @@ mod prefix_sum;
 mod project;
 mod radix_sort;
 mod tile_ranges;
+mod timing;
 
 #[cfg(test)]
 mod probe;
 #[cfg(test)]
 mod tests;
 
+use std::time::Instant;
+
 use crate::camera::Camera;
 use crate::cpu::TILE_SIZE;
 use crate::gaussians::{GaussianSet, LengthMismatch};
 use crate::output::{RenderOutput, RenderSettings};
 use context::{Context, GrowBuffer};
+pub use timing::FrameProfile;
+use timing::Timestamps;
 
 /// Why the GPU rasterizer could not be created or could not render.
 #[derive(Debug, thiserror::Error)]
@@ -122,6 +127,9 @@ pub struct GpuRasterizer {
     tile_ranges: tile_ranges::TileRanges,
     composite: composite::Composite,
     packed: Vec<[f32; 16]>,
+    /// Stage timestamps of the frame being profiled (`None` outside `render_profiled`, or
+    /// where the adapter has none).
+    stamps: Option<Timestamps>,
 }
 
 impl GpuRasterizer {
@@ -138,6 +146,7 @@ impl GpuRasterizer {
             tile_ranges: tile_ranges::TileRanges::new(&ctx),
             composite: composite::Composite::new(&ctx),
             packed: Vec::new(),
+            stamps: None,
             ctx,
         })
     }
@@ -167,6 +176,44 @@ impl GpuRasterizer {
         cam: &Camera,
         settings: &RenderSettings,
     ) -> Result<RenderOutput<f32>, GpuError> {
+        // The query set stays for the next profiled frame; this frame writes no marks.
+        let stamps = self.stamps.take();
+        let out = self.render_frame(set, cam, settings, None);
+        self.stamps = stamps;
+        out
+    }
+
+    /// [`Self::render`] with the frame's time split into upload, projection, kernels and
+    /// read-back (each phase waited for, so the total is a little above `render`'s) and,
+    /// where the adapter writes encoder timestamps, per-stage GPU times.
+    pub fn render_profiled(
+        &mut self,
+        set: &GaussianSet,
+        cam: &Camera,
+        settings: &RenderSettings,
+    ) -> Result<(RenderOutput<f32>, FrameProfile), GpuError> {
+        if self.stamps.is_none() {
+            self.stamps = Timestamps::new(&self.ctx);
+        }
+        if let Some(s) = &mut self.stamps {
+            s.clear();
+        }
+        let mut profile = FrameProfile::default();
+        let out = self.render_frame(set, cam, settings, Some(&mut profile))?;
+        if let Some(s) = &self.stamps {
+            profile.stages = s.read(&self.ctx)?;
+        }
+        Ok((out, profile))
+    }
+
+    /// The frame; with `profile`, each phase is waited for and timed.
+    fn render_frame(
+        &mut self,
+        set: &GaussianSet,
+        cam: &Camera,
+        settings: &RenderSettings,
+        mut profile: Option<&mut FrameProfile>,
+    ) -> Result<RenderOutput<f32>, GpuError> {
         let (width, height) = (cam.intrinsics.width, cam.intrinsics.height);
         let mut out = RenderOutput::zeros(width, height);
         let pixels = out.pixels();
@@ -174,8 +221,10 @@ impl GpuRasterizer {
             set.check_lengths()?;
             return Ok(out);
         }
-        let intersections = self.project_frame(set, cam, settings)?;
+        let intersections = self.project_frame(set, cam, settings, profile.as_deref_mut())?;
+        let start = Instant::now();
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        mark(&mut self.stamps, &mut encoder, "count read-back (gap)");
         let sorted = self.encode_binning(&mut encoder, set.len() as u32, intersections, cam)?;
         self.composite.encode(
             &self.ctx,
@@ -185,7 +234,18 @@ impl GpuRasterizer {
             [width, height],
             settings,
         );
+        mark(&mut self.stamps, &mut encoder, "composite");
         let bytes = composite::PLANES * 4 * pixels as u64;
+        if let Some(p) = profile.as_deref_mut() {
+            if let Some(s) = &self.stamps {
+                s.resolve(&mut encoder);
+            }
+            self.ctx.queue.submit([encoder.finish()]);
+            self.ctx.device.poll(wgpu::PollType::wait_indefinitely())?;
+            p.kernels_ms = ms(start);
+            encoder = self.ctx.device.create_command_encoder(&Default::default());
+        }
+        let start = Instant::now();
         encoder.copy_buffer_to_buffer(self.bufs.image.get(), 0, self.bufs.readback.get(), 0, bytes);
         self.ctx
             .submit_and_read(encoder, self.bufs.readback.get(), bytes, |b| {
@@ -204,6 +264,9 @@ impl GpuRasterizer {
                     dst.copy_from_slice(src);
                 }
             })?;
+        if let Some(p) = profile {
+            p.readback_ms = ms(start);
+        }
         Ok(out)
     }
 
@@ -215,7 +278,9 @@ impl GpuRasterizer {
         set: &GaussianSet,
         cam: &Camera,
         settings: &RenderSettings,
+        mut profile: Option<&mut FrameProfile>,
     ) -> Result<u32, GpuError> {
+        let start = Instant::now();
         set.check_lengths()?;
         let (width, height) = (cam.intrinsics.width, cam.intrinsics.height);
         let grid = tile_grid(width, height);
@@ -249,17 +314,32 @@ impl GpuRasterizer {
         project::pack_gaussians(set, &mut self.packed);
         ctx.queue
             .write_buffer(b.gaussians.get(), 0, bytemuck::cast_slice(&self.packed));
+        let mut start_projection = start;
+        if let Some(p) = profile.as_deref_mut() {
+            ctx.queue.submit([]);
+            ctx.device.poll(wgpu::PollType::wait_indefinitely())?;
+            p.upload_ms = ms(start);
+            start_projection = Instant::now();
+        }
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        mark(&mut self.stamps, &mut encoder, "start");
         self.project.encode(ctx, &mut encoder, b, cam, settings, n);
+        mark(&mut self.stamps, &mut encoder, "project");
         self.offsets_scan
             .encode(ctx, &mut encoder, b.offsets.get(), n)?;
+        mark(&mut self.stamps, &mut encoder, "prefix sum");
         if let Some(total) = self.offsets_scan.total() {
             encoder.copy_buffer_to_buffer(total, 0, b.readback.get(), 0, 4);
         }
-        self.ctx
+        let count = self
+            .ctx
             .submit_and_read(encoder, self.bufs.readback.get(), 4, |b| {
                 bytemuck::pod_read_unaligned::<u32>(&b[..4])
-            })
+            })?;
+        if let Some(p) = profile {
+            p.project_ms = ms(start_projection);
+        }
+        Ok(count)
     }
 
     /// Records key generation, the sort and the tile ranges for `intersections` keys of `n`
@@ -284,6 +364,7 @@ impl GpuRasterizer {
             b.values[k].ensure(ctx, m * radix_sort::VALUE_BYTES)?;
         }
         self.emit_keys.encode(ctx, encoder, b, n, grid[0]);
+        mark(&mut self.stamps, encoder, "emit keys");
         let sorted = self.sort.encode(
             ctx,
             encoder,
@@ -292,8 +373,22 @@ impl GpuRasterizer {
             intersections,
             grid[0] * grid[1],
         )?;
+        mark(&mut self.stamps, encoder, "radix sort");
         self.tile_ranges
             .encode(ctx, encoder, b, sorted, intersections);
+        mark(&mut self.stamps, encoder, "tile ranges");
         Ok(sorted)
     }
+}
+
+/// Writes a stage timestamp when a profiled frame is being recorded.
+fn mark(stamps: &mut Option<Timestamps>, encoder: &mut wgpu::CommandEncoder, label: &'static str) {
+    if let Some(s) = stamps {
+        s.mark(encoder, label);
+    }
+}
+
+/// Milliseconds since `start`.
+fn ms(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
 }

@@ -61,7 +61,7 @@ impl GpuRasterizer {
         cam: &Camera,
         settings: &RenderSettings,
     ) -> Result<(Projection, u32), GpuError> {
-        let total = self.project_frame(set, cam, settings)?;
+        let total = self.project_frame(set, cam, settings, None)?;
         let n = set.len() as u64;
         let splats: Vec<[f32; 12]> =
             self.read(|r| r.bufs.splats.get(), n * project::SPLAT_BYTES)?;

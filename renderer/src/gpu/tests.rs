@@ -267,3 +267,46 @@ fn errors_and_the_rasterizer_cross_threads() {
     send_sync::<super::GpuError>();
     send_sync::<GpuRasterizer>();
 }
+
+#[test]
+fn a_profiled_frame_renders_the_same_images_and_names_its_stages_in_order() {
+    let k = Intrinsics::from_hfov(160, 96, 70.0);
+    let set = scene::random_in_view(3, 3000, &k);
+    let cam = Camera::identity(k);
+    let settings = RenderSettings::default();
+    let mut gpu = rasterizer();
+    let plain = gpu.render(&set, &cam, &settings).unwrap();
+    for _ in 0..2 {
+        let (out, profile) = gpu.render_profiled(&set, &cam, &settings).unwrap();
+        assert_eq!(out.rgb, plain.rgb);
+        assert_eq!(out.depth, plain.depth);
+        let phases = [
+            profile.upload_ms,
+            profile.project_ms,
+            profile.kernels_ms,
+            profile.readback_ms,
+        ];
+        assert!(
+            phases.iter().all(|t| t.is_finite() && *t >= 0.0),
+            "{profile:?}"
+        );
+        assert!(phases.iter().sum::<f64>() > 0.0);
+        // Stage timestamps where the adapter writes them (lavapipe may not): all seven.
+        if !profile.stages.is_empty() {
+            let names: Vec<_> = profile.stages.iter().map(|s| s.0).collect();
+            let want = [
+                "project",
+                "prefix sum",
+                "count read-back (gap)",
+                "emit keys",
+                "radix sort",
+                "tile ranges",
+                "composite",
+            ];
+            assert_eq!(names, want);
+            assert!(profile.stages.iter().all(|s| s.1.is_finite() && s.1 >= 0.0));
+        }
+    }
+    // A plain frame after profiled ones writes no marks and still matches.
+    assert_eq!(gpu.render(&set, &cam, &settings).unwrap().rgb, plain.rgb);
+}

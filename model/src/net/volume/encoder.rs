@@ -6,7 +6,7 @@
 
 use std::collections::HashMap;
 
-use candle_core::{DType, Device, Module, Result, Tensor};
+use candle_core::{DType, Module, Result, Tensor};
 use candle_nn::{linear, Linear, VarBuilder, VarMap};
 use renderer::Camera;
 
@@ -125,10 +125,8 @@ impl TriplaneEncoder {
     /// times before trained weights exist.
     pub fn untrained(cfg: &Config) -> Result<(Self, usize)> {
         let varmap = VarMap::new();
-        Self::new(
-            VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu),
-            cfg,
-        )?;
+        let device = cfg.device.open()?;
+        Self::new(VarBuilder::from_varmap(&varmap, DType::F32, &device), cfg)?;
         let weights: HashMap<String, Tensor> = varmap
             .data()
             .lock()
@@ -137,7 +135,7 @@ impl TriplaneEncoder {
             .map(|(k, v)| (k.clone(), v.as_tensor().detach()))
             .collect();
         let parameters = weights.values().map(|t| t.elem_count()).sum();
-        let vb = VarBuilder::from_tensors(weights, DType::F32, &Device::Cpu);
+        let vb = VarBuilder::from_tensors(weights, DType::F32, &device);
         Ok((Self::new(vb, cfg)?, parameters))
     }
 

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Builds `stereosplat` and the GPU-against-CPU op tests with the `cuda` feature on a
+# machine WITHOUT a GPU, for a GPU machine without a Rust toolchain (issue 19), into
+# gpu_carry/ (git-ignored), stripped. What it needs, all from the package registries:
+# - nvcc 13.0 and its headers (pip `nvidia-cuda-nvcc`, `-nvvm`, `-crt`, `-runtime`, `-cccl`,
+#   all 13.0 so the PTX is 9.0, which a CUDA 13.0 driver loads);
+# - the CUDA libraries cudarc and candle-kernels link against (pip `nvidia-cublas`,
+#   `-curand`, `-cuda-nvrtc`, `-cuda-runtime`), given unversioned names in $LINK;
+# The two executables travel xz-compressed (about 16 MB each instead of 90).
+# - libcuda.so, the driver, which only a GPU machine has: linked here against a stub of
+#   the same name (SONAME libcuda.so.1, one empty function per driver symbol cudarc
+#   declares); at run time the GPU machine's real driver is loaded instead.
+#   bash scripts/build_cuda.sh [LINK_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+link="${1:-/opt/cudalink}"
+python3 -m pip install -q "nvidia-cuda-nvcc==13.0.88" "nvidia-nvvm==13.0.88" \
+  "nvidia-cuda-crt==13.0.88" "nvidia-cuda-runtime==13.0.96" "nvidia-cuda-cccl==13.0.85"
+python3 -m pip install -q --target "$link/py" "nvidia-cublas==13.0.*" nvidia-curand \
+  "nvidia-cuda-nvrtc==13.0.*"
+site=$(python3 -c 'import nvidia.cu13, os; print(os.path.dirname(nvidia.cu13.__path__[0]))')
+cuda="$site/cu13"
+mkdir -p "$link/lib"
+for lib in nvrtc.so.13 curand.so.10 cublasLt.so.13 cublas.so.13; do
+  ln -sf "$link/py/nvidia/cu13/lib/lib$lib" "$link/lib/lib${lib%%.so*}.so"
+done
+ln -sf "$cuda/lib/libcudart.so.13" "$link/lib/libcudart.so"  # candle-kernels' MoE kernels
+cudarc=$(ls -d "${CARGO_HOME:-$HOME/.cargo}"/registry/src/*/cudarc-0.19.10 | head -1)
+grep -o 'pub unsafe fn cu[A-Za-z0-9_]*' "$cudarc/src/driver/sys/mod.rs" | awk '{print $4}' |
+  sort -u | sed 's/.*/void &(void){}/' >"$link/libcuda_stub.c"
+gcc -shared -fPIC -Wl,-soname,libcuda.so.1 -o "$link/lib/libcuda.so" "$link/libcuda_stub.c"
+export PATH="$cuda/bin:$PATH" CUDA_HOME="$cuda" CUDA_COMPUTE_CAP=90
+export CARGO_TARGET_DIR=target/cuda CARGO_PROFILE_RELEASE_DEBUG=false
+export CARGO_PROFILE_RELEASE_STRIP=true RUSTFLAGS="-L native=$link/lib"
+cargo build --release -p node --features cuda
+tests=$(cargo test --release -p model --features cuda --test cuda_ops --no-run \
+  --message-format=json | sed -n 's/.*"executable":"\([^"]*cuda_ops[^"]*\)".*/\1/p' | tail -1)
+mkdir -p gpu_carry
+xz -T0 -6 -c target/cuda/release/stereosplat >gpu_carry/stereosplat.xz
+xz -T0 -6 -c "$tests" >gpu_carry/cuda_ops.xz
+ls -la gpu_carry

@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# Builds `stereosplat` and the GPU-against-CPU op tests with the `cuda` feature on a
-# machine WITHOUT a GPU, for a GPU machine without a Rust toolchain (issue 19), into
-# gpu_carry/ (git-ignored), stripped. What it needs, all from the package registries:
+# Builds, on a machine WITHOUT a GPU, what a GPU machine without a Rust toolchain runs
+# (issue 19): `stereosplat` and the GPU-against-CPU op tests with the `cuda` feature, and the
+# renderer's wgpu-against-CPU stage tests, stripped and xz-compressed into gpu_carry/
+# (git-ignored; 16 MB instead of 90 for the node). What it needs, all from the registries:
 # - nvcc 13.0 and its headers (pip `nvidia-cuda-nvcc`, `-nvvm`, `-crt`, `-runtime`, `-cccl`,
 #   all 13.0 so the PTX is 9.0, which a CUDA 13.0 driver loads);
 # - the CUDA libraries cudarc and candle-kernels link against (pip `nvidia-cublas`,
 #   `-curand`, `-cuda-nvrtc`, `-cuda-runtime`), given unversioned names in $LINK;
-# The two executables travel xz-compressed (about 16 MB each instead of 90).
 # - libcuda.so, the driver, which only a GPU machine has: linked here against a stub of
 #   the same name (SONAME libcuda.so.1, one empty function per driver symbol cudarc
 #   declares); at run time the GPU machine's real driver is loaded instead.
@@ -35,7 +35,11 @@ export CARGO_PROFILE_RELEASE_STRIP=true RUSTFLAGS="-L native=$link/lib"
 cargo build --release -p node --features cuda
 tests=$(cargo test --release -p model --features cuda --test cuda_ops --no-run \
   --message-format=json | sed -n 's/.*"executable":"\([^"]*cuda_ops[^"]*\)".*/\1/p' | tail -1)
+# The renderer's own tests: every wgpu stage against the CPU, on the GPU's Vulkan driver.
+rtests=$(cargo test --release -p renderer --lib --no-run --message-format=json |
+  sed -n 's/.*"executable":"\([^"]*renderer-[^"]*\)".*/\1/p' | tail -1)
 mkdir -p gpu_carry
 xz -T0 -6 -c target/cuda/release/stereosplat >gpu_carry/stereosplat.xz
 xz -T0 -6 -c "$tests" >gpu_carry/cuda_ops.xz
+xz -T0 -6 -c "$rtests" >gpu_carry/renderer_tests.xz
 ls -la gpu_carry

@@ -3,12 +3,12 @@
 # run from the repository root there with gpu_carry/ from `bash scripts/build_cuda.sh` and
 # the Vulkan loader packages in .gl/ (see /work/.library/device/README.md). Writes JSON and
 # logs to $GPU_RESULTS (default results/gpu/raw). Each step has its own time limit so one failure
-# does not cost the rest. Name parts to run only those (render ops model node train).
+# does not cost the rest. Name parts to run only those (render rtests ops model node train).
 #   bash scripts/gpu_bench.sh [PART...]
 set -uo pipefail
 out="${GPU_RESULTS:-results/gpu/raw}"
 mkdir -p "$out"
-parts=" ${*:-render ops model node train} "
+parts=" ${*:-render rtests ops model node train} "
 want() { [[ $parts == *" $1 "* ]]; }
 log() { echo "== $(date +%T) $*" | tee -a "$out/steps.log"; }
 for f in .gl/*.deb; do dpkg -x "$f" /; done
@@ -26,7 +26,7 @@ nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm --format=c
 nproc >>"$out/gpu.csv"
 ls /usr/local/nvidia/share/vulkan/icd.d /usr/share/vulkan/icd.d /etc/vulkan/icd.d >>"$out/gpu.csv" 2>&1
 mkdir -p /tmp/gpu_bin
-for exe in stereosplat cuda_ops; do
+for exe in stereosplat cuda_ops renderer_tests; do
   xz -dc "gpu_carry/$exe.xz" >"/tmp/gpu_bin/$exe" && chmod +x "/tmp/gpu_bin/$exe"
 done
 bin=/tmp/gpu_bin/stereosplat
@@ -44,6 +44,12 @@ run render_1m 60 $bin bench render --no-cpu --runs 50 --warmup 5 --scene random 
   --gaussians 1000000 --width 1920 --height 1080
 run render_4m 90 $bin bench render --no-cpu --runs 50 --warmup 5 --scene random \
   --gaussians 4000000 --width 1920 --height 1080
+}
+# The renderer's stage tests (each wgpu stage against the CPU) on this GPU.
+want rtests && {
+log renderer_tests
+timeout 60 /tmp/gpu_bin/renderer_tests gpu:: --test-threads 1 >"$out/renderer_tests.txt" 2>&1
+echo "rc=$?" >>"$out/renderer_tests.txt"
 }
 # 2. Every custom op, LPIPS, the enhancer and the network: GPU against CPU.
 want ops && {

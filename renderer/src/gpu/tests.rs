@@ -60,8 +60,10 @@ fn rel_err(gpu: f32, cpu: f32, scale: f32) -> f32 {
     (gpu - cpu).abs() / cpu.abs().max(scale)
 }
 
-/// Projection: same visibility; mean2d, conic, depth within 1e-5 relative (conic relative to
-/// its largest entry); radius and tile rectangle equal except where `3 sqrt(lambda)` lands
+/// Projection: same visibility; conic and depth within 1e-5 relative (conic relative to its
+/// largest entry), mean2d within 5e-5 (lavapipe matches it exactly; NVIDIA's Vulkan
+/// compiler fuses multiply-adds, and with the camera 1,200 m from the origin that moved
+/// mean2d by 1.6e-5 on an H200, `results/gpu/renderer_tests.txt`); radius and tile rectangle equal except where `3 sqrt(lambda)` lands
 /// within rounding of an integer (counted, bounded to 0.1% of the Gaussians, radius off by
 /// at most 1).
 #[test]
@@ -115,7 +117,7 @@ fn projection_matches_the_cpu() {
         println!("visible {visible}, worst rel err mean2d/conic/depth {worst:?}, radius diffs {radius_diffs}, rect diffs {rect_diffs}");
         assert!(visible > 3000);
         assert!(
-            worst.iter().all(|&e| e <= 1e-5),
+            worst[0] <= 5e-5 && worst[1] <= 1e-5 && worst[2] <= 1e-5,
             "relative errors {worst:?}"
         );
         assert!(radius_diffs * 1000 <= visible && rect_diffs * 1000 <= visible);

@@ -1,6 +1,8 @@
 //! Stage 1, projection (`project.wgsl`): each Gaussian to its screen-space splat, tile
 //! rectangle and tiles-touched count, with the CPU reference's culling rules and arithmetic.
 
+use rayon::prelude::*;
+
 use super::context::{self, Cached, Context, WORKGROUP};
 use super::FrameBuffers;
 use crate::camera::Camera;
@@ -52,10 +54,10 @@ impl CameraUniform {
     }
 }
 
-/// Interleaves a set into the 64-byte records `project.wgsl` reads, reusing `out`.
+/// Interleaves a set into the 64-byte records `project.wgsl` reads, reusing `out`, on
+/// every core (one thread took 20 ms of a 1M-Gaussian frame's upload on an H200's host).
 pub(crate) fn pack_gaussians(set: &GaussianSet, out: &mut Vec<[f32; 16]>) {
-    out.clear();
-    out.extend((0..set.len()).map(|i| {
+    let records = (0..set.len()).into_par_iter().map(|i| {
         let (m, s, q, c) = (
             set.means[i],
             set.log_scales[i],
@@ -80,7 +82,8 @@ pub(crate) fn pack_gaussians(set: &GaussianSet, out: &mut Vec<[f32; 16]>) {
             c.z,
             0.0,
         ]
-    }));
+    });
+    records.collect_into_vec(out);
 }
 
 /// The projection pipeline and its camera uniform.

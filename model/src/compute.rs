@@ -84,8 +84,17 @@ mod tests {
 
     #[cfg(not(feature = "cuda"))]
     #[test]
-    fn cuda_without_the_feature_is_an_error() {
+    fn cuda_without_the_feature_is_an_error_also_through_the_setting() {
         let err = ComputeDevice::Cuda(0).open().unwrap_err().to_string();
         assert!(err.to_lowercase().contains("cuda"), "{err}");
+        let cfg = crate::net::Config::tiny()
+            .with_settings(&["device=cuda"])
+            .unwrap();
+        assert_eq!(cfg.device, ComputeDevice::Cuda(0));
+        let load =
+            crate::net::LearnedReconstructor::load(&cfg, &crate::net::default_weights("tiny"));
+        assert!(matches!(load, Err(crate::net::LoadError::Device(_))));
+        let bad = crate::net::Config::tiny().with_settings(&["device=gpu"]);
+        assert!(bad.unwrap_err().to_string().contains("unknown device"));
     }
 }

@@ -98,21 +98,14 @@ impl LearnedReconstructor {
             path: path.to_path_buf(),
             source,
         };
+        // The variables live on the device; `load_matching` moves the file's tensors there.
+        let device = cfg.device.open().map_err(LoadError::Device)?;
         let varmap = candle_nn::VarMap::new();
-        StereoSplat::new(
-            VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu),
-            cfg,
-        )
-        .map_err(mismatch)?;
+        StereoSplat::new(VarBuilder::from_varmap(&varmap, DType::F32, &device), cfg)
+            .map_err(mismatch)?;
         let report = load_matching(&varmap, path).map_err(mismatch)?;
         let tensors = frozen(&varmap).map_err(mismatch)?;
         let parameters = tensors.values().map(Tensor::elem_count).sum();
-        let device = cfg.device.open().map_err(LoadError::Device)?;
-        let tensors = tensors
-            .into_iter()
-            .map(|(k, t)| Ok((k, t.to_device(&device)?)))
-            .collect::<candle_core::Result<_>>()
-            .map_err(mismatch)?;
         let vb = VarBuilder::from_tensors(tensors, DType::F32, &device);
         let net = StereoSplat::new(vb, cfg).map_err(mismatch)?;
         Ok((Self::from_net(net, parameters), report))

@@ -161,14 +161,12 @@ pub fn render(splats: &Tensor, camera: &Camera, settings: &RenderSettings) -> Re
         settings: *settings,
         forward: Mutex::new(None),
     };
-    match splats.device() {
-        Device::Cpu => splats.contiguous()?.apply_op1(op),
-        device => splats
-            .to_device(&Device::Cpu)?
-            .contiguous()?
-            .apply_op1(op)?
-            .to_device(device),
-    }
+    // `to_device` is a no-op for tensors already there.
+    splats
+        .to_device(&Device::Cpu)?
+        .contiguous()?
+        .apply_op1(op)?
+        .to_device(splats.device())
 }
 
 /// The op: camera and settings, and the forward pass kept for the backward pass (a

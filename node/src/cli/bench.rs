@@ -134,11 +134,10 @@ fn time(warmup: usize, runs: usize, mut f: impl FnMut() -> Result<()>) -> Result
         f()?;
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
     }
-    ms.sort_by(f64::total_cmp);
     Ok(Timing {
-        median_ms: ms[ms.len() / 2],
-        min_ms: ms[0],
+        min_ms: ms.iter().copied().fold(f64::INFINITY, f64::min),
         runs: ms.len(),
+        median_ms: median(ms),
     })
 }
 

@@ -201,6 +201,17 @@ impl Context {
         read: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
         self.queue.submit([encoder.finish()]);
+        self.read(staging, size, read)
+    }
+
+    /// Waits for the GPU, maps the first `size` bytes of `staging` (a copy target already
+    /// submitted) and hands them to `read`.
+    pub fn read<R>(
+        &self,
+        staging: &wgpu::Buffer,
+        size: u64,
+        read: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R, GpuError> {
         let slice = staging.slice(..size);
         let (tx, rx) = mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {

@@ -5,8 +5,6 @@
 //! (`TIMESTAMP_QUERY_INSIDE_ENCODERS`: Vulkan and DX12, not WebGPU). `render` itself
 //! neither waits between phases nor writes timestamps.
 
-use std::sync::mpsc;
-
 use super::context::Context;
 use super::GpuError;
 
@@ -99,15 +97,9 @@ impl Timestamps {
         if n < 2 {
             return Ok(Vec::new());
         }
-        let slice = self.staging.slice(..n as u64 * 8);
-        let (tx, rx) = mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        ctx.device.poll(wgpu::PollType::wait_indefinitely())?;
-        rx.recv().map_err(|_| wgpu::BufferAsyncError)??;
-        let ticks: Vec<u64> = bytemuck::cast_slice(&slice.get_mapped_range()?).to_vec();
-        self.staging.unmap();
+        let ticks: Vec<u64> = ctx.read(&self.staging, n as u64 * 8, |b| {
+            bytemuck::cast_slice(b).to_vec()
+        })?;
         Ok(self.labels[1..]
             .iter()
             .zip(ticks.windows(2))

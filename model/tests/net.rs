@@ -148,7 +148,12 @@ fn pruning_keeps_the_floor_and_the_budget() {
     let floor = opacities[opacities.len() / 2];
     let above = to_set(&p.splats, None, floor, usize::MAX).unwrap();
     assert!(above.opacities.iter().all(|&o| o >= floor));
-    assert!(above.len() >= all.len() / 2, "{} of {}", above.len(), all.len());
+    assert!(
+        above.len() >= all.len() / 2,
+        "{} of {}",
+        above.len(),
+        all.len()
+    );
     let budget = above.len() / 3;
     assert!(budget > 0);
     let capped = to_set(&p.splats, None, floor, budget).unwrap();

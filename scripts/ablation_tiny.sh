@@ -17,7 +17,7 @@
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
 #   bash scripts/ablation_tiny.sh eval [ROW ...]      evaluate trained rows (default: all)
 #   bash scripts/ablation_tiny.sh all [STEPS]         train every row, then evaluate
-# Runs go to runs/ablation/<row>, evaluations to out/ablation/<row>.
+# Runs go to $ABLATION_RUNS/<row> (default runs/ablation), evaluations to out/ablation/<row>.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=data/transfer
@@ -26,6 +26,7 @@ base=model/weights/stereosplat_tiny.safetensors
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build), e.g. a copy that edits of
 # the tree cannot break while rows train.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
+runs="${ABLATION_RUNS:-runs/ablation}"
 rows=(cv 3d cv3d stereosplat)
 
 # The settings of a row: the same on every train, resume and eval call.
@@ -42,7 +43,7 @@ settings() {
 }
 
 train_row() {
-  local row="$1" steps="${2:-1500}" run="runs/ablation/$1"
+  local row="$1" steps="${2:-1500}" run="$runs/$1"
   read -ra set <<<"$(settings "$row")"
   local flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4
     --warmup 100 --seed 0 --depth-loss relative --rendered-depth-weight 0.5
@@ -58,7 +59,7 @@ eval_row() {
   local row="$1"
   read -ra set <<<"$(settings "$row")"
   "$bin" eval --data "$heldout" --method stereosplat --preset tiny --stride 5 \
-    --weights "runs/ablation/$row/stereosplat_tiny.safetensors" "${set[@]}" \
+    --weights "$runs/$row/stereosplat_tiny.safetensors" "${set[@]}" \
     --out "out/ablation/$row"
 }
 

@@ -3,58 +3,21 @@
 //! (`pair_fusion_margin`), quality must not fall as pairs are added; without it, the later
 //! pairs' Gaussians overlap the first view and its render loses detail.
 
-use std::path::PathBuf;
+mod shipped_support;
 
-use model::bins::{BinConfig, BinLayout};
-use model::eval::{evaluate, EvalConfig, Raster, Summary};
-use model::generate::write_synthetic;
+use model::eval::Summary;
 use model::kitti360::Sequence;
-use model::net::{default_weights, Config, LearnedReconstructor};
-use model::synth::SynthConfig;
-
-/// A 40-frame drive at the training resolution (272x72), seed 1000002 (never trained on).
-fn drive() -> (PathBuf, Sequence) {
-    let root = std::env::temp_dir().join(format!("stereosplat-pair-fusion-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&root);
-    let config = SynthConfig {
-        seed: 1_000_002,
-        frames: 40,
-        width: 272,
-        height: 72,
-        ..SynthConfig::default()
-    };
-    let name = write_synthetic(&root, &config, &mut |_, _| {}).unwrap();
-    let sequence = Sequence::open(&root, &name).unwrap();
-    (root, sequence)
-}
+use model::net::{default_weights, Config};
 
 /// The table of the shipped weights with `cfg`, `pairs` input pairs per bin.
 fn table(sequence: &Sequence, cfg: &Config, pairs: usize) -> Summary {
-    let mut net = LearnedReconstructor::load(cfg, &default_weights("tiny")).unwrap();
-    let config = EvalConfig {
-        bins: BinConfig {
-            layout: BinLayout::Sliding { stride: 4 },
-            ..BinConfig::default()
-        },
-        input_pairs: pairs,
-        ..EvalConfig::default()
-    };
-    let (bins, skipped) = evaluate(
-        sequence,
-        &mut net,
-        &mut Raster::Cpu,
-        &config,
-        &mut |_, _| {},
-    )
-    .unwrap();
-    assert!(skipped.is_empty(), "{skipped:?}");
-    assert!(bins.len() >= 4, "{} bins", bins.len());
-    Summary::of(&bins)
+    shipped_support::score(sequence, cfg, &default_weights("tiny"), 4, pairs, 4).0
 }
 
 #[test]
 fn quality_does_not_fall_as_pairs_are_added() {
-    let (root, sequence) = drive();
+    // 40 frames at the training resolution, seed 1000002 (never trained on).
+    let (root, sequence) = shipped_support::drive("pair-fusion", 1_000_002, 40);
     let fused = Config::tiny();
     assert!(fused.pair_fusion_margin.is_some(), "the preset fuses pairs");
     let one = table(&sequence, &fused, 1);

@@ -166,7 +166,7 @@ fn pseudo_poses() -> Vec<f32> {
 }
 
 /// The preset names [`Config::preset`] knows.
-pub const PRESETS: &[&str] = &["tiny", "small", "paper", "tiny-plus"];
+pub const PRESETS: &[&str] = &["tiny", "small", "paper", "tiny-plus", "tiny-3d"];
 
 /// The presets named `<base>-plus` are `<base>` with StereoSplat+'s progressive pass on: the
 /// same network, so they load `<base>`'s weights. The preset whose weights `name` uses.
@@ -331,6 +331,22 @@ impl Config {
         }
     }
 
+    /// `tiny` with the 3D-volume branch beside the cost volume (the paper's CV + 3D row), its
+    /// own weights (`model/weights/stereosplat_tiny-3d.safetensors`, `bash
+    /// scripts/train_tiny_3d.sh`): better depth and LPIPS than `tiny` and Gaussians where the
+    /// input pair saw nothing, at about 2.3 times its latency at 272x72 (`results/tiny_3d/`). The
+    /// volume's Gaussians that an input view already explains are dropped
+    /// (`volume_fusion_margin` 0.5).
+    pub fn tiny_3d() -> Self {
+        Self {
+            name: "tiny-3d".into(),
+            volume_branch: true,
+            volume_fusion_margin: Some(0.5),
+            view_subsampling: false,
+            ..Self::tiny()
+        }
+    }
+
     /// The preset called `name`.
     pub fn preset(name: &str) -> Result<Self, UnknownPreset> {
         match name {
@@ -338,6 +354,7 @@ impl Config {
             "small" => Ok(Self::small()),
             "paper" => Ok(Self::paper()),
             "tiny-plus" => Ok(Self::tiny_plus()),
+            "tiny-3d" => Ok(Self::tiny_3d()),
             other => Err(UnknownPreset(other.to_string())),
         }
     }

@@ -16,7 +16,7 @@ pub struct MethodArgs {
     /// The reconstructor (see `model::methods`).
     #[arg(long, default_value = model::methods::DEFAULT)]
     pub method: String,
-    /// Network preset of a learned method (tiny, small, paper, tiny-plus; default tiny).
+    /// Network preset of a learned method (tiny, small, paper, tiny-plus, tiny-3d; default tiny).
     #[arg(long)]
     pub preset: Option<String>,
     /// Weights of a learned method (default: the preset's shipped file).

@@ -13,7 +13,8 @@ cd "$(dirname "$0")/.."
 data="${1:-data/transfer}"
 run="${2:-results/stereosplat_small/train}"
 steps="${3:-8000}"
-bin=target/release/stereosplat
+# STEREOSPLAT_BIN: a built binary to use as is, e.g. a copy that edits of the tree cannot break.
+bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 bash scripts/transfer_data.sh "$data"
 step() { sed -n 's/.*"step": *\([0-9]*\).*/\1/p' "$run/checkpoint/state.json" 2>/dev/null || echo 0; }
 train() { "$bin" train --data "$data" --preset small --out "$run" "$@"; }

@@ -273,14 +273,17 @@ impl Config {
         }
     }
 
-    /// Twice the channels and candidates of `tiny`, two transformer layers.
+    /// Twice the channels and candidates of `tiny`, two transformer layers. One residual block
+    /// per encoder, as `tiny`: with two (no normalisation in the blocks) training stalled at
+    /// LPIPS 0.68 where one block reaches 0.47 in the same 400 steps
+    /// (`results/stereosplat_small/README.md`).
     pub fn small() -> Self {
         Self {
             name: "small".into(),
             backbone_channels: 64,
-            backbone_blocks: 2,
+            backbone_blocks: 1,
             mono_channels: 32,
-            mono_blocks: 2,
+            mono_blocks: 1,
             transformer_layers: 2,
             heads: 4,
             window: (4, 16),

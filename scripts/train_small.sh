@@ -20,15 +20,11 @@ step() { sed -n 's/.*"step": *\([0-9]*\).*/\1/p' "$run/checkpoint/state.json" 2>
 train() { "$bin" train --data "$data" --preset small --out "$run" "$@"; }
 resume=()
 [ -f "$run/checkpoint/state.json" ] && resume=(--resume)
-# An interrupted phase (Ctrl-C saves a checkpoint and exits 0) must not start the next one.
-reached() { [ "$(step)" -ge "$1" ] || { echo "stopped at step $(step): run the script again to resume" >&2; exit 0; }; }
 if [ "$(step)" -lt 1600 ]; then
   train --steps 1600 "${resume[@]}"
-  reached 1600
 fi
 if [ "$(step)" -lt 3000 ]; then
   train --steps 3000 --resume --no-subsample
-  reached 3000
 fi
 train --steps "$steps" --resume --no-subsample --lr 5e-4 --depth-loss relative \
   --rendered-depth-weight 0.5 --estimated-depth-weight 0.5

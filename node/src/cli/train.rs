@@ -175,6 +175,8 @@ pub fn run(args: &TrainArgs) -> Result<()> {
 /// progress bar on stderr, stopping at the first SIGINT or SIGTERM (the loop checkpoints
 /// after its current step); `run` gets the stop test and a `show(step, message)` callback
 /// and returns the step it reached, which is printed on stdout with the exported `weights`.
+/// A run stopped before `to` is an error (non-zero exit), so a script that chains phases
+/// under `set -e` does not start the next phase from a half-done one.
 pub(crate) fn train_under_bar(
     (from, to): (u64, u64),
     weights: &std::path::Path,
@@ -189,6 +191,9 @@ pub(crate) fn train_under_bar(
     })?;
     bar.finish();
     println!("step {reached}: weights {}", weights.display());
+    if reached < to {
+        anyhow::bail!("stopped by a signal at step {reached} of {to}; the checkpoint is saved, rerun with --resume");
+    }
     Ok(())
 }
 

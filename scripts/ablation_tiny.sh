@@ -13,9 +13,6 @@
 # pair after the first replaced by renders of the network's own prediction half the time):
 #   cv_subsample   Branch_CV + view subsampling
 #   cv_mix         Branch_CV + view subsampling + pseudo_mix=0.5
-# and, for issue 14's depth precision (not a row of the paper's table either), Branch_CV
-# with the local matching stage (`local_match`, 9 depths over ±3 candidate spacings):
-#   cv_local       Branch_CV + local_match
 # Every row is resumable: run the same command again after an interruption.
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
 #   bash scripts/ablation_tiny.sh eval [ROW ...]      evaluate trained rows (default: all)
@@ -41,8 +38,7 @@ settings() {
     stereosplat) echo "--set volume_branch=true --set view_subsampling=true" ;;
     cv_subsample) echo "--set volume_branch=false --set view_subsampling=true" ;;
     cv_mix) echo "--set volume_branch=false --set view_subsampling=true --set pseudo_mix=0.5" ;;
-    cv_local) echo "--set volume_branch=false --set view_subsampling=false --set local_match.samples=9" ;;
-    *) echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_local)" >&2; exit 2 ;;
+    *) echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix)" >&2; exit 2 ;;
   esac
 }
 

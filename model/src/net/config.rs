@@ -3,7 +3,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::local_match::LocalMatchConfig;
 use super::volume::VolumeConfig;
 use crate::compute::ComputeDevice;
 
@@ -58,10 +57,6 @@ pub struct Config {
     /// the cost volume.
     #[serde(default)]
     pub depth_logit_bound: Option<f32>,
-    /// Local matching at the Gaussians' resolution around the depth head's estimate
-    /// (`local_match`; off when `samples` is 0, as in every preset's shipped weights).
-    #[serde(default)]
-    pub local_match: LocalMatchConfig,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
@@ -255,7 +250,6 @@ impl Config {
             pair_fusion_margin: Some(1.0),
             unet_channels: 32,
             depth_logit_bound: Some(4.0),
-            local_match: LocalMatchConfig::default(),
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,
@@ -296,7 +290,6 @@ impl Config {
             cost_channels: 64,
             candidates: 64,
             unet_channels: 48,
-            local_match: LocalMatchConfig::default(),
             head_channels: 48,
             volume: VolumeConfig::small(),
             ..Self::tiny()
@@ -319,7 +312,6 @@ impl Config {
             candidates: 192,
             match_views: 2,
             unet_channels: 64,
-            local_match: LocalMatchConfig::default(),
             head_channels: 64,
             gaussian_stride: 1,
             max_gaussians: 2_000_000,

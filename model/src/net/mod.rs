@@ -1,7 +1,6 @@
 //! The StereoSplat network (paper section 3.2) in candle: a shared CNN backbone
 //! and a monocular geometry encoder, a multi-view transformer, the input-invariant plane-sweep
-//! cost volume over each view's nearest views, a U-Net depth head, an optional `local_match`
-//! stage that refines its estimate at the Gaussians' resolution, and per-pixel Gaussian
+//! cost volume over each view's nearest views, a U-Net depth head, and per-pixel Gaussian
 //! heads, and (when the preset switches it on) the 3D-volume branch of [`volume`]. One
 //! [`Config`] holds every size; [`Config::preset`] names them.
 //!
@@ -16,7 +15,6 @@ mod depth_head;
 mod encoders;
 mod gaussian_head;
 mod geometry;
-mod local_match;
 pub mod merge;
 pub mod pair_fusion;
 pub mod prune;
@@ -28,7 +26,6 @@ mod warm_start;
 
 pub use config::{weights_preset, Config, SettingError, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;
-pub use local_match::LocalMatchConfig;
 pub use reconstructor::{
     default_weights, images_and_cameras, pair_fusion_flags, to_set, to_set_counted, BranchReport,
     LearnedReconstructor, LoadError, Reconstruction,

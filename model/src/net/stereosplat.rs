@@ -14,7 +14,6 @@ use super::cost_volume::{candidate_depths, cost_volume};
 use super::depth_head::{peak, DepthHead};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
-use super::local_match::{LocalInputs, LocalMatch};
 use super::transformer::MultiViewTransformer;
 use super::volume::{BranchInputs, GaussiansPerBranch, VolumeBranch, VolumeOutput};
 use super::Config;
@@ -95,7 +94,6 @@ pub struct StereoSplat {
     transformer: MultiViewTransformer,
     project: Conv,
     depth_head: DepthHead,
-    local_match: Option<LocalMatch>,
     gaussians: GaussianHead,
     volume: Option<VolumeBranch>,
     depths: Vec<f64>,
@@ -126,10 +124,6 @@ impl StereoSplat {
                 1,
             )?,
             depth_head: DepthHead::new(vb.pp("depth_head"), cfg)?,
-            local_match: match cfg.local_match.enabled() {
-                true => Some(LocalMatch::new(vb.pp("local_match"), cfg)?),
-                false => None,
-            },
             gaussians: GaussianHead::new(vb.pp("gaussians"), cfg, context)?,
             volume,
             depths: candidate_depths(cfg),
@@ -210,19 +204,10 @@ impl StereoSplat {
         let image = every_nth_pixel(images, g)?;
         let confidence = up(&peak(&coarse.probabilities)?)?;
         let context = Tensor::cat(&[&image, &up(&features)?, &up(&bb.half)?, &confidence], 1)?;
-        let mut estimate = up(&coarse.inverse)?;
-        if let Some(local) = &self.local_match {
-            estimate = local.forward(&LocalInputs {
-                coarse: &estimate,
-                features: &bb.half,
-                cameras,
-                stride: g,
-            })?;
-        }
         let heads = self.gaussians.forward(&HeadInputs {
             context: &context,
             image: &image,
-            coarse: &estimate,
+            coarse: &up(&coarse.inverse)?,
             probabilities: &coarse.probabilities,
             cameras,
         })?;

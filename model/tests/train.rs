@@ -1,7 +1,7 @@
 //! Training end to end on a small generated drive: steps run and are logged, checkpoints
 //! resume exactly (a run stopped at step 4 and resumed to 6 ends with the weights of a run
-//! that went straight to 6), the loss curve is drawn, and a checkpoint of another preset is
-//! refused.
+//! that went straight to 6), the loss curve is drawn, a checkpoint of another preset is
+//! refused, and the matching loss adds exactly its weighted cross-entropy and is logged.
 
 use std::path::{Path, PathBuf};
 
@@ -98,6 +98,52 @@ fn a_resumed_run_ends_where_a_straight_run_does() {
     let pruning = Config::tiny().with_settings(&["pair_fusion_margin=null", "opacity_floor=0.1"]);
     assert!(Trainer::new(&pruning.unwrap(), train_config(8), &data, &resumed, true).is_ok());
     for dir in [data, resumed, straight] {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+#[test]
+fn the_matching_loss_adds_its_weighted_cross_entropy_and_is_logged() {
+    let data = temp("matching-data");
+    let config = SynthConfig {
+        seed: 12,
+        frames: 30,
+        width: 136,
+        height: 40,
+        ..SynthConfig::default()
+    };
+    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+    // One step each, same seed: the same sample and the same untrained network.
+    let first_step = |weight: f64, out: &Path| {
+        let mut cfg = train_config(1);
+        cfg.loss.matching = weight;
+        let mut trainer = Trainer::new(&Config::tiny(), cfg, &data, out, false).unwrap();
+        let mut report = None;
+        trainer
+            .run(&|| false, &mut |r| report = Some((r.loss, r.matching)))
+            .unwrap();
+        report.unwrap()
+    };
+    let (off, on) = (temp("matching-off"), temp("matching-on"));
+    let (base, none) = first_step(0.0, &off);
+    let (total, matching) = first_step(0.5, &on);
+    assert_eq!(none, 0.0);
+    // A cross-entropy over 32 candidates: positive, finite, near ln 32 for a fresh network.
+    assert!(matching > 0.5 && matching < 10.0, "{matching}");
+    let added = total - base;
+    assert!(
+        (added - 0.5 * matching).abs() < 1e-4,
+        "{added} vs {}",
+        0.5 * matching
+    );
+    let log = std::fs::read_to_string(on.join("log.csv")).unwrap();
+    let mut lines = log.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let row: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = header.iter().position(|c| *c == "matching").unwrap();
+    let logged: f32 = row[column].parse().unwrap();
+    assert!((logged - matching).abs() < 1e-3, "{logged} vs {matching}");
+    for dir in [data, off, on] {
         let _ = std::fs::remove_dir_all(dir);
     }
 }

@@ -20,6 +20,8 @@ pub struct CoarseDepth {
     pub probabilities: Tensor,
     /// Expected normalised inverse depth in `[0, 1]` (0 = far, 1 = near), `(V, 1, h, w)`.
     pub inverse: Tensor,
+    /// The matching term of the logits: the correlation times the temperature, `(V, D, h, w)`.
+    pub matching: Tensor,
 }
 
 /// The U-Net over (cost volume, features).
@@ -77,7 +79,7 @@ impl DepthHead {
             Some(b) => ((unet / b as f64)?.tanh()? * b as f64)?,
             None => unet,
         };
-        let logits = (unet + sharpened)?;
+        let logits = (unet + &sharpened)?;
         let probabilities = candle_nn::ops::softmax(&logits, 1)?;
         let inverse = probabilities
             .broadcast_mul(&self.candidates)?
@@ -85,6 +87,7 @@ impl DepthHead {
         Ok(CoarseDepth {
             probabilities,
             inverse,
+            matching: sharpened,
         })
     }
 }

@@ -31,6 +31,10 @@ pub struct Prediction {
     pub splats: SplatTensors,
     /// Estimated metric depth per view at the Gaussians' resolution, `(V, 1, Hg, Wg)`.
     pub depth: Tensor,
+    /// The depth head's matching term: the correlation volume times its learned temperature,
+    /// `(V, D, H/4, W/4)`, the logits matching alone puts on each candidate (what training's
+    /// matching loss supervises, so the features must match, not only the priors guess).
+    pub matching_logits: Tensor,
     /// Per-Gaussian features (the heads' context), `(V, k, Hg, Wg)`.
     pub features: Tensor,
     /// The views' features before normalisation, `(V, cost_channels, H/4, W/4)`: what the
@@ -58,6 +62,7 @@ impl Prediction {
         Ok(Self {
             splats: SplatTensors::cat(&parts.iter().map(|p| &p.splats).collect::<Vec<_>>())?,
             depth: cat(&|p| &p.depth)?,
+            matching_logits: cat(&|p| &p.matching_logits)?,
             features: cat(&|p| &p.features)?,
             view_features: cat(&|p| &p.view_features)?,
             volume: None,
@@ -214,6 +219,7 @@ impl StereoSplat {
         Ok(Prediction {
             splats: heads.splats,
             depth: heads.depth,
+            matching_logits: coarse.matching,
             features: context,
             view_features: features,
             volume: None,

@@ -25,6 +25,7 @@ pub const LOG_COLUMNS: &[&str] = &[
     "occupancy",
     "volume_l2",
     "volume_gaussians",
+    "matching",
 ];
 
 /// An open log.
@@ -71,7 +72,7 @@ impl TrainLog {
     pub fn append(&mut self, r: &StepReport) -> std::io::Result<()> {
         writeln!(
             self.file,
-            "{},{:.6},{:.6},{:.6},{:.4},{:.4},{:.6},{:.3e},{:.4},{},{:.4},{:.1},{:.6},{:.6},{}",
+            "{},{:.6},{:.6},{:.6},{:.4},{:.4},{:.6},{:.3e},{:.4},{},{:.4},{:.1},{:.6},{:.6},{},{:.4}",
             r.step,
             r.loss,
             r.l2,
@@ -86,7 +87,8 @@ impl TrainLog {
             r.elapsed_s,
             r.occupancy,
             r.volume_l2,
-            r.volume_gaussians
+            r.volume_gaussians,
+            r.matching
         )
     }
 }

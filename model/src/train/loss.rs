@@ -75,6 +75,10 @@ pub struct LossWeights {
     /// volume.
     #[serde(default = "default_volume_render")]
     pub volume_render: f64,
+    /// Weight of the matching loss on the cost volume alone (`matching`; 0, the paper's
+    /// objective, leaves it out).
+    #[serde(default)]
+    pub matching: f64,
 }
 
 fn default_occupancy() -> f64 {
@@ -99,6 +103,7 @@ impl Default for LossWeights {
             depth_error: DepthError::Metric,
             occupancy: default_occupancy(),
             volume_render: default_volume_render(),
+            matching: 0.0,
         }
     }
 }
@@ -121,6 +126,8 @@ pub struct Losses {
     pub occupancy: f32,
     /// Mean masked L2 of the volume-only render (0 without the volume branch).
     pub volume_l2: f32,
+    /// Matching cross-entropy (0 until `with_matching` adds it).
+    pub matching: f32,
 }
 
 /// `sum(mask * |a - b|) / sum(mask)`, 0 when the mask is empty.
@@ -235,6 +242,7 @@ pub fn losses(
         confidence: conf_sum / n as f32,
         occupancy,
         volume_l2,
+        matching: 0.0,
     })
 }
 

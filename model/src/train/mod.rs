@@ -13,6 +13,7 @@ pub(crate) mod checkpoint;
 mod data;
 mod log;
 mod loss;
+mod matching;
 mod pseudo_mix;
 
 use std::path::{Path, PathBuf};
@@ -30,6 +31,7 @@ pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Targ
 pub(crate) use data::{draw_targets, BinInputs};
 pub use log::{TrainLog, LOG_COLUMNS};
 pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};
+pub use matching::{matching_loss, with_matching};
 pub use pseudo_mix::mix_pseudo_pairs;
 
 use crate::bins::BinConfig;
@@ -136,6 +138,8 @@ pub struct StepReport {
     pub volume_l2: f32,
     /// Gaussians the volume branch decoded (0 without it).
     pub volume_gaussians: usize,
+    /// Matching cross-entropy of the cost volume (0 when its weight is 0).
+    pub matching: f32,
     /// Learning rate used.
     pub lr: f64,
     /// Gradient norm before clipping.
@@ -296,6 +300,14 @@ impl Trainer {
             )?;
             let prediction = self.net.forward(&sample.images, &sample.cameras)?;
             let l = losses(&prediction, &sample, &self.lpips, &self.cfg.loss, &settings)?;
+            let w = &self.cfg.loss;
+            let l = with_matching(
+                l,
+                &prediction,
+                &sample,
+                self.net.config(),
+                (w.matching, w.max_depth),
+            )?;
             let (lr, grad_norm) =
                 self.run
                     .learn(&l.total, self.cfg.lr, self.cfg.warmup, self.cfg.clip, step)?;
@@ -310,6 +322,7 @@ impl Trainer {
                 confidence: l.confidence,
                 occupancy: l.occupancy,
                 volume_l2: l.volume_l2,
+                matching: l.matching,
                 volume_gaussians: prediction.volume.as_ref().map_or(0, |v| v.gaussians()),
                 lr,
                 grad_norm,

@@ -90,6 +90,11 @@ pub struct TrainArgs {
     /// branch only).
     #[arg(long)]
     volume_render_weight: Option<f64>,
+    /// Weight of the matching loss: the cost volume's own cross-entropy against the LiDAR
+    /// depth, so the features match instead of the priors guessing (default 0, the paper's
+    /// objective without it).
+    #[arg(long)]
+    matching_weight: Option<f64>,
 }
 
 /// The loss weights the flags ask for: the paper's, with the depth error and weights set.
@@ -101,6 +106,7 @@ fn loss_weights(args: &TrainArgs) -> LossWeights {
         estimated_depth: args.estimated_depth_weight.unwrap_or(paper.estimated_depth),
         occupancy: args.occupancy_weight.unwrap_or(paper.occupancy),
         volume_render: args.volume_render_weight.unwrap_or(paper.volume_render),
+        matching: args.matching_weight.unwrap_or(paper.matching),
         ..paper
     }
 }

@@ -13,6 +13,13 @@
 # pair after the first replaced by renders of the network's own prediction half the time):
 #   cv_subsample   Branch_CV + view subsampling
 #   cv_mix         Branch_CV + view subsampling + pseudo_mix=0.5
+# and, for issue 14 (why the learned model fails on real pairs; results/transfer_diagnosis/),
+# cost-volume-only rows that differ from Branch_CV by one change each:
+#   cv_bound1      the U-Net's depth logits bounded at 1 instead of 4, so matching, not the
+#                  street-trained priors, has to decide the depth
+#   cv_match       the matching loss at weight 0.05 (the cost volume's own cross-entropy)
+#   cv_match05     the matching loss at weight 0.5
+# (cv_local, a local matching stage, was measured at commit 42939e2 and removed.)
 # Every row is resumable: run the same command again after an interruption.
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
 #   bash scripts/ablation_tiny.sh eval [ROW ...]      evaluate trained rows (default: all)
@@ -38,16 +45,31 @@ settings() {
     stereosplat) echo "--set volume_branch=true --set view_subsampling=true" ;;
     cv_subsample) echo "--set volume_branch=false --set view_subsampling=true" ;;
     cv_mix) echo "--set volume_branch=false --set view_subsampling=true --set pseudo_mix=0.5" ;;
-    *) echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix)" >&2; exit 2 ;;
+    cv_bound1) echo "--set volume_branch=false --set view_subsampling=false --set depth_logit_bound=1.0" ;;
+    cv_match | cv_match05) echo "--set volume_branch=false --set view_subsampling=false" ;;
+    *)
+      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05)" >&2
+      exit 2
+      ;;
+  esac
+}
+
+# The training-only flags of a row (loss weights; the network's settings are `settings`).
+train_flags() {
+  case "$1" in
+    cv_match) echo "--matching-weight 0.05" ;;
+    cv_match05) echo "--matching-weight 0.5" ;;
+    *) echo "" ;;
   esac
 }
 
 train_row() {
   local row="$1" steps="${2:-1500}" run="$runs/$1"
   read -ra set <<<"$(settings "$row")"
+  read -ra extra <<<"$(train_flags "$row")"
   local flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4
     --warmup 100 --seed 0 --depth-loss relative --rendered-depth-weight 0.5
-    --estimated-depth-weight 0.5 "${set[@]}")
+    --estimated-depth-weight 0.5 "${set[@]}" "${extra[@]}")
   if [ -f "$run/checkpoint/state.json" ]; then
     "$bin" train "${flags[@]}" --resume
   else

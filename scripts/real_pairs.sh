@@ -4,7 +4,7 @@
 # consistency on the 12 OAK-D pairs. Writes results/real_pairs/ (README.md with the tables,
 # scores.json, pictures/); each run's full outputs stay under out/real_pairs/.
 #
-#   bash scripts/real_pairs.sh [--weights W] [--preset P] [--out DIR] [--data DIR]
+#   bash scripts/real_pairs.sh [--weights W] [--preset P] [--set KEY=VALUE ...] [--out DIR] [--data DIR]
 #
 # Needs the pairs (bash scripts/real_data.sh); builds the release binary (a no-op when fresh).
 # Calibrations passed (disparities are scored in pixels; the rig only sets the depth range):
@@ -16,11 +16,12 @@
 #   OAK-D: the pairs' own calibration (stereodemo_calibration.json).
 set -euo pipefail
 command="bash scripts/real_pairs.sh${*:+ $*}"
-weights=() preset=() out=results/real_pairs data=data/real
+weights=() preset=() sets=() out=results/real_pairs data=data/real
 while [ $# -gt 0 ]; do
   case "$1" in
     --weights) weights=(--weights "$(realpath -m "$2")"); shift 2 ;;
     --preset) preset=(--preset "$2"); shift 2 ;;
+    --set) sets+=(--set "$2"); shift 2 ;;
     --out) out="$(realpath -m "$2")"; shift 2 ;;
     --data) data="$(realpath -m "$2")"; shift 2 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
@@ -40,7 +41,7 @@ reconstruct() {
   local extra=()
   # The learned model's own output is scored (flagged where it fails the self-check), not
   # the SGM fallback that `reconstruct` writes by default.
-  [ "$method" = stereosplat ] && extra=("${weights[@]}" "${preset[@]}" --on-check-fail flag)
+  [ "$method" = stereosplat ] && extra=("${weights[@]}" "${preset[@]}" "${sets[@]}" --on-check-fail flag)
   "$bin" reconstruct --method "$method" "${extra[@]}" --out "$runs/$name/$method" "$@" >/dev/null
   echo "$name $method: $(python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); print(f"{s["reconstruct_s"]:.1f} s")' "$runs/$name/$method/summary.json")"
 }

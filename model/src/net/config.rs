@@ -57,6 +57,12 @@ pub struct Config {
     /// the cost volume.
     #[serde(default)]
     pub depth_logit_bound: Option<f32>,
+    /// Add a second correlation to the depth head's matching term: the backbone's own 1/4
+    /// features (before the mono encoder's and the transformer's mixing), which a CNN keeps
+    /// local, as stereo matchers do; its weight is learned and starts at zero, so weights
+    /// trained without it load and start unchanged (issue 14's real-photo transfer).
+    #[serde(default)]
+    pub backbone_matching: bool,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
@@ -250,6 +256,7 @@ impl Config {
             pair_fusion_margin: Some(1.0),
             unet_channels: 32,
             depth_logit_bound: Some(4.0),
+            backbone_matching: false,
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,
@@ -290,6 +297,7 @@ impl Config {
             cost_channels: 64,
             candidates: 64,
             unet_channels: 48,
+            backbone_matching: false,
             head_channels: 48,
             volume: VolumeConfig::small(),
             ..Self::tiny()
@@ -312,6 +320,7 @@ impl Config {
             candidates: 192,
             match_views: 2,
             unet_channels: 64,
+            backbone_matching: false,
             head_channels: 64,
             gaussian_stride: 1,
             max_gaussians: 2_000_000,

@@ -39,6 +39,9 @@ pub struct DepthHead {
     candidates: Tensor,
     /// The preset's bound on the U-Net's logits.
     logit_bound: Option<f32>,
+    /// With `backbone_matching`: the learned weight of the backbone features' correlation
+    /// in the matching term (from 0).
+    backbone_weight: Option<Tensor>,
 }
 
 impl DepthHead {
@@ -61,19 +64,40 @@ impl DepthHead {
             )?,
             candidates: Tensor::from_vec(steps, (1, d, 1, 1), vb.device())?,
             logit_bound: cfg.depth_logit_bound,
+            backbone_weight: match cfg.backbone_matching {
+                true => Some(vb.get_with_hints(
+                    1,
+                    "zero_backbone_weight",
+                    candle_nn::Init::Const(0.0),
+                )?),
+                false => None,
+            },
         })
     }
 
     /// Cost volume `(V, D, h, w)` and features `(V, Cc, h, w)` to the coarse depth. The
     /// U-Net's logits are added to the correlation times the temperature, so matching drives
-    /// the softmax from the first step and the U-Net learns the corrections.
-    pub fn forward(&self, cost: &Tensor, features: &Tensor) -> Result<CoarseDepth> {
+    /// the softmax from the first step and the U-Net learns the corrections. With
+    /// `backbone_matching`, `backbone_cost` (the backbone features' correlation, same shape
+    /// as `cost`) joins the matching term at its learned weight; it is ignored otherwise.
+    pub fn forward(
+        &self,
+        cost: &Tensor,
+        features: &Tensor,
+        backbone_cost: Option<&Tensor>,
+    ) -> Result<CoarseDepth> {
         let (_, _, h, w) = cost.dims4()?;
         let x1 = self.enter.forward(&Tensor::cat(&[cost, features], 1)?)?;
         let x2 = self.bottom.forward(&self.down.forward(&x1)?)?;
         let up = upsample_bilinear(&x2, h, w)?;
         let x = self.up.forward(&Tensor::cat(&[&up, &x1], 1)?)?;
         let sharpened = cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
+        let sharpened = match (&self.backbone_weight, backbone_cost) {
+            (Some(weight), Some(b)) => {
+                (sharpened + b.broadcast_mul(&weight.reshape((1, 1, 1, 1))?)?)?
+            }
+            _ => sharpened,
+        };
         let unet = self.logits.forward(&x)?;
         let unet = match self.logit_bound {
             Some(b) => ((unet / b as f64)?.tanh()? * b as f64)?,
@@ -101,4 +125,79 @@ pub fn metric_depth(inverse: &Tensor, cfg: &Config) -> Result<Tensor> {
 /// The matching confidence: the softmax's peak, `(V, 1, h, w)`.
 pub fn peak(probabilities: &Tensor) -> Result<Tensor> {
     probabilities.max_keepdim(D::Minus(3))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::{DType, Device, Var};
+    use candle_nn::VarMap;
+
+    fn head(backbone_matching: bool) -> (DepthHead, VarMap, Config) {
+        let cfg = Config {
+            backbone_matching,
+            ..Config::tiny()
+        };
+        let varmap = VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+        (DepthHead::new(vb, &cfg).unwrap(), varmap, cfg)
+    }
+
+    fn inputs(cfg: &Config, scale: f64) -> (Tensor, Tensor, Tensor) {
+        let (d, c) = (cfg.candidates, cfg.cost_channels);
+        let cost = (Tensor::rand(-1f32, 1.0, (2, d, 4, 8), &Device::Cpu).unwrap() * scale).unwrap();
+        let features = Tensor::randn(0f32, 1.0, (2, c, 4, 8), &Device::Cpu).unwrap();
+        let backbone =
+            (Tensor::rand(-1f32, 1.0, (2, d, 4, 8), &Device::Cpu).unwrap() * scale).unwrap();
+        (cost, features, backbone)
+    }
+
+    #[test]
+    fn the_backbone_correlation_starts_at_zero_weight() {
+        let (head, _vars, cfg) = head(true);
+        let (cost, features, backbone) = inputs(&cfg, 1.0);
+        let with = head.forward(&cost, &features, Some(&backbone)).unwrap();
+        let without = head.forward(&cost, &features, None).unwrap();
+        let diff = (with.probabilities - without.probabilities)
+            .unwrap()
+            .abs()
+            .unwrap()
+            .max_all()
+            .unwrap();
+        assert_eq!(diff.to_scalar::<f32>().unwrap(), 0.0);
+    }
+
+    #[test]
+    fn the_matching_term_stays_finite_at_the_extremes() {
+        let (head, varmap, cfg) = head(true);
+        for (name, var) in varmap.data().lock().unwrap().iter() {
+            if name.contains("zero_backbone_weight") {
+                var.set(&Tensor::new(&[1e3f32], &Device::Cpu).unwrap())
+                    .unwrap();
+            }
+        }
+        for scale in [0.0, 1.0, 1e4] {
+            let (cost, features, backbone) = inputs(&cfg, scale);
+            let backbone = Var::from_tensor(&backbone).unwrap();
+            let out = head
+                .forward(&cost, &features, Some(backbone.as_tensor()))
+                .unwrap();
+            let p: Vec<f32> = out.probabilities.flatten_all().unwrap().to_vec1().unwrap();
+            assert!(p.iter().all(|x| x.is_finite()), "scale {scale}");
+            let inverse: Vec<f32> = out.inverse.flatten_all().unwrap().to_vec1().unwrap();
+            assert!(
+                inverse.iter().all(|x| (0.0..=1.0 + 1e-5).contains(x)),
+                "scale {scale}"
+            );
+            let grads = out.inverse.sum_all().unwrap().backward().unwrap();
+            let g: Vec<f32> = grads
+                .get(&backbone)
+                .unwrap()
+                .flatten_all()
+                .unwrap()
+                .to_vec1()
+                .unwrap();
+            assert!(g.iter().all(|x| x.is_finite()), "scale {scale}");
+        }
+    }
 }

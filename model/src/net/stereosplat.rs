@@ -189,12 +189,26 @@ impl StereoSplat {
         let features = self
             .project
             .forward(&Tensor::cat(&[&mono, &attended], 1)?)?;
-        // Unit features: the volume holds cosine similarities, whose scale the depth head's
-        // learned temperature sets (raw dot products of fresh features give a flat softmax).
-        let norm = (features.sqr()?.sum_keepdim(1)? + 1e-6)?.sqrt()?;
-        let unit = features.broadcast_div(&norm)?;
-        let cost = cost_volume(&unit, cameras, &self.depths, &self.cfg, COST_STRIDE)?;
-        let coarse = self.depth_head.forward(&cost, &features)?;
+        let cost = cost_volume(
+            &unit_features(&features)?,
+            cameras,
+            &self.depths,
+            &self.cfg,
+            COST_STRIDE,
+        )?;
+        let backbone_cost = match self.cfg.backbone_matching {
+            true => Some(cost_volume(
+                &unit_features(&bb.quarter)?,
+                cameras,
+                &self.depths,
+                &self.cfg,
+                COST_STRIDE,
+            )?),
+            false => None,
+        };
+        let coarse = self
+            .depth_head
+            .forward(&cost, &features, backbone_cost.as_ref())?;
 
         let g = self.cfg.gaussian_stride;
         let (hg, wg) = (height.div_ceil(g), width.div_ceil(g));
@@ -226,6 +240,14 @@ impl StereoSplat {
             cost_volume_output: self.cfg.cost_volume_branch || self.volume.is_none(),
         })
     }
+}
+
+/// Features scaled to unit length per pixel: the volume holds cosine similarities, whose
+/// scale the depth head's learned temperature sets (raw dot products of fresh features give
+/// a flat softmax).
+fn unit_features(features: &Tensor) -> Result<Tensor> {
+    let norm = (features.sqr()?.sum_keepdim(1)? + 1e-6)?.sqrt()?;
+    features.broadcast_div(&norm)
 }
 
 /// Pixels `(g i, g j)` of `(V, C, H, W)`: `(V, C, ceil(H/g), ceil(W/g))`, the pixels the

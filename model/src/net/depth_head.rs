@@ -13,6 +13,10 @@ use crate::ops::upsample_bilinear;
 
 /// The temperature the correlation starts with.
 const INITIAL_TEMPERATURE: f64 = 10.0;
+/// The backbone correlation's weight is this times its variable: AdamW moves a variable by
+/// about the learning rate per step, so unscaled it could not reach the temperature's size
+/// (3 to 10) within a run of a few thousand steps at 5e-4.
+const BACKBONE_WEIGHT_SCALE: f64 = 10.0;
 
 /// The head's estimate at 1/4 resolution.
 pub struct CoarseDepth {
@@ -40,7 +44,7 @@ pub struct DepthHead {
     /// The preset's bound on the U-Net's logits.
     logit_bound: Option<f32>,
     /// With `backbone_matching`: the learned weight of the backbone features' correlation
-    /// in the matching term (from 0).
+    /// in the matching term, over [`BACKBONE_WEIGHT_SCALE`] (from 0).
     backbone_weight: Option<Tensor>,
 }
 
@@ -94,7 +98,8 @@ impl DepthHead {
         let sharpened = cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
         let sharpened = match (&self.backbone_weight, backbone_cost) {
             (Some(weight), Some(b)) => {
-                (sharpened + b.broadcast_mul(&weight.reshape((1, 1, 1, 1))?)?)?
+                let weight = (weight * BACKBONE_WEIGHT_SCALE)?.reshape((1, 1, 1, 1))?;
+                (sharpened + b.broadcast_mul(&weight)?)?
             }
             _ => sharpened,
         };

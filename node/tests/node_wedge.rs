@@ -297,8 +297,12 @@ async fn at_once(tag: &str, offsets_ns: [i64; 3]) -> (NodeSummary, usize) {
 async fn three_drives_with_the_same_stamps_at_once_are_never_paired_across() {
     let (s, bins) = at_once("wedge_same", [0, 0, 0]).await;
     println!("same stamps: {bins} bins, counters {:?}", s.counters);
-    // Most frames met another source's: refused and counted.
-    assert!(s.counters.get("sync/conflict") > 30, "{:?}", s.counters);
+    // Most frames met another source's: refused and counted, as a conflict, or as late
+    // when the node lags behind the three players (a loaded machine: 9 conflicts and 174
+    // late once beside two training runs); `at_once` checked that none was paired across.
+    let refused = s.counters.get("sync/conflict") + s.counters.get("sync/late");
+    assert!(s.counters.get("sync/conflict") > 0, "{:?}", s.counters);
+    assert!(refused > 30, "{:?}", s.counters);
     assert_eq!(s.counters.get("sync/reset"), 0);
 }
 

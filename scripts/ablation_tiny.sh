@@ -21,6 +21,7 @@
 #   cv_match05     the matching loss at weight 0.5
 #   cv_bbmatch     the matching loss at 0.05 with `backbone_matching` (a second correlation
 #                  of the backbone's own features in the matching term)
+#   cv_bbmatch05   the matching loss at 0.5 with `backbone_matching`
 # (cv_local, a local matching stage, was measured at commit 42939e2 and removed.)
 # Every row is resumable: run the same command again after an interruption.
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
@@ -49,9 +50,9 @@ settings() {
     cv_mix) echo "--set volume_branch=false --set view_subsampling=true --set pseudo_mix=0.5" ;;
     cv_bound1) echo "--set volume_branch=false --set view_subsampling=false --set depth_logit_bound=1.0" ;;
     cv_match | cv_match05) echo "--set volume_branch=false --set view_subsampling=false" ;;
-    cv_bbmatch) echo "--set volume_branch=false --set view_subsampling=false --set backbone_matching=true" ;;
+    cv_bbmatch | cv_bbmatch05) echo "--set volume_branch=false --set view_subsampling=false --set backbone_matching=true" ;;
     *)
-      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05 cv_bbmatch)" >&2
+      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05 cv_bbmatch cv_bbmatch05)" >&2
       exit 2
       ;;
   esac
@@ -61,7 +62,7 @@ settings() {
 train_flags() {
   case "$1" in
     cv_match | cv_bbmatch) echo "--matching-weight 0.05" ;;
-    cv_match05) echo "--matching-weight 0.5" ;;
+    cv_match05 | cv_bbmatch05) echo "--matching-weight 0.5" ;;
     *) echo "" ;;
   esac
 }

@@ -103,6 +103,7 @@ fn mixing_replaces_later_pairs_by_renders_and_trains_finitely() {
         &lpips,
         &LossWeights::default(),
         &RenderSettings::default(),
+        net.config(),
     )
     .unwrap();
     assert!(l.total.to_scalar::<f32>().unwrap().is_finite());

@@ -6,15 +6,27 @@
 use std::path::{Path, PathBuf};
 
 use model::bins::BinConfig;
-use model::generate::write_synthetic;
 use model::net::Config;
 use model::synth::SynthConfig;
 use model::train::{
     exported_weights, AdamWConfig, LossWeights, SampleConfig, TrainConfig, TrainError, Trainer,
 };
 
+mod drive_support;
 mod train_support;
 use train_support::{assert_same_weights, logged_steps};
+
+/// The small generated drive both tests train on, written once per test process.
+fn drive() -> PathBuf {
+    let config = SynthConfig {
+        seed: 11,
+        frames: 40,
+        width: 136,
+        height: 40,
+        ..SynthConfig::default()
+    };
+    drive_support::once("train", &config).0
+}
 
 fn temp(case: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("stereosplat-train-{case}-{}", std::process::id()));
@@ -60,15 +72,7 @@ fn run(data: &Path, out: &Path, steps: u64, resume: bool) -> Vec<f32> {
 
 #[test]
 fn a_resumed_run_ends_where_a_straight_run_does() {
-    let data = temp("data");
-    let config = SynthConfig {
-        seed: 11,
-        frames: 40,
-        width: 136,
-        height: 40,
-        ..SynthConfig::default()
-    };
-    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+    let data = drive();
 
     let (resumed, straight) = (temp("resumed"), temp("straight"));
     let first = run(&data, &resumed, 4, false);
@@ -97,22 +101,14 @@ fn a_resumed_run_ends_where_a_straight_run_does() {
     assert!(matches!(other, Err(TrainError::SettingsMismatch { .. })));
     let pruning = Config::tiny().with_settings(&["pair_fusion_margin=null", "opacity_floor=0.1"]);
     assert!(Trainer::new(&pruning.unwrap(), train_config(8), &data, &resumed, true).is_ok());
-    for dir in [data, resumed, straight] {
+    for dir in [resumed, straight] {
         let _ = std::fs::remove_dir_all(dir);
     }
 }
 
 #[test]
 fn the_matching_loss_adds_its_weighted_cross_entropy_and_is_logged() {
-    let data = temp("matching-data");
-    let config = SynthConfig {
-        seed: 12,
-        frames: 30,
-        width: 136,
-        height: 40,
-        ..SynthConfig::default()
-    };
-    write_synthetic(&data, &config, &mut |_, _| {}).unwrap();
+    let data = drive();
     // One step each, same seed: the same sample and the same untrained network.
     let first_step = |weight: f64, out: &Path| {
         let mut cfg = train_config(1);
@@ -143,7 +139,7 @@ fn the_matching_loss_adds_its_weighted_cross_entropy_and_is_logged() {
     let column = header.iter().position(|c| *c == "matching").unwrap();
     let logged: f32 = row[column].parse().unwrap();
     assert!((logged - matching).abs() < 1e-3, "{logged} vs {matching}");
-    for dir in [data, off, on] {
+    for dir in [off, on] {
         let _ = std::fs::remove_dir_all(dir);
     }
 }

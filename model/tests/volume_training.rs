@@ -96,6 +96,7 @@ fn step(cfg: &Config, sample: &Sample, what: &str) -> (f32, f32, usize) {
         &lpips,
         &LossWeights::default(),
         &RenderSettings::default(),
+        net.config(),
     )
     .unwrap();
     let total = l.total.to_scalar::<f32>().unwrap();

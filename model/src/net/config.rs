@@ -297,7 +297,6 @@ impl Config {
             cost_channels: 64,
             candidates: 64,
             unet_channels: 48,
-            backbone_matching: false,
             head_channels: 48,
             volume: VolumeConfig::small(),
             ..Self::tiny()
@@ -320,7 +319,6 @@ impl Config {
             candidates: 192,
             match_views: 2,
             unet_channels: 64,
-            backbone_matching: false,
             head_channels: 64,
             gaussian_stride: 1,
             max_gaussians: 2_000_000,

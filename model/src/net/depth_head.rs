@@ -121,6 +121,13 @@ impl DepthHead {
     }
 }
 
+/// Normalised inverse depth of a metric `depth` (1 at `near`, 0 at `far`, outside `[0, 1]`
+/// beyond them): the inverse of [`metric_depth`], where a depth falls among the candidates.
+pub fn normalised_inverse(depth: f64, cfg: &Config) -> f64 {
+    let (a, b) = (1.0 / cfg.near as f64, 1.0 / cfg.far as f64);
+    (1.0 / depth - b) / (a - b)
+}
+
 /// Metric depth of a normalised inverse depth (1 = `near`, 0 = `far`).
 pub fn metric_depth(inverse: &Tensor, cfg: &Config) -> Result<Tensor> {
     let (a, b) = (1.0 / cfg.near as f64, 1.0 / cfg.far as f64);

@@ -26,6 +26,7 @@ mod warm_start;
 
 pub use config::{weights_preset, Config, SettingError, UnknownPreset, PRESETS};
 pub use cost_volume::candidate_depths;
+pub use depth_head::normalised_inverse;
 pub use reconstructor::{
     default_weights, images_and_cameras, pair_fusion_flags, to_set, to_set_counted, BranchReport,
     LearnedReconstructor, LoadError, Reconstruction,

@@ -10,9 +10,10 @@ use candle_core::{Result, Tensor};
 use serde::{Deserialize, Serialize};
 
 use super::data::Sample;
+use super::matching::matching_loss;
 use crate::lpips::Lpips;
 use crate::net::volume::{occupancy_loss, VolumeOutput};
-use crate::net::Prediction;
+use crate::net::{Config, Prediction};
 use crate::ops::{render, CH_ALPHA, CH_CONFIDENCE, CH_DEPTH, CH_R};
 use renderer::RenderSettings;
 
@@ -126,7 +127,7 @@ pub struct Losses {
     pub occupancy: f32,
     /// Mean masked L2 of the volume-only render (0 without the volume branch).
     pub volume_l2: f32,
-    /// Matching cross-entropy (0 until `with_matching` adds it).
+    /// Matching cross-entropy (0 when its weight is 0).
     pub matching: f32,
 }
 
@@ -161,13 +162,15 @@ fn lidar_mask(depth: &Tensor, max_depth: f32) -> Result<Tensor> {
     valid.to_dtype(depth.dtype())
 }
 
-/// Renders every target of `sample` from `prediction` and scores the whole objective.
+/// Renders every target of `sample` from `prediction` (of the network of preset `net`) and
+/// scores the whole objective.
 pub fn losses(
     prediction: &Prediction,
     sample: &Sample,
     lpips: &Lpips,
     weights: &LossWeights,
     settings: &RenderSettings,
+    net: &Config,
 ) -> Result<Losses> {
     let splats = prediction.output()?.pack()?;
     let mut renders = Vec::with_capacity(sample.targets.len());
@@ -220,6 +223,19 @@ pub fn losses(
     };
     let total = ((views + (&perceptual * (weights.reconstruction * weights.lpips))?)?
         + (&d_est * weights.estimated_depth)?)?;
+    // The matching term is computed only when it counts (it reads the depth back to the CPU).
+    let (total, matching) = match weights.matching > 0.0 {
+        true => {
+            let m = matching_loss(
+                &prediction.matching_logits,
+                &sample.input_depth,
+                net,
+                weights.max_depth,
+            )?;
+            ((total + (&m * weights.matching)?)?, m.to_scalar::<f32>()?)
+        }
+        false => (total, 0.0),
+    };
     let (total, occupancy, volume_l2) = match &prediction.volume {
         Some(volume) => {
             let v = volume_losses(volume, sample, settings)?;
@@ -242,7 +258,7 @@ pub fn losses(
         confidence: conf_sum / n as f32,
         occupancy,
         volume_l2,
-        matching: 0.0,
+        matching,
     })
 }
 

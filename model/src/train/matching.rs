@@ -9,9 +9,7 @@
 
 use candle_core::{Result, Tensor};
 
-use super::loss::Losses;
-use super::Sample;
-use crate::net::{every_nth_pixel, Config, Prediction, COST_STRIDE};
+use crate::net::{every_nth_pixel, normalised_inverse, Config, COST_STRIDE};
 
 /// Cross-entropy of the depth head's matching logits `(V, D, h, w)` against a two-hot
 /// target: the LiDAR depth's place between the two candidates around it, in normalised
@@ -45,7 +43,6 @@ pub fn matching_loss(
         return zero();
     }
     let depth: Vec<f32> = depth.flatten_all()?.to_vec1()?;
-    let (a, b) = (1.0 / cfg.near as f64, 1.0 / cfg.far as f64);
     let p = h * w;
     let mut target = vec![0f32; v * d * p];
     let mut mask = vec![0f32; v * p];
@@ -55,7 +52,7 @@ pub fn matching_loss(
                 continue;
             }
             // Candidate k sits at normalised inverse depth 1 - k / (D - 1).
-            let u = ((1.0 / z as f64 - b) / (a - b)).clamp(0.0, 1.0);
+            let u = normalised_inverse(z as f64, cfg).clamp(0.0, 1.0);
             let f = (1.0 - u) * (d - 1) as f64;
             let lo = (f.floor() as usize).min(d - 2);
             let frac = (f - lo as f64) as f32;
@@ -74,28 +71,6 @@ pub fn matching_loss(
     let log_p = candle_nn::ops::log_softmax(logits, 1)?;
     let ce = (target * log_p)?.sum(1)?.neg()?;
     (ce * mask)?.sum_all()? / count as f64
-}
-
-/// `losses` with the matching loss of `prediction` added to the total at `weight` (and
-/// reported); unchanged when `weight` is 0.
-pub fn with_matching(
-    mut losses: Losses,
-    prediction: &Prediction,
-    sample: &Sample,
-    cfg: &Config,
-    (weight, max_depth): (f64, f32),
-) -> Result<Losses> {
-    if weight > 0.0 {
-        let m = matching_loss(
-            &prediction.matching_logits,
-            &sample.input_depth,
-            cfg,
-            max_depth,
-        )?;
-        losses.matching = m.to_scalar::<f32>()?;
-        losses.total = (losses.total + (m * weight)?)?;
-    }
-    Ok(losses)
 }
 
 #[cfg(test)]

@@ -31,7 +31,7 @@ pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Targ
 pub(crate) use data::{draw_targets, BinInputs};
 pub use log::{TrainLog, LOG_COLUMNS};
 pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};
-pub use matching::{matching_loss, with_matching};
+pub use matching::matching_loss;
 pub use pseudo_mix::mix_pseudo_pairs;
 
 use crate::bins::BinConfig;
@@ -299,14 +299,13 @@ impl Trainer {
                 &mut rng,
             )?;
             let prediction = self.net.forward(&sample.images, &sample.cameras)?;
-            let l = losses(&prediction, &sample, &self.lpips, &self.cfg.loss, &settings)?;
-            let w = &self.cfg.loss;
-            let l = with_matching(
-                l,
+            let l = losses(
                 &prediction,
                 &sample,
+                &self.lpips,
+                &self.cfg.loss,
+                &settings,
                 self.net.config(),
-                (w.matching, w.max_depth),
             )?;
             let (lr, grad_norm) =
                 self.run

@@ -22,12 +22,16 @@
 #   cv_bbmatch     the matching loss at 0.05 with `backbone_matching` (a second correlation
 #                  of the backbone's own features in the matching term)
 #   cv_bbmatch05   the matching loss at 0.5 with `backbone_matching`
+#   cv_census05    the matching loss at 0.5 with `census_matching` (a soft census correlation
+#                  of the grey images in the matching term, blind to the cameras' gain)
 # (cv_local, a local matching stage, was measured at commit 42939e2 and removed.)
 # Every row is resumable: run the same command again after an interruption.
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
 #   bash scripts/ablation_tiny.sh eval [ROW ...]      evaluate trained rows (default: all)
 #   bash scripts/ablation_tiny.sh all [STEPS]         train every row, then evaluate
-# Runs go to $ABLATION_RUNS/<row> (default runs/ablation), evaluations to out/ablation/<row>.
+# Runs go to $ABLATION_RUNS/<row> (default runs/ablation), evaluations to
+# out/<basename of $ABLATION_RUNS>/<row>. ABLATION_SEED (default 0) sets the training seed, to
+# measure how far a row moves with the draw of samples alone (run it in its own ABLATION_RUNS).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data=data/transfer
@@ -37,6 +41,7 @@ base=model/weights/stereosplat_tiny.safetensors
 # the tree cannot break while rows train.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 runs="${ABLATION_RUNS:-runs/ablation}"
+seed="${ABLATION_SEED:-0}"
 rows=(cv 3d cv3d stereosplat)
 
 # The settings of a row: the same on every train, resume and eval call.
@@ -51,8 +56,9 @@ settings() {
     cv_bound1) echo "--set volume_branch=false --set view_subsampling=false --set depth_logit_bound=1.0" ;;
     cv_match | cv_match05) echo "--set volume_branch=false --set view_subsampling=false" ;;
     cv_bbmatch | cv_bbmatch05) echo "--set volume_branch=false --set view_subsampling=false --set backbone_matching=true" ;;
+    cv_census05) echo "--set volume_branch=false --set view_subsampling=false --set census_matching=true" ;;
     *)
-      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05 cv_bbmatch cv_bbmatch05)" >&2
+      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05 cv_bbmatch cv_bbmatch05 cv_census05)" >&2
       exit 2
       ;;
   esac
@@ -62,7 +68,7 @@ settings() {
 train_flags() {
   case "$1" in
     cv_match | cv_bbmatch) echo "--matching-weight 0.05" ;;
-    cv_match05 | cv_bbmatch05) echo "--matching-weight 0.5" ;;
+    cv_match05 | cv_bbmatch05 | cv_census05) echo "--matching-weight 0.5" ;;
     *) echo "" ;;
   esac
 }
@@ -72,7 +78,7 @@ train_row() {
   read -ra set <<<"$(settings "$row")"
   read -ra extra <<<"$(train_flags "$row")"
   local flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4
-    --warmup 100 --seed 0 --depth-loss relative --rendered-depth-weight 0.5
+    --warmup 100 --seed "$seed" --depth-loss relative --rendered-depth-weight 0.5
     --estimated-depth-weight 0.5 "${set[@]}" "${extra[@]}")
   if [ -f "$run/checkpoint/state.json" ]; then
     "$bin" train "${flags[@]}" --resume
@@ -86,7 +92,7 @@ eval_row() {
   read -ra set <<<"$(settings "$row")"
   "$bin" eval --data "$heldout" --method stereosplat --preset tiny --stride 5 \
     --weights "$runs/$row/stereosplat_tiny.safetensors" "${set[@]}" \
-    --out "out/ablation/$row"
+    --out "out/$(basename "$runs")/$row"
 }
 
 prepare() {

@@ -63,6 +63,12 @@ pub struct Config {
     /// trained without it load and start unchanged (issue 14's real-photo transfer).
     #[serde(default)]
     pub backbone_matching: bool,
+    /// Add the soft census correlation of the grey images ([`super::census_volume`]) to the
+    /// depth head's matching term at a learned weight from zero: a cost that a camera's gain,
+    /// offset and texture statistics cannot move, so matching that transfers from the
+    /// generated streets to real photographs (issue 14).
+    #[serde(default)]
+    pub census_matching: bool,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
@@ -257,6 +263,7 @@ impl Config {
             unet_channels: 32,
             depth_logit_bound: Some(4.0),
             backbone_matching: false,
+            census_matching: false,
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,

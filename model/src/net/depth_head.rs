@@ -13,10 +13,22 @@ use crate::ops::upsample_bilinear;
 
 /// The temperature the correlation starts with.
 const INITIAL_TEMPERATURE: f64 = 10.0;
-/// The backbone correlation's weight is this times its variable: AdamW moves a variable by
+/// An extra correlation's weight is this times its variable: AdamW moves a variable by
 /// about the learning rate per step, so unscaled it could not reach the temperature's size
 /// (3 to 10) within a run of a few thousand steps at 5e-4.
-const BACKBONE_WEIGHT_SCALE: f64 = 10.0;
+const EXTRA_WEIGHT_SCALE: f64 = 10.0;
+
+/// Correlations beside the view features' own that join the matching term, each at its own
+/// learned weight starting from zero (so weights trained without them load and start
+/// unchanged); each is `(V, D, h, w)` like the cost volume, and ignored unless the preset
+/// switches it on.
+#[derive(Clone, Copy, Default)]
+pub struct ExtraCosts<'a> {
+    /// With `backbone_matching`: the backbone's own 1/4 features' correlation.
+    pub backbone: Option<&'a Tensor>,
+    /// With `census_matching`: the aggregated census correlation of the grey images.
+    pub census: Option<&'a Tensor>,
+}
 
 /// The head's estimate at 1/4 resolution.
 pub struct CoarseDepth {
@@ -44,8 +56,22 @@ pub struct DepthHead {
     /// The preset's bound on the U-Net's logits.
     logit_bound: Option<f32>,
     /// With `backbone_matching`: the learned weight of the backbone features' correlation
-    /// in the matching term, over [`BACKBONE_WEIGHT_SCALE`] (from 0).
+    /// in the matching term, over [`EXTRA_WEIGHT_SCALE`] (from 0).
     backbone_weight: Option<Tensor>,
+    /// With `census_matching`: the same for the census correlation.
+    census_weight: Option<Tensor>,
+}
+
+/// The variable `name`, starting at zero, when `on`.
+fn extra_weight(vb: &VarBuilder, on: bool, name: &str) -> Result<Option<Tensor>> {
+    match on {
+        true => Ok(Some(vb.get_with_hints(
+            1,
+            name,
+            candle_nn::Init::Const(0.0),
+        )?)),
+        false => Ok(None),
+    }
 }
 
 impl DepthHead {
@@ -68,27 +94,20 @@ impl DepthHead {
             )?,
             candidates: Tensor::from_vec(steps, (1, d, 1, 1), vb.device())?,
             logit_bound: cfg.depth_logit_bound,
-            backbone_weight: match cfg.backbone_matching {
-                true => Some(vb.get_with_hints(
-                    1,
-                    "zero_backbone_weight",
-                    candle_nn::Init::Const(0.0),
-                )?),
-                false => None,
-            },
+            backbone_weight: extra_weight(&vb, cfg.backbone_matching, "zero_backbone_weight")?,
+            census_weight: extra_weight(&vb, cfg.census_matching, "zero_census_weight")?,
         })
     }
 
     /// Cost volume `(V, D, h, w)` and features `(V, Cc, h, w)` to the coarse depth. The
     /// U-Net's logits are added to the correlation times the temperature, so matching drives
-    /// the softmax from the first step and the U-Net learns the corrections. With
-    /// `backbone_matching`, `backbone_cost` (the backbone features' correlation, same shape
-    /// as `cost`) joins the matching term at its learned weight; it is ignored otherwise.
+    /// the softmax from the first step and the U-Net learns the corrections. The `extra`
+    /// correlations the preset switches on join the matching term at their learned weights.
     pub fn forward(
         &self,
         cost: &Tensor,
         features: &Tensor,
-        backbone_cost: Option<&Tensor>,
+        extra: ExtraCosts,
     ) -> Result<CoarseDepth> {
         let (_, _, h, w) = cost.dims4()?;
         let x1 = self.enter.forward(&Tensor::cat(&[cost, features], 1)?)?;
@@ -96,13 +115,16 @@ impl DepthHead {
         let up = upsample_bilinear(&x2, h, w)?;
         let x = self.up.forward(&Tensor::cat(&[&up, &x1], 1)?)?;
         let sharpened = cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
-        let sharpened = match (&self.backbone_weight, backbone_cost) {
-            (Some(weight), Some(b)) => {
-                let weight = (weight * BACKBONE_WEIGHT_SCALE)?.reshape((1, 1, 1, 1))?;
-                (sharpened + b.broadcast_mul(&weight)?)?
+        let mut sharpened = sharpened;
+        for (weight, extra) in [
+            (&self.backbone_weight, extra.backbone),
+            (&self.census_weight, extra.census),
+        ] {
+            if let (Some(weight), Some(extra)) = (weight, extra) {
+                let weight = (weight * EXTRA_WEIGHT_SCALE)?.reshape((1, 1, 1, 1))?;
+                sharpened = (sharpened + extra.broadcast_mul(&weight)?)?;
             }
-            _ => sharpened,
-        };
+        }
         let unet = self.logits.forward(&x)?;
         let unet = match self.logit_bound {
             Some(b) => ((unet / b as f64)?.tanh()? * b as f64)?,
@@ -168,8 +190,19 @@ mod tests {
     fn the_backbone_correlation_starts_at_zero_weight() {
         let (head, _vars, cfg) = head(true);
         let (cost, features, backbone) = inputs(&cfg, 1.0);
-        let with = head.forward(&cost, &features, Some(&backbone)).unwrap();
-        let without = head.forward(&cost, &features, None).unwrap();
+        let with = head
+            .forward(
+                &cost,
+                &features,
+                ExtraCosts {
+                    backbone: Some(&backbone),
+                    census: None,
+                },
+            )
+            .unwrap();
+        let without = head
+            .forward(&cost, &features, ExtraCosts::default())
+            .unwrap();
         let diff = (with.probabilities - without.probabilities)
             .unwrap()
             .abs()
@@ -192,7 +225,14 @@ mod tests {
             let (cost, features, backbone) = inputs(&cfg, scale);
             let backbone = Var::from_tensor(&backbone).unwrap();
             let out = head
-                .forward(&cost, &features, Some(backbone.as_tensor()))
+                .forward(
+                    &cost,
+                    &features,
+                    ExtraCosts {
+                        backbone: Some(backbone.as_tensor()),
+                        census: None,
+                    },
+                )
                 .unwrap();
             let p: Vec<f32> = out.probabilities.flatten_all().unwrap().to_vec1().unwrap();
             assert!(p.iter().all(|x| x.is_finite()), "scale {scale}");

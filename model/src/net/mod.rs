@@ -9,6 +9,7 @@
 //! the project's `Reconstructor`.
 
 pub(crate) mod blocks;
+mod census_volume;
 mod config;
 mod cost_volume;
 mod depth_head;

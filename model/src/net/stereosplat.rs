@@ -10,8 +10,9 @@ use crate::ops::Conv;
 use renderer::Camera;
 
 use super::blocks::conv;
+use super::census_volume::census_volume;
 use super::cost_volume::{candidate_depths, cost_volume};
-use super::depth_head::{peak, DepthHead};
+use super::depth_head::{peak, DepthHead, ExtraCosts};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
 use super::transformer::MultiViewTransformer;
@@ -206,9 +207,21 @@ impl StereoSplat {
             )?),
             false => None,
         };
-        let coarse = self
-            .depth_head
-            .forward(&cost, &features, backbone_cost.as_ref())?;
+        let census_cost = match self.cfg.census_matching {
+            true => Some(census_volume(
+                images,
+                cameras,
+                &self.depths,
+                &self.cfg,
+                COST_STRIDE,
+            )?),
+            false => None,
+        };
+        let extra = ExtraCosts {
+            backbone: backbone_cost.as_ref(),
+            census: census_cost.as_ref(),
+        };
+        let coarse = self.depth_head.forward(&cost, &features, extra)?;
 
         let g = self.cfg.gaussian_stride;
         let (hg, wg) = (height.div_ceil(g), width.div_ceil(g));

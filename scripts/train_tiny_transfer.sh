@@ -8,17 +8,22 @@
 # floating textured objects; `scripts/transfer_data.sh` writes them), so that the network
 # transfers to real photographs while keeping its street quality. Resumable: drives already
 # written are kept, training resumes from its checkpoint.
-#   bash scripts/train_tiny_transfer.sh [DATA_DIR] [RUN_DIR] [STEPS]
+#   bash scripts/train_tiny_transfer.sh [DATA_DIR] [RUN_DIR] [STEPS] [TRAIN FLAGS ...]
+# Flags after STEPS go to every `stereosplat train` call, e.g. `--matching-weight 0.5 --set
+# census_matching=true` (issue 14's candidate recipe, results/transfer_diagnosis/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/transfer}"
 run="${2:-runs/tiny_transfer}"
 steps="${3:-6000}"
+extra=("${@:4}")
 base=results/stereosplat_tiny/train/checkpoint/weights.safetensors
-bin=target/release/stereosplat
+# STEREOSPLAT_BIN: a built binary to use as is, e.g. a copy that edits of the tree cannot break.
+bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 bash scripts/transfer_data.sh "$data"
 flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --no-subsample --lr 5e-4
-  --warmup 100 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5)
+  --warmup 100 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
+  "${extra[@]}")
 if [ -f "$run/checkpoint/state.json" ]; then
   "$bin" train "${flags[@]}" --resume
 else

@@ -69,6 +69,12 @@ pub struct Config {
     /// generated streets to real photographs (issue 14).
     #[serde(default)]
     pub census_matching: bool,
+    /// Spend the depth candidates on the depths the pair shows: SGM on the first pair
+    /// measures its disparities and the candidates span them (2nd to 98th percentile, a 25%
+    /// margin, at least a factor 3) inside `near..far` ([`super::depth_range`]). Off: always
+    /// `near..far`. Inference only; pseudo pairs of the progressive pass keep `near..far`.
+    #[serde(default)]
+    pub auto_depth_range: bool,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
@@ -264,6 +270,7 @@ impl Config {
             depth_logit_bound: Some(4.0),
             backbone_matching: false,
             census_matching: false,
+            auto_depth_range: false,
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,

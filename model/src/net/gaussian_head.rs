@@ -81,6 +81,14 @@ impl GaussianHead {
         })
     }
 
+    /// The same heads placing depth over `near..far` metres instead of the preset's range.
+    pub fn with_depth_range(&self, near: f32, far: f32) -> Self {
+        let mut heads = self.clone();
+        heads.cfg.near = near;
+        heads.cfg.far = far;
+        heads
+    }
+
     /// The Gaussians and the refined depth.
     pub fn forward(&self, x: &HeadInputs) -> Result<HeadOutput> {
         let (v, _, hg, wg) = x.coarse.dims4()?;

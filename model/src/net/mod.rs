@@ -13,6 +13,7 @@ mod census_volume;
 mod config;
 mod cost_volume;
 mod depth_head;
+pub mod depth_range;
 mod encoders;
 mod gaussian_head;
 mod geometry;

@@ -11,6 +11,7 @@ use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
 use super::config::weights_preset;
+use super::depth_range::{scene_range, DepthRange};
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
 use super::warm_start::{frozen, load_matching, WarmStart};
@@ -67,6 +68,8 @@ pub struct BranchReport {
     pub cost_volume_gaussians: usize,
     /// Output Gaussians of the volume branch (after floor and budget).
     pub volume_gaussians: usize,
+    /// The depth range the candidates spanned, when `auto_depth_range` chose one.
+    pub depth_range: Option<DepthRange>,
 }
 
 impl LearnedReconstructor {
@@ -214,8 +217,32 @@ pub struct Reconstruction {
 
 impl LearnedReconstructor {
     /// [`Reconstructor::reconstruct`] of `images` `(2K, 3, H, W)` in `[0, 1]` seen by
-    /// `cameras` (see [`images_and_cameras`]), keeping the cost-volume prediction.
+    /// `cameras` (see [`images_and_cameras`]), keeping the cost-volume prediction. With
+    /// `auto_depth_range`, over the depth range the first pair shows.
     pub fn reconstruct_tensors(
+        &mut self,
+        images: &Tensor,
+        cameras: &[Camera],
+    ) -> Result<Reconstruction, ReconstructError> {
+        let range = match self.net.config().auto_depth_range {
+            true => scene_range(images, cameras, self.net.config()),
+            false => None,
+        };
+        let Some(range) = range else {
+            return self.reconstruct_over_preset_range(images, cameras);
+        };
+        let ranged = self.net.with_depth_range(range);
+        let preset = std::mem::replace(&mut self.net, ranged);
+        let out = self.reconstruct_over_preset_range(images, cameras);
+        self.net = preset;
+        if let Some(last) = &mut self.last {
+            last.depth_range = Some(range);
+        }
+        out
+    }
+
+    /// [`LearnedReconstructor::reconstruct_tensors`] with the network's own depth range.
+    fn reconstruct_over_preset_range(
         &mut self,
         images: &Tensor,
         cameras: &[Camera],
@@ -278,6 +305,7 @@ impl LearnedReconstructor {
             },
             cost_volume_gaussians: kept[0],
             volume_gaussians: kept[1],
+            depth_range: None,
         });
         let set = match (cfg.merge_tolerance, cameras.first()) {
             (Some(tolerance), Some(reference)) => {

@@ -13,6 +13,7 @@ use super::blocks::conv;
 use super::census_volume::census_volume;
 use super::cost_volume::{candidate_depths, cost_volume};
 use super::depth_head::{peak, DepthHead, ExtraCosts};
+use super::depth_range::DepthRange;
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
 use super::transformer::MultiViewTransformer;
@@ -136,6 +137,18 @@ impl StereoSplat {
             cfg: cfg.clone(),
             device: vb.device().clone(),
         })
+    }
+
+    /// The same network (sharing its weights) with its depth candidates over `range`
+    /// instead of the preset's `near..far`: the candidates stay uniform in inverse depth, so
+    /// the depth head reads them as before (`auto_depth_range`).
+    pub fn with_depth_range(&self, range: DepthRange) -> Self {
+        let mut net = self.clone();
+        net.cfg.near = range.near;
+        net.cfg.far = range.far;
+        net.depths = candidate_depths(&net.cfg);
+        net.gaussians = self.gaussians.with_depth_range(range.near, range.far);
+        net
     }
 
     /// The preset.

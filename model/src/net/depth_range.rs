@@ -1,0 +1,178 @@
+//! `auto_depth_range`: the depth candidates spent on the depths the pair shows. The
+//! presets spread their candidates from 1 to 100 m, uniform in inverse depth, which suits a
+//! street seen from a car's 60 cm rig; an indoor pair at 2-8 m from a 10 cm rig then falls on
+//! a handful of candidates 4 px apart (Aloe at its working size), too coarse for matching to
+//! place it. Here SGM, on the first pair, measures the disparities the scene holds, and the
+//! candidates span them (with a margin) inside the preset's range, never beyond it.
+
+use candle_core::Tensor;
+use renderer::Camera;
+
+use super::Config;
+use crate::baseline::{rectified_baseline, SgmConfig, SgmReconstructor};
+use crate::frame::RgbImage;
+use crate::reconstruct::StereoView;
+
+/// Share of the first view's pixels SGM must match for its range to be trusted.
+const MIN_MATCHED: f64 = 0.05;
+/// Percentiles of the matched disparities taken as the scene's far and near ends, so a few
+/// wrong matches cannot stretch the range.
+const PERCENTILES: (f64, f64) = (0.02, 0.98);
+/// The range is widened by this factor in disparity at both ends.
+const MARGIN: f32 = 1.25;
+/// The narrowest range kept, as far / near: so few candidates never crowd on one depth.
+const MIN_RATIO: f32 = 3.0;
+
+/// A depth range in metres, `0 < near < far`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct DepthRange {
+    /// Nearest candidate depth.
+    pub near: f32,
+    /// Farthest candidate depth.
+    pub far: f32,
+}
+
+/// The range of the scene that the first pair of `images` `(2K, 3, H, W)` in `[0, 1]` (left,
+/// right, ...) with its `cameras` shows, inside `preset`'s `[near, far]`; `None` (keep the
+/// preset's) when the pair is not rectified, SGM matches less than 5% of it, or anything is
+/// not finite.
+pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<DepthRange> {
+    let (left, right) = (pair_image(images, 0)?, pair_image(images, 1)?);
+    let view = StereoView {
+        left: &left,
+        right: &right,
+        left_camera: *cameras.first()?,
+        right_camera: *cameras.get(1)?,
+    };
+    let baseline = rectified_baseline(&view).ok()?;
+    let sgm = SgmReconstructor::new(SgmConfig {
+        min_depth: preset.near,
+        ..SgmConfig::default()
+    });
+    let map = sgm.view_disparity(&view).ok()?;
+    let mut matched: Vec<f32> = map
+        .disparity
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    if (matched.len() as f64) < MIN_MATCHED * map.disparity.len() as f64 {
+        return None;
+    }
+    matched.sort_by(f32::total_cmp);
+    let at = |q: f64| matched[((matched.len() - 1) as f64 * q).round() as usize];
+    let fb = view.left_camera.intrinsics.fx * baseline;
+    let (low, high) = (at(PERCENTILES.0) / MARGIN, at(PERCENTILES.1) * MARGIN);
+    range_within(fb / high, fb / low.max(f32::MIN_POSITIVE), preset)
+}
+
+/// `[near, far]` clamped into the preset's range and widened about its geometric mean to
+/// at least [`MIN_RATIO`]; `None` when not finite.
+fn range_within(near: f32, far: f32, preset: &Config) -> Option<DepthRange> {
+    if !(near.is_finite() && far.is_finite() && near > 0.0) {
+        return None;
+    }
+    let (mut near, mut far) = (near.max(preset.near), far.min(preset.far));
+    if far < near * MIN_RATIO {
+        let centre = (near * far.max(near)).sqrt();
+        near = (centre / MIN_RATIO.sqrt()).max(preset.near);
+        far = (near * MIN_RATIO).min(preset.far);
+        near = near.min(far / MIN_RATIO).max(preset.near);
+    }
+    (near < far).then_some(DepthRange { near, far })
+}
+
+/// View `index` of `images` `(V, 3, H, W)` as an [`RgbImage`].
+fn pair_image(images: &Tensor, index: usize) -> Option<RgbImage> {
+    let (_, _, h, w) = images.dims4().ok()?;
+    let data = images
+        .get(index)
+        .and_then(|t| t.permute((1, 2, 0))?.flatten_all()?.to_vec1::<f32>())
+        .ok()?;
+    Some(RgbImage {
+        width: w as u32,
+        height: h as u32,
+        data,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::Device;
+
+    /// A textured left image and its right image for a plane at disparity `shift` px.
+    fn plane_pair(w: usize, h: usize, shift: usize) -> Tensor {
+        let left: Vec<f32> = (0..h * w)
+            .map(|p| (((p * 2654435761usize) >> 9) % 251) as f32 / 251.0)
+            .collect();
+        let right: Vec<f32> = (0..h * w)
+            .map(|p| left[p - p % w + (p % w + shift).min(w - 1)])
+            .collect();
+        let planes = |v: &Vec<f32>| Tensor::from_vec(v.repeat(3), (1, 3, h, w), &Device::Cpu);
+        Tensor::cat(&[planes(&left).unwrap(), planes(&right).unwrap()], 0).unwrap()
+    }
+
+    fn rig(w: u32, h: u32, baseline: f32) -> Vec<Camera> {
+        let k = renderer::Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: w as f32 / 2.0,
+            cy: h as f32 / 2.0,
+            width: w,
+            height: h,
+        };
+        [0.0, baseline]
+            .map(|x| Camera::from_camera_to_world(k, glam::Quat::IDENTITY, glam::Vec3::X * x))
+            .to_vec()
+    }
+
+    #[test]
+    fn a_plane_gets_a_range_around_its_depth_inside_the_preset() {
+        // fx 100, baseline 0.1 m, disparity 4 px: the plane is at 2.5 m.
+        let range = scene_range(&plane_pair(96, 48, 4), &rig(96, 48, 0.1), &Config::tiny())
+            .expect("a textured plane is matched");
+        assert!(range.near < 2.5 && range.far > 2.5, "{range:?}");
+        assert!(range.near >= 1.0 && range.far <= 100.0, "{range:?}");
+        assert!(range.far / range.near >= MIN_RATIO - 1e-3, "{range:?}");
+        assert!(range.far < 10.0, "{range:?}");
+    }
+
+    #[test]
+    fn flat_images_and_unrectified_pairs_keep_the_preset_range() {
+        let flat = Tensor::full(0.5f32, (2, 3, 48, 96), &Device::Cpu).unwrap();
+        assert_eq!(scene_range(&flat, &rig(96, 48, 0.1), &Config::tiny()), None);
+        let mut cameras = rig(96, 48, 0.1);
+        cameras[1] = Camera::from_camera_to_world(
+            cameras[1].intrinsics,
+            glam::Quat::from_rotation_y(0.2),
+            glam::Vec3::X * 0.1,
+        );
+        let pair = plane_pair(96, 48, 4);
+        assert_eq!(scene_range(&pair, &cameras, &Config::tiny()), None);
+    }
+
+    #[test]
+    fn ranges_at_the_extremes_stay_inside_the_preset_and_finite() {
+        let preset = Config::tiny();
+        for (near, far) in [
+            (1e-6, 1e-5),
+            (1e6, 1e7),
+            (0.5, 1e9),
+            (3.0, 3.0),
+            (50.0, 99.0),
+        ] {
+            let r = range_within(near, far, &preset).expect("finite input");
+            assert!(
+                r.near >= preset.near && r.far <= preset.far,
+                "{near} {far}: {r:?}"
+            );
+            assert!(
+                r.near < r.far && r.far / r.near >= MIN_RATIO - 1e-3,
+                "{near} {far}: {r:?}"
+            );
+        }
+        assert_eq!(range_within(f32::NAN, 2.0, &preset), None);
+        assert_eq!(range_within(1.0, f32::INFINITY, &preset), None);
+    }
+}

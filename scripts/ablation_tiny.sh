@@ -24,6 +24,8 @@
 #   cv_bbmatch05   the matching loss at 0.5 with `backbone_matching`
 #   cv_census05    the matching loss at 0.5 with `census_matching` (a soft census correlation
 #                  of the grey images in the matching term, blind to the cameras' gain)
+#   cv_census05_auto  cv_census05 with `auto_depth_range` in training and evaluation (each
+#                  sample's candidates span the depths SGM finds in its first pair)
 # (cv_local, a local matching stage, was measured at commit 42939e2 and removed.)
 # Every row is resumable: run the same command again after an interruption.
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
@@ -57,8 +59,9 @@ settings() {
     cv_match | cv_match05) echo "--set volume_branch=false --set view_subsampling=false" ;;
     cv_bbmatch | cv_bbmatch05) echo "--set volume_branch=false --set view_subsampling=false --set backbone_matching=true" ;;
     cv_census05) echo "--set volume_branch=false --set view_subsampling=false --set census_matching=true" ;;
+    cv_census05_auto) echo "--set volume_branch=false --set view_subsampling=false --set census_matching=true --set auto_depth_range=true" ;;
     *)
-      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05 cv_bbmatch cv_bbmatch05 cv_census05)" >&2
+      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05 cv_bbmatch cv_bbmatch05 cv_census05 cv_census05_auto)" >&2
       exit 2
       ;;
   esac
@@ -68,7 +71,7 @@ settings() {
 train_flags() {
   case "$1" in
     cv_match | cv_bbmatch) echo "--matching-weight 0.05" ;;
-    cv_match05 | cv_bbmatch05 | cv_census05) echo "--matching-weight 0.5" ;;
+    cv_match05 | cv_bbmatch05 | cv_census05 | cv_census05_auto) echo "--matching-weight 0.5" ;;
     *) echo "" ;;
   esac
 }

@@ -1,7 +1,8 @@
 //! The StereoSplat network (untrained weights): shapes for 1 to 3 pairs, pruning to the
 //! opacity floor and budget, and numerical stability at the extremes the issue names:
 //! uniform grey, black and saturated images, identical left and right images (zero
-//! disparity), a scene at 1 m and at 80 m, cameras far from the origin. Every output and
+//! disparity), a scene at 1 m and at 80 m, cameras far from the origin, with the census
+//! correlation on, and a narrowed depth range (`auto_depth_range`). Every output and
 //! every gradient (through the differentiable rasterizer) must be finite.
 
 mod finite_support;
@@ -11,6 +12,7 @@ use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use finite_support::{assert_finite, assert_finite_gradients};
 use glam::{Quat, Vec3};
+use model::net::depth_range::DepthRange;
 use model::net::{to_set, Config, StereoSplat};
 use model::ops::render;
 use renderer::{Camera, Intrinsics, RenderSettings};
@@ -196,6 +198,55 @@ fn unbounded_depth_logits_stay_finite_at_the_extremes() {
     );
     let far = stripes(fx * BASELINE / 80.0);
     check_stable_with(&cfg, &[stripes(0.0), far], &pair(Vec3::ZERO, 0.0), "80 m");
+}
+
+#[test]
+fn census_matching_stays_finite_at_the_extremes() {
+    let cfg = Config::tiny()
+        .with_settings(&["census_matching=true"])
+        .unwrap();
+    let n = (3 * W * H) as usize;
+    for (value, what) in [(0.0, "black"), (1.0, "saturated")] {
+        let v = vec![value; n];
+        check_stable_with(&cfg, &[v.clone(), v], &pair(Vec3::ZERO, 0.0), what);
+    }
+    let far = Vec3::new(1.0e5, -1.0e5, 50.0);
+    let shifted = stripes(intrinsics().fx * BASELINE / 1.0);
+    check_stable_with(
+        &cfg,
+        &[stripes(0.0), shifted],
+        &pair(far, 0.0),
+        "1 m, far pose",
+    );
+}
+
+#[test]
+fn a_narrowed_depth_range_bounds_the_depth_and_passes_gradients() {
+    let (varmap, net) = network();
+    for (near, far) in [(2.0f32, 8.0f32), (1.0, 3.0), (33.0, 100.0)] {
+        let ranged = net.with_depth_range(DepthRange { near, far });
+        let cameras = pair(Vec3::ZERO, 0.0);
+        let p = ranged
+            .forward(&images(&[stripes(0.0), stripes(4.0)]), &cameras)
+            .unwrap();
+        let depth: Vec<f32> = p.depth.flatten_all().unwrap().to_vec1().unwrap();
+        assert!(
+            depth
+                .iter()
+                .all(|d| (near * 0.999..=far * 1.001).contains(d)),
+            "{near}..{far}: {:?}",
+            depth
+                .iter()
+                .copied()
+                .fold((f32::MAX, f32::MIN), |(a, b), d| (a.min(d), b.max(d)))
+        );
+        let grads = p.depth.mean_all().unwrap().backward().unwrap();
+        let what = format!("{near}..{far}");
+        assert!(
+            assert_finite_gradients(&varmap, &grads, &what) > 10,
+            "{what}"
+        );
+    }
 }
 
 #[test]

@@ -72,7 +72,10 @@ pub struct Config {
     /// Spend the depth candidates on the depths the pair shows: SGM on the first pair
     /// measures its disparities and the candidates span them (2nd to 98th percentile, a 25%
     /// margin, at least a factor 3) inside `near..far` ([`super::depth_range`]). Off: always
-    /// `near..far`. Inference only; pseudo pairs of the progressive pass keep `near..far`.
+    /// `near..far`. Training with it on spans each sample's own range the same way, so the
+    /// network learns its candidates relative to it (weights trained without it read them as
+    /// fixed depths, and the streets break under it). Pseudo pairs of the progressive pass
+    /// keep `near..far`.
     #[serde(default)]
     pub auto_depth_range: bool,
     /// Channels of the Gaussian heads.

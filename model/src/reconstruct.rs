@@ -74,4 +74,10 @@ pub trait Reconstructor {
     fn last_split(&self) -> Option<ModelSplit> {
         None
     }
+
+    /// The depth range (near, far, metres) the last reconstruction's candidates spanned when
+    /// the reconstructor fitted it to the scene (`auto_depth_range`); `None` otherwise.
+    fn last_depth_range(&self) -> Option<(f32, f32)> {
+        None
+    }
 }

@@ -204,6 +204,11 @@ impl Reconstructor for LearnedReconstructor {
         let (images, cameras) = images_and_cameras(views, &self.device())?;
         Ok(self.reconstruct_tensors(&images, &cameras)?.set)
     }
+
+    fn last_depth_range(&self) -> Option<(f32, f32)> {
+        let range = self.last?.depth_range?;
+        Some((range.near, range.far))
+    }
 }
 
 /// A bin map with the cost-volume prediction it came from (what the progressive pass joins

@@ -206,6 +206,10 @@ impl Reconstructor for ProgressiveReconstructor {
     fn last_split(&self) -> Option<ModelSplit> {
         self.last.map(|r| r.split)
     }
+
+    fn last_depth_range(&self) -> Option<(f32, f32)> {
+        self.inner.last_depth_range()
+    }
 }
 
 fn ms(start: Instant) -> f64 {

@@ -78,6 +78,9 @@ pub struct PairReconstruction {
     pub reconstruct_s: f64,
     /// The self-check of the reconstruction and what came of it.
     pub check: CheckOutcome,
+    /// The depth range (near, far, metres) the learned model fitted to the pair
+    /// (`auto_depth_range`); `None` when it used its preset's.
+    pub depth_range_m: Option<(f32, f32)>,
 }
 
 /// The left and right cameras of a rectified rig with intrinsics `k`.
@@ -138,6 +141,7 @@ pub fn reconstruct_pair(
     let gaussians = reconstructor
         .reconstruct(&[stereo])
         .map_err(PairError::Reconstruct)?;
+    let depth_range_m = reconstructor.last_depth_range();
     let (gaussians, check) =
         SelfCheck::new(options.on_check_fail).apply(reconstructor.name(), &stereo, gaussians);
     let gaussians = gaussians.map_err(|e| PairError::Reconstruct(ReconstructError::Backend(e)))?;
@@ -164,5 +168,6 @@ pub fn reconstruct_pair(
         depth,
         reconstruct_s,
         check,
+        depth_range_m,
     })
 }

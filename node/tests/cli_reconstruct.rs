@@ -166,21 +166,18 @@ fn a_generated_pair_gives_the_files_and_its_depth() {
 
 #[test]
 fn auto_depth_range_fits_the_aloe_pair_and_is_reported() {
-    let data = aloe();
     let out = temp_dir("reconstruct-aloe-auto-range");
-    let mut args = pair_args(&data.join("aloeL.jpg"), &data.join("aloeR.jpg"), &out);
-    args.extend(strings(&[
-        "--fx",
-        "3740",
-        "--baseline",
-        "0.1",
-        "--method",
-        "stereosplat",
-        "--on-check-fail",
-        "flag",
-        "--set",
-        "auto_depth_range=true",
-    ]));
+    let args = aloe_args(
+        &out,
+        &[
+            "--method",
+            "stereosplat",
+            "--on-check-fail",
+            "flag",
+            "--set",
+            "auto_depth_range=true",
+        ],
+    );
     let (ok, text) = reconstruct(&args);
     assert!(ok, "{text}");
     let s = summary(&out);
@@ -427,20 +424,21 @@ fn aloe() -> PathBuf {
     dir
 }
 
+/// `reconstruct` arguments for the Aloe pair (and its calibration) into `out`, then `extra`.
+fn aloe_args(out: &Path, extra: &[&str]) -> Vec<String> {
+    let data = aloe();
+    let mut args = pair_args(&data.join("aloeL.jpg"), &data.join("aloeR.jpg"), out);
+    args.extend(strings(&["--fx", "3740", "--baseline", "0.1"]));
+    args.extend(strings(extra));
+    args
+}
+
 #[test]
 fn real_aloe_pair_sgm_keeps_its_score_and_the_learned_one_is_finite() {
     let data = aloe();
     for method in ["sgm", "stereosplat"] {
         let out = temp_dir(&format!("reconstruct-aloe-{method}"));
-        let mut args = pair_args(&data.join("aloeL.jpg"), &data.join("aloeR.jpg"), &out);
-        args.extend(strings(&[
-            "--fx",
-            "3740",
-            "--baseline",
-            "0.1",
-            "--method",
-            method,
-        ]));
+        let mut args = aloe_args(&out, &["--method", method]);
         args.extend([
             "--truth-disparity".into(),
             data.join("aloeGT.png").display().to_string(),

@@ -43,6 +43,9 @@ pub struct HeadInputs<'a> {
     pub probabilities: &'a Tensor,
     /// The views' cameras (bin frame).
     pub cameras: &'a [Camera],
+    /// The network's settings: their `near..far` turn the inverse depth into metres (the
+    /// range the candidates spanned, which `auto_depth_range` may have fitted to the pair).
+    pub net: &'a Config,
 }
 
 /// What the heads predict.
@@ -61,7 +64,6 @@ pub struct GaussianHead {
     opacity_hidden: ConvRelu,
     opacity_out: Conv,
     stride: usize,
-    cfg: Config,
 }
 
 impl GaussianHead {
@@ -77,16 +79,7 @@ impl GaussianHead {
             opacity_hidden: ConvRelu::new(vb.pp("opacity0"), cfg.candidates, 16, 1)?,
             opacity_out: conv(vb.pp("opacity1"), 16, 1, 3, 1)?,
             stride: cfg.gaussian_stride,
-            cfg: cfg.clone(),
         })
-    }
-
-    /// The same heads placing depth over `near..far` metres instead of the preset's range.
-    pub fn with_depth_range(&self, near: f32, far: f32) -> Self {
-        let mut heads = self.clone();
-        heads.cfg.near = near;
-        heads.cfg.far = far;
-        heads
     }
 
     /// The Gaussians and the refined depth.
@@ -98,7 +91,7 @@ impl GaussianHead {
         let t = self.out.forward(&t)?;
         let refine = (t.narrow(1, 0, 1)?.tanh()? * MAX_REFINE)?;
         let inverse = (x.coarse + refine)?.clamp(0f32, 1f32)?;
-        let depth_map = metric_depth(&inverse, &self.cfg)?;
+        let depth_map = metric_depth(&inverse, x.net)?;
         let t = t.reshape((v, TRUNK_OUT, p))?;
         let part = |from: usize, n: usize| t.narrow(1, from + 1, n);
 

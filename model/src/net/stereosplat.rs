@@ -147,7 +147,6 @@ impl StereoSplat {
         net.cfg.near = range.near;
         net.cfg.far = range.far;
         net.depths = candidate_depths(&net.cfg);
-        net.gaussians = self.gaussians.with_depth_range(range.near, range.far);
         net
     }
 
@@ -203,33 +202,19 @@ impl StereoSplat {
         let features = self
             .project
             .forward(&Tensor::cat(&[&mono, &attended], 1)?)?;
-        let cost = cost_volume(
-            &unit_features(&features)?,
-            cameras,
-            &self.depths,
-            &self.cfg,
-            COST_STRIDE,
-        )?;
-        let backbone_cost = match self.cfg.backbone_matching {
-            true => Some(cost_volume(
-                &unit_features(&bb.quarter)?,
-                cameras,
-                &self.depths,
-                &self.cfg,
-                COST_STRIDE,
-            )?),
-            false => None,
-        };
-        let census_cost = match self.cfg.census_matching {
-            true => Some(census_volume(
-                images,
-                cameras,
-                &self.depths,
-                &self.cfg,
-                COST_STRIDE,
-            )?),
-            false => None,
-        };
+        // The plane sweep of every correlation: the network's candidates on the 1/4 grid.
+        let sweep = |f: &Tensor| cost_volume(f, cameras, &self.depths, &self.cfg, COST_STRIDE);
+        let cost = sweep(&unit_features(&features)?)?;
+        let backbone_cost = self
+            .cfg
+            .backbone_matching
+            .then(|| sweep(&unit_features(&bb.quarter)?))
+            .transpose()?;
+        let census_cost = self
+            .cfg
+            .census_matching
+            .then(|| census_volume(images, cameras, &self.depths, &self.cfg, COST_STRIDE))
+            .transpose()?;
         let extra = ExtraCosts {
             backbone: backbone_cost.as_ref(),
             census: census_cost.as_ref(),
@@ -255,6 +240,7 @@ impl StereoSplat {
             coarse: &up(&coarse.inverse)?,
             probabilities: &coarse.probabilities,
             cameras,
+            net: &self.cfg,
         })?;
         Ok(Prediction {
             splats: heads.splats,

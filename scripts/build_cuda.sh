@@ -25,6 +25,8 @@ for lib in nvrtc.so.13 curand.so.10 cublasLt.so.13 cublas.so.13; do
   ln -sf "$link/py/nvidia/cu13/lib/lib$lib" "$link/lib/lib${lib%%.so*}.so"
 done
 ln -sf "$cuda/lib/libcudart.so.13" "$link/lib/libcudart.so"  # candle-kernels' MoE kernels
+# A fresh machine has no crate sources yet; the stub is made from cudarc's.
+cargo fetch >/dev/null
 cudarc=$(ls -d "${CARGO_HOME:-$HOME/.cargo}"/registry/src/*/cudarc-0.19.10 | head -1)
 grep -o 'pub unsafe fn cu[A-Za-z0-9_]*' "$cudarc/src/driver/sys/mod.rs" | awk '{print $4}' |
   sort -u | sed 's/.*/void &(void){}/' >"$link/libcuda_stub.c"

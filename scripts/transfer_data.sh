@@ -9,8 +9,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/transfer}"
-bin=target/release/stereosplat
-cargo build --release --bin stereosplat
+# STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
+bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
+[ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
 name() { printf "synth_drive_%07d_sync" "$1"; }
 for seed in 0 1 2 3 4 5 6 7; do
   if [ ! -f "$data/plain/data_poses/$(name "$seed")/poses.txt" ]; then

@@ -1,14 +1,16 @@
-// One pass of a stable LSD radix sort of (key, value) pairs on a 4-bit digit. Keys are
+// One pass of a stable LSD radix sort of (key, value) pairs on an 8-bit digit. Keys are
 // vec2<u32>: x is the low word (ordered depth bits), y the high word (tile id).
 //
 // `histogram`: each block of 1024 keys counts its digits into hist[digit * blocks + block].
 // The host then scans `hist` (exclusively, with the prefix-sum stage), so each entry becomes
 // where that block's keys with that digit start in the output.
-// `scatter`: each key goes to that start plus its rank among the block's earlier keys with
-// the same digit, which keeps equal digits in input order: the sort is stable.
-//
-// The ranks come from one workgroup scan of per-invocation digit counts packed as sixteen
-// 16-bit counters in eight u32 (a block's counts never exceed 1024). No subgroup operations.
+// `scatter`: each block first sorts its own keys by the digit, stably, in workgroup memory:
+// one split per 4-bit part of the digit, lowest part first. A split ranks every key among
+// the block's earlier keys with the same 4-bit value through one workgroup scan of
+// per-invocation counts packed as sixteen 16-bit counters in eight u32 (a block's counts
+// never exceed 1024). The block's keys then leave in that order, each to its digit's start
+// plus its place in the digit's run: neighbouring invocations write neighbouring addresses,
+// and equal digits keep input order, so the sort is stable. No subgroup operations.
 
 struct Params {
     n: u32,
@@ -27,21 +29,55 @@ struct Params {
 const THREADS: u32 = 256u;
 const ITEMS: u32 = 4u; // keys per invocation
 const BLOCK: u32 = 1024u; // THREADS * ITEMS
-const RADIX: u32 = 16u;
+const DIGIT_BITS: u32 = 8u;
+const RADIX: u32 = 1u << DIGIT_BITS;
+const SPLITS: u32 = DIGIT_BITS / 4u;
 
 var<workgroup> counts: array<atomic<u32>, RADIX>;
 var<workgroup> ranks_lo: array<vec4<u32>, THREADS>;
 var<workgroup> ranks_hi: array<vec4<u32>, THREADS>;
+// The block's keys as (digit << 16) | index within the block, in the current split's order.
+var<workgroup> order: array<u32, BLOCK>;
+// Where each digit's run starts in the block's sorted order.
+var<workgroup> run_start: array<u32, RADIX>;
 
 fn digit_of(key: vec2<u32>) -> u32 {
     return (select(key.x, key.y, params.word == 1u) >> params.shift) & (RADIX - 1u);
 }
 
-// The 16-bit counter of `digit` in a packed set of sixteen (digits 0-7 in `lo`).
-fn counter(lo: vec4<u32>, hi: vec4<u32>, digit: u32) -> u32 {
-    let word = digit >> 1u;
+// The 16-bit counter of `part` in a packed set of sixteen (parts 0-7 in `lo`).
+fn counter(lo: vec4<u32>, hi: vec4<u32>, part: u32) -> u32 {
+    let word = part >> 1u;
     let packed = select(hi[(word - 4u) & 3u], lo[word & 3u], word < 4u);
-    return (packed >> ((digit & 1u) * 16u)) & 0xffffu;
+    return (packed >> ((part & 1u) * 16u)) & 0xffffu;
+}
+
+// Sixteen 16-bit counters packed in eight u32, parts 0-7 in `lo`.
+struct Packed {
+    lo: vec4<u32>,
+    hi: vec4<u32>,
+}
+
+// Adds `value` to the counter of `part`.
+fn add(c: ptr<function, Packed>, part: u32, value: u32) {
+    let word = part >> 1u;
+    let v = value << ((part & 1u) * 16u);
+    if word < 4u {
+        (*c).lo[word] += v;
+    } else {
+        (*c).hi[word - 4u] += v;
+    }
+}
+
+// Each counter replaced by the sum of the counters below it: where each part's keys start.
+fn exclusive(c: Packed) -> Packed {
+    var out = Packed(vec4<u32>(0u), vec4<u32>(0u));
+    var sum = 0u;
+    for (var part = 0u; part < 16u; part++) {
+        add(&out, part, sum);
+        sum += counter(c.lo, c.hi, part);
+    }
+    return out;
 }
 
 @compute @workgroup_size(256)
@@ -54,8 +90,8 @@ fn histogram(
     if block >= params.blocks {
         return;
     }
-    if lid < RADIX {
-        atomicStore(&counts[lid], 0u);
+    for (var d = lid; d < RADIX; d += THREADS) {
+        atomicStore(&counts[d], 0u);
     }
     workgroupBarrier();
     for (var k = 0u; k < ITEMS; k++) {
@@ -65,13 +101,11 @@ fn histogram(
         }
     }
     workgroupBarrier();
-    if lid < RADIX {
-        hist[lid * params.blocks + block] = atomicLoad(&counts[lid]);
+    for (var d = lid; d < RADIX; d += THREADS) {
+        hist[d * params.blocks + block] = atomicLoad(&counts[d]);
     }
 }
 
-// Each invocation ranks ITEMS consecutive keys: first among themselves, then (one workgroup
-// scan) after all keys of earlier invocations, so ranks follow input order.
 @compute @workgroup_size(256)
 fn scatter(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -82,57 +116,83 @@ fn scatter(
     if block >= params.blocks {
         return;
     }
-    let base = block * BLOCK + lid * ITEMS;
-    var keys: array<vec2<u32>, ITEMS>;
-    var digits: array<u32, ITEMS>;
-    var within: array<u32, ITEMS>; // rank among this invocation's earlier keys
-    var own_lo = vec4<u32>(0u);
-    var own_hi = vec4<u32>(0u);
+    let base = block * BLOCK;
+    // Invocation `lid` holds block positions lid * ITEMS + k, so (invocation, item) order is
+    // input order. Keys past the end take the largest digit; being last in input order, they
+    // stay behind every real key and are not written.
+    var entries: array<u32, ITEMS>;
     for (var k = 0u; k < ITEMS; k++) {
-        if base + k < params.n {
-            let key = keys_in[base + k];
-            let digit = digit_of(key);
-            keys[k] = key;
-            digits[k] = digit;
-            within[k] = counter(own_lo, own_hi, digit);
-            let one = 1u << ((digit & 1u) * 16u);
-            let word = digit >> 1u;
-            if word < 4u {
-                own_lo[word] += one;
-            } else {
-                own_hi[word - 4u] += one;
-            }
+        let i = lid * ITEMS + k;
+        var digit = RADIX - 1u;
+        if base + i < params.n {
+            digit = digit_of(keys_in[base + i]);
         }
+        entries[k] = (digit << 16u) | i;
     }
-    var lo = own_lo;
-    var hi = own_hi;
-    ranks_lo[lid] = lo;
-    ranks_hi[lid] = hi;
-    workgroupBarrier();
-    // Inclusive Hillis-Steele scan of the packed counters.
-    for (var offset = 1u; offset < THREADS; offset *= 2u) {
-        var left_lo = vec4<u32>(0u);
-        var left_hi = vec4<u32>(0u);
-        if lid >= offset {
-            left_lo = ranks_lo[lid - offset];
-            left_hi = ranks_hi[lid - offset];
+    for (var split = 0u; split < SPLITS; split++) {
+        let shift = 16u + 4u * split;
+        var within: array<u32, ITEMS>; // rank among this invocation's earlier keys
+        var own = Packed(vec4<u32>(0u), vec4<u32>(0u));
+        for (var k = 0u; k < ITEMS; k++) {
+            let part = (entries[k] >> shift) & 15u;
+            within[k] = counter(own.lo, own.hi, part);
+            add(&own, part, 1u);
         }
-        workgroupBarrier();
-        lo += left_lo;
-        hi += left_hi;
+        let own_lo = own.lo;
+        let own_hi = own.hi;
+        var lo = own_lo;
+        var hi = own_hi;
         ranks_lo[lid] = lo;
         ranks_hi[lid] = hi;
         workgroupBarrier();
+        // Inclusive Hillis-Steele scan of the packed counters.
+        for (var offset = 1u; offset < THREADS; offset *= 2u) {
+            var left_lo = vec4<u32>(0u);
+            var left_hi = vec4<u32>(0u);
+            if lid >= offset {
+                left_lo = ranks_lo[lid - offset];
+                left_hi = ranks_hi[lid - offset];
+            }
+            workgroupBarrier();
+            lo += left_lo;
+            hi += left_hi;
+            ranks_lo[lid] = lo;
+            ranks_hi[lid] = hi;
+            workgroupBarrier();
+        }
+        let starts = exclusive(Packed(ranks_lo[THREADS - 1u], ranks_hi[THREADS - 1u]));
+        let before_lo = lo - own_lo;
+        let before_hi = hi - own_hi;
+        for (var k = 0u; k < ITEMS; k++) {
+            let part = (entries[k] >> shift) & 15u;
+            let at = counter(starts.lo, starts.hi, part) + counter(before_lo, before_hi, part)
+                + within[k];
+            order[at] = entries[k];
+        }
+        workgroupBarrier();
+        for (var k = 0u; k < ITEMS; k++) {
+            entries[k] = order[lid * ITEMS + k];
+        }
+        // The next split's first barrier keeps these reads before its writes to `order`.
     }
-    let before_lo = lo - own_lo;
-    let before_hi = hi - own_hi;
+    // Sorted; read position p = k * THREADS + lid so neighbours write neighbouring addresses.
     for (var k = 0u; k < ITEMS; k++) {
-        if base + k < params.n {
-            let digit = digits[k];
-            let rank = counter(before_lo, before_hi, digit) + within[k];
-            let dst = hist[digit * params.blocks + block] + rank;
-            keys_out[dst] = keys[k];
-            values_out[dst] = values_in[base + k];
+        let p = k * THREADS + lid;
+        let digit = order[p] >> 16u;
+        if p == 0u || (order[p - 1u] >> 16u) != digit {
+            run_start[digit] = p;
+        }
+    }
+    workgroupBarrier();
+    for (var k = 0u; k < ITEMS; k++) {
+        let p = k * THREADS + lid;
+        let entry = order[p];
+        let i = entry & 0xffffu;
+        if base + i < params.n {
+            let digit = entry >> 16u;
+            let dst = hist[digit * params.blocks + block] + p - run_start[digit];
+            keys_out[dst] = keys_in[base + i];
+            values_out[dst] = values_in[base + i];
         }
     }
 }

@@ -3,12 +3,15 @@
 # run from the repository root there with gpu_carry/ from `bash scripts/build_cuda.sh` and
 # the Vulkan loader packages in .gl/ (see /work/.library/device/README.md). Writes JSON and
 # logs to $GPU_RESULTS (default results/gpu/raw). Each step has its own time limit so one failure
-# does not cost the rest. Name parts to run only those (render rtests ops model node train).
+# does not cost the rest. Name parts to run only those (render rtests ops model node train
+# gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
+# it needs the gsplat wheel in .whl/ (pip download --no-deps gsplat==1.5.3 -d .whl) and
+# compiles gsplat's CUDA code first (minutes), in the background while the other parts run.
 #   bash scripts/gpu_bench.sh [PART...]
 set -uo pipefail
 out="${GPU_RESULTS:-results/gpu/raw}"
 mkdir -p "$out"
-parts=" ${*:-render rtests ops model node train} "
+parts=" ${*:-render rtests ops model node train gsplat} "
 want() { [[ $parts == *" $1 "* ]]; }
 log() { echo "== $(date +%T) $*" | tee -a "$out/steps.log"; }
 for f in .gl/*.deb; do dpkg -x "$f" /; done
@@ -37,13 +40,15 @@ run() { # NAME LIMIT CMD...: stdout to NAME.json, stderr to NAME.err
   timeout "$limit" "$@" >"$out/$name.json" 2>"$out/$name.err"
   echo "rc=$?" >>"$out/$name.err"
 }
-# 1. The wgpu rasterizer on the GPU (Vulkan): the reference scenes, 50 timed frames each.
-want render && {
-run render_121k 45 $bin bench render --no-cpu --runs 50 --warmup 5
-run render_1m 60 $bin bench render --no-cpu --runs 50 --warmup 5 --scene random \
-  --gaussians 1000000 --width 1920 --height 1080
-run render_4m 90 $bin bench render --no-cpu --runs 50 --warmup 5 --scene random \
-  --gaussians 4000000 --width 1920 --height 1080
+# gsplat's CUDA code compiles (one process, every core) while the tests below run; the
+# timed parts wait for it so the compiler does not share the machine with them.
+want gsplat && {
+  log gsplat_compile
+  python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .whl/gsplat-*.whl
+  export PYTHONPATH=/tmp/site MAX_JOBS=16 TORCH_CUDA_ARCH_LIST=9.0
+  (time timeout 400 python3 -c 'from gsplat.cuda._backend import _C; print(_C)') \
+    >"$out/gsplat_compile.log" 2>&1 &
+  compiling=$!
 }
 # The renderer's stage tests (each wgpu stage against the CPU) on this GPU.
 want rtests && {
@@ -51,6 +56,25 @@ log renderer_tests
 timeout 60 /tmp/gpu_bin/renderer_tests gpu:: --test-threads 1 >"$out/renderer_tests.txt" 2>&1
 echo "rc=$?" >>"$out/renderer_tests.txt"
 }
+want gsplat && { wait "$compiling"; log gsplat_compiled; }
+# The reference scenes: name, then the scene flags of `bench render` and `render`.
+# (2M is not a reference scene: it shows how the stages grow between 1M and 4M.)
+scenes=("121k" "1m --scene random --gaussians 1000000 --width 1920 --height 1080"
+  "2m --scene random --gaussians 2000000 --width 1920 --height 1080"
+  "4m --scene random --gaussians 4000000 --width 1920 --height 1080")
+# 1. The wgpu rasterizer on the GPU (Vulkan), 50 timed frames each.
+want render && for s in "${scenes[@]}"; do
+  read -r name flags <<<"$s"
+  run "render_$name" 90 $bin bench render --no-cpu --runs 50 --warmup 5 $flags
+done
+# gsplat on the same scenes: the seeded generator's Gaussians written as PLY by `render`.
+want gsplat && for s in "${scenes[@]}"; do
+  read -r name flags <<<"$s"
+  timeout 60 $bin render $flags --out "/tmp/scene_$name" >"$out/scene_$name.log" 2>&1
+  read -r w h < <(echo "$flags" | sed -n 's/.*--width \([0-9]*\) --height \([0-9]*\).*/\1 \2/p')
+  run "gsplat_$name" 120 python3 scripts/gsplat_bench.py --ply "/tmp/scene_$name/scene.ply" \
+    --width "${w:-544}" --height "${h:-112}"
+done
 # 2. Every custom op, LPIPS, the enhancer and the network: GPU against CPU.
 want ops && {
 log cuda_ops

@@ -3,15 +3,15 @@
 # run from the repository root there with gpu_carry/ from `bash scripts/build_cuda.sh` and
 # the Vulkan loader packages in .gl/ (see /work/.library/device/README.md). Writes JSON and
 # logs to $GPU_RESULTS (default results/gpu/raw). Each step has its own time limit so one failure
-# does not cost the rest. Name parts to run only those (render rtests ops model node train
-# gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
+# does not cost the rest. Name parts to run only those (render rtests ops model profile node
+# train gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
 # it needs the gsplat wheel in .whl/ (pip download --no-deps gsplat==1.5.3 -d .whl) and
 # compiles gsplat's CUDA code first (minutes), in the background while the other parts run.
 #   bash scripts/gpu_bench.sh [PART...]
 set -uo pipefail
 out="${GPU_RESULTS:-results/gpu/raw}"
 mkdir -p "$out"
-parts=" ${*:-render rtests ops model node train gsplat} "
+parts=" ${*:-render rtests ops model profile node train gsplat} "
 want() { [[ $parts == *" $1 "* ]]; }
 log() { echo "== $(date +%T) $*" | tee -a "$out/steps.log"; }
 for f in .gl/*.deb; do dpkg -x "$f" /; done
@@ -86,6 +86,17 @@ want model && for preset in tiny small paper; do
   run "model_$preset" 60 $bin bench model --preset $preset --set device=cuda --runs 20 --warmup 3
 done
 want model && run model_tiny_cpu 60 $bin bench model --preset tiny --runs 10
+# Where `tiny`'s time on CUDA goes: every kernel of `bench model` (one warm-up and one timed
+# reconstruction, plus each branch once) under Nsight Compute, per kernel name: launches and
+# GPU time. Their sum against the wall-clock figure above says how much is kernel work.
+want profile && {
+  log ncu_tiny
+  ncu=$(command -v ncu || ls /opt/nvidia/nsight-compute/*/ncu | head -1)
+  timeout 300 "$ncu" --metrics gpu__time_duration.sum --print-summary per-kernel --csv \
+    $bin bench model --preset tiny --set device=cuda --runs 1 --warmup 1 \
+    >"$out/ncu_tiny.csv" 2>"$out/ncu_tiny.err"
+  echo "rc=$?" >>"$out/ncu_tiny.err"
+}
 # The training drive (also the source of `paper` weights for the node, below).
 { want node || want train; } && log synth && timeout 60 $bin synth --out /tmp/train_data \
   --seed 0 --frames 160 --width 272 --height 72 >"$out/synth.log" 2>&1

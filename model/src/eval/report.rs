@@ -59,6 +59,9 @@ pub struct BinReport {
     pub gaussians: usize,
     /// Wall time of the reconstruction, milliseconds.
     pub reconstruct_ms: f64,
+    /// The depth range (near, far, metres) the candidates spanned when the reconstructor
+    /// fitted it to the bin (`auto_depth_range`); null when it kept its preset's.
+    pub fitted_depth_range_m: Option<[f32; 2]>,
     /// Every frame of the bin, left and right.
     pub frames: Vec<FrameScore>,
 }
@@ -185,6 +188,8 @@ pub struct EvalReport {
     pub mean_gaussians: f64,
     /// Mean reconstruction time per bin, milliseconds.
     pub mean_reconstruct_ms: f64,
+    /// Bins whose depth candidates were fitted to the scene (`auto_depth_range`).
+    pub fitted_range_bins: usize,
     /// Bins that could not be evaluated.
     pub skipped: Vec<SkippedBin>,
     /// Every evaluated bin.
@@ -206,6 +211,10 @@ impl EvalReport {
             summary: Summary::of(&bins),
             mean_gaussians: bins.iter().map(|b| b.gaussians as f64).sum::<f64>() / n,
             mean_reconstruct_ms: bins.iter().map(|b| b.reconstruct_ms).sum::<f64>() / n,
+            fitted_range_bins: bins
+                .iter()
+                .filter(|b| b.fitted_depth_range_m.is_some())
+                .count(),
             method,
             raster,
             bin_length_m,
@@ -230,6 +239,12 @@ impl EvalReport {
             self.mean_gaussians,
             self.mean_reconstruct_ms,
         );
+        if self.fitted_range_bins > 0 {
+            s.push_str(&format!(
+                "Depth candidates fitted to the scene in {} of the bins.\n\n",
+                self.fitted_range_bins
+            ));
+        }
         s.push_str(&table_header(self.has_lpips(), self.has_unseen()));
         s.push_str(&self.table_row());
         if !self.skipped.is_empty() {
@@ -336,6 +351,7 @@ mod tests {
             last: 2,
             gaussians: 100,
             reconstruct_ms: 5.0,
+            fitted_depth_range_m: None,
             frames,
         }
     }
@@ -378,6 +394,24 @@ mod tests {
                 .collect()
         };
         (cells("| method"), cells("| sgm"))
+    }
+
+    #[test]
+    fn bins_with_a_fitted_depth_range_are_counted_and_said() {
+        let frames = || vec![score(0, Some(Role::Centre), 20.0, Some(0.1))];
+        let plain = report(vec![bin(frames()), bin(frames())]);
+        assert_eq!(plain.fitted_range_bins, 0);
+        assert!(!plain.markdown().contains("fitted"));
+        let fitted = BinReport {
+            fitted_depth_range_m: Some([2.0, 10.0]),
+            ..bin(frames())
+        };
+        let mixed = report(vec![bin(frames()), fitted]);
+        assert_eq!(mixed.fitted_range_bins, 1);
+        assert!(mixed.markdown().contains("fitted to the scene in 1 of the bins"));
+        let json = serde_json::to_value(&mixed).unwrap();
+        assert_eq!(json["bins"][1]["fitted_depth_range_m"][1], 10.0);
+        assert!(json["bins"][0]["fitted_depth_range_m"].is_null());
     }
 
     #[test]

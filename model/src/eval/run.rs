@@ -250,6 +250,9 @@ fn evaluate_bin(
         last: poses[bin.last].index,
         gaussians: set.len(),
         reconstruct_ms,
+        fitted_depth_range_m: reconstructor
+            .last_depth_range()
+            .map(|(near, far)| [near, far]),
         frames: scores,
     };
     Ok((report, renders))

@@ -78,6 +78,13 @@ pub struct Config {
     /// keep `near..far`.
     #[serde(default)]
     pub auto_depth_range: bool,
+    /// With `auto_depth_range`: fit only scenes whose fitted far end lies below this many
+    /// metres, and keep `near..far` for deeper ones. Streets reach the sky and fit to 90 m
+    /// and beyond, rooms to about 10 m, so a bound between them narrows the candidates for
+    /// near scenes and leaves streets exactly as the weights learned them. `None`: fit every
+    /// scene.
+    #[serde(default)]
+    pub auto_depth_range_max_far: Option<f32>,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
@@ -274,6 +281,7 @@ impl Config {
             backbone_matching: false,
             census_matching: false,
             auto_depth_range: false,
+            auto_depth_range_max_far: None,
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,

@@ -34,8 +34,8 @@ pub struct DepthRange {
 
 /// The range of the scene that the first pair of `images` `(2K, 3, H, W)` in `[0, 1]` (left,
 /// right, ...) with its `cameras` shows, inside `preset`'s `[near, far]`; `None` (keep the
-/// preset's) when the pair is not rectified, SGM matches less than 5% of it, or anything is
-/// not finite.
+/// preset's) when the pair is not rectified, SGM matches less than 5% of it, anything is
+/// not finite, or the fitted far end is at or beyond `preset.auto_depth_range_max_far`.
 pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<DepthRange> {
     let (left, right) = (pair_image(images, 0)?, pair_image(images, 1)?);
     let view = StereoView {
@@ -63,7 +63,14 @@ pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Opti
     let at = |q: f64| matched[((matched.len() - 1) as f64 * q).round() as usize];
     let fb = view.left_camera.intrinsics.fx * baseline;
     let (low, high) = (at(PERCENTILES.0) / MARGIN, at(PERCENTILES.1) * MARGIN);
-    range_within(fb / high, fb / low.max(f32::MIN_POSITIVE), preset)
+    let far = fb / low.max(f32::MIN_POSITIVE);
+    if preset
+        .auto_depth_range_max_far
+        .is_some_and(|max| !(far < max))
+    {
+        return None;
+    }
+    range_within(fb / high, far, preset)
 }
 
 /// `[near, far]` clamped into the preset's range and widened about its geometric mean to
@@ -136,6 +143,23 @@ mod tests {
         assert!(range.near >= 1.0 && range.far <= 100.0, "{range:?}");
         assert!(range.far / range.near >= MIN_RATIO - 1e-3, "{range:?}");
         assert!(range.far < 10.0, "{range:?}");
+    }
+
+    #[test]
+    fn scenes_deeper_than_the_bound_keep_the_preset_range() {
+        let (pair, cameras) = (plane_pair(96, 48, 4), rig(96, 48, 0.1));
+        let bounded = |max_far| Config {
+            auto_depth_range_max_far: Some(max_far),
+            ..Config::tiny()
+        };
+        let unbounded = scene_range(&pair, &cameras, &Config::tiny()).expect("matched");
+        assert_eq!(
+            scene_range(&pair, &cameras, &bounded(50.0)),
+            Some(unbounded)
+        );
+        // A bound at the plane's own depth is below any range around it.
+        assert_eq!(scene_range(&pair, &cameras, &bounded(2.5)), None);
+        assert_eq!(scene_range(&pair, &cameras, &bounded(f32::NAN)), None);
     }
 
     #[test]

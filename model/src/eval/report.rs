@@ -408,7 +408,9 @@ mod tests {
         };
         let mixed = report(vec![bin(frames()), fitted]);
         assert_eq!(mixed.fitted_range_bins, 1);
-        assert!(mixed.markdown().contains("fitted to the scene in 1 of the bins"));
+        assert!(mixed
+            .markdown()
+            .contains("fitted to the scene in 1 of the bins"));
         let json = serde_json::to_value(&mixed).unwrap();
         assert_eq!(json["bins"][1]["fitted_depth_range_m"][1], 10.0);
         assert!(json["bins"][0]["fitted_depth_range_m"].is_null());

@@ -64,9 +64,11 @@ pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Opti
     let fb = view.left_camera.intrinsics.fx * baseline;
     let (low, high) = (at(PERCENTILES.0) / MARGIN, at(PERCENTILES.1) * MARGIN);
     let far = fb / low.max(f32::MIN_POSITIVE);
+    // A NaN bound fits nothing: only a far end known to be below it passes.
+    let within = |max: f32| far.partial_cmp(&max) == Some(std::cmp::Ordering::Less);
     if preset
         .auto_depth_range_max_far
-        .is_some_and(|max| !(far < max))
+        .is_some_and(|max| !within(max))
     {
         return None;
     }

@@ -6,7 +6,8 @@
 #
 #   bash scripts/real_pairs.sh [--weights W] [--preset P] [--set KEY=VALUE ...] [--out DIR] [--data DIR]
 #
-# Needs the pairs (bash scripts/real_data.sh); builds the release binary (a no-op when fresh).
+# Needs the pairs (bash scripts/real_data.sh); builds the release binary (a no-op when fresh)
+# unless STEREOSPLAT_BIN names one.
 # Calibrations passed (disparities are scored in pixels; the rig only sets the depth range):
 #   Aloe: fx 3740 px (Middlebury 2006's focal at full size), a 0.10 m baseline, principal
 #     point at the centre: the truth's 45..211 px become 8.3..1.8 m, inside the learned
@@ -29,8 +30,9 @@ while [ $# -gt 0 ]; do
 done
 cd "$(dirname "$0")/.."
 [ -s "$data/aloe/aloeGT.png" ] || { echo "no real pairs in $data: run bash scripts/real_data.sh $data" >&2; exit 1; }
-bin=target/release/stereosplat
-cargo build --release --quiet --bin stereosplat
+# STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
+bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
+[ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --quiet --bin stereosplat
 runs=out/real_pairs
 rm -rf "$runs"
 
@@ -43,7 +45,7 @@ reconstruct() {
   # the SGM fallback that `reconstruct` writes by default.
   [ "$method" = stereosplat ] && extra=("${weights[@]}" "${preset[@]}" "${sets[@]}" --on-check-fail flag)
   "$bin" reconstruct --method "$method" "${extra[@]}" --out "$runs/$name/$method" "$@" >/dev/null
-  echo "$name $method: $(python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); print(f"{s["reconstruct_s"]:.1f} s")' "$runs/$name/$method/summary.json")"
+  echo "$name $method: $(python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); print("%.1f s" % s["reconstruct_s"])' "$runs/$name/$method/summary.json")"
 }
 
 for method in sgm stereosplat; do

@@ -166,29 +166,39 @@ fn a_generated_pair_gives_the_files_and_its_depth() {
 
 #[test]
 fn auto_depth_range_fits_the_aloe_pair_and_is_reported() {
-    let out = temp_dir("reconstruct-aloe-auto-range");
-    let args = aloe_args(
-        &out,
-        &[
-            "--method",
-            "stereosplat",
-            "--on-check-fail",
-            "flag",
-            "--set",
-            "auto_depth_range=true",
-        ],
-    );
-    let (ok, text) = reconstruct(&args);
-    assert!(ok, "{text}");
-    let s = summary(&out);
-    assert_finite(&s, "auto range");
+    // A bound of 50 m on the fitted far end (`auto_depth_range_max_far`) lets the room
+    // through; one of 5 m, under the room's depth, keeps the preset's range.
+    let mut ranges = Vec::new();
+    for max_far in ["50", "5"] {
+        let out = temp_dir(&format!("reconstruct-aloe-auto-range-{max_far}"));
+        let bound = format!("auto_depth_range_max_far={max_far}");
+        let args = aloe_args(
+            &out,
+            &[
+                "--method",
+                "stereosplat",
+                "--on-check-fail",
+                "flag",
+                "--set",
+                "auto_depth_range=true",
+                "--set",
+                &bound,
+            ],
+        );
+        let (ok, text) = reconstruct(&args);
+        assert!(ok, "{text}");
+        let s = summary(&out);
+        assert_finite(&s, "auto range");
+        ranges.push(s["depth_range_m"].clone());
+    }
     // The truth spans 1.8..8.3 m; SGM's 2nd-98th percentiles with a 25% margin, inside
     // the preset's 1..100 m (measured: 2.12..10.24 m; the nearest leaves, 1.8-2.1 m, fall
     // outside it, a cost of trusting percentiles).
-    let range = s["depth_range_m"].as_array().expect("a fitted range");
+    let range = ranges[0].as_array().expect("a fitted range");
     let (near, far) = (range[0].as_f64().unwrap(), range[1].as_f64().unwrap());
     assert!((1.0..2.5).contains(&near), "{near}..{far}");
     assert!((7.0..20.0).contains(&far), "{near}..{far}");
+    assert!(ranges[1].is_null(), "{}", ranges[1]);
 }
 
 #[test]

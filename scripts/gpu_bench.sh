@@ -57,23 +57,24 @@ timeout 60 /tmp/gpu_bin/renderer_tests gpu:: --test-threads 1 >"$out/renderer_te
 echo "rc=$?" >>"$out/renderer_tests.txt"
 }
 want gsplat && { wait "$compiling"; log gsplat_compiled; }
-# The reference scenes: name, then the scene flags of `bench render` and `render`.
-# (2M is not a reference scene: it shows how the stages grow between 1M and 4M.)
-scenes=("121k" "1m --scene random --gaussians 1000000 --width 1920 --height 1080"
-  "2m --scene random --gaussians 2000000 --width 1920 --height 1080"
-  "4m --scene random --gaussians 4000000 --width 1920 --height 1080")
+# The reference scenes: name, width, height, then the other scene flags of `bench render`
+# and `render`. (2M is not a reference scene: it shows how the stages grow from 1M to 4M.)
+scenes=("121k 544 112" "1m 1920 1080 --scene random --gaussians 1000000"
+  "2m 1920 1080 --scene random --gaussians 2000000"
+  "4m 1920 1080 --scene random --gaussians 4000000")
 # 1. The wgpu rasterizer on the GPU (Vulkan), 50 timed frames each.
 want render && for s in "${scenes[@]}"; do
-  read -r name flags <<<"$s"
-  run "render_$name" 90 $bin bench render --no-cpu --runs 50 --warmup 5 $flags
+  read -r name w h flags <<<"$s"
+  run "render_$name" 90 $bin bench render --no-cpu --runs 50 --warmup 5 \
+    --width "$w" --height "$h" $flags
 done
 # gsplat on the same scenes: the seeded generator's Gaussians written as PLY by `render`.
 want gsplat && for s in "${scenes[@]}"; do
-  read -r name flags <<<"$s"
-  timeout 60 $bin render $flags --out "/tmp/scene_$name" >"$out/scene_$name.log" 2>&1
-  read -r w h < <(echo "$flags" | sed -n 's/.*--width \([0-9]*\) --height \([0-9]*\).*/\1 \2/p')
+  read -r name w h flags <<<"$s"
+  timeout 60 $bin render --width "$w" --height "$h" $flags --out "/tmp/scene_$name" \
+    >"$out/scene_$name.log" 2>&1
   run "gsplat_$name" 120 python3 scripts/gsplat_bench.py --ply "/tmp/scene_$name/scene.ply" \
-    --width "${w:-544}" --height "${h:-112}"
+    --width "$w" --height "$h"
 done
 # 2. Every custom op, LPIPS, the enhancer and the network: GPU against CPU.
 want ops && {

@@ -1,9 +1,8 @@
 //! Stage 4, radix sort (`radix_sort.wgsl`): a stable LSD radix sort of 64-bit (tile, depth)
 //! keys with `u32` values, 8 bits a pass. Each pass counts digits per block of 1024 keys,
-//! scans the `[digit][block]` counts with the
-//! [`PrefixSum`] stage, sorts each block by the digit in workgroup memory and writes it out
-//! in runs, each key at its digit's offset plus its rank within the block, which keeps ties
-//! in input order.
+//! scans the `[digit][block]` counts with the [`PrefixSum`] stage, sorts each block by the
+//! digit in workgroup memory and writes it out in runs, each key at its digit's offset plus
+//! its rank within the block, which keeps ties in input order.
 //!
 //! All passes over the low word (the ordered depth bits) run; on the high word (the tile id)
 //! only as many as the tile count needs. With keys emitted in Gaussian-index order,
@@ -24,6 +23,8 @@ const BLOCK: u32 = 1024;
 /// 121,856-Gaussian scene's keys in 0.27 ms against 0.43 ms with 4-bit passes of the same
 /// design, and 1M-4M Gaussians' in 10-20% less time; 2048-key blocks gained nothing.
 const DIGIT_BITS: u32 = 8;
+/// Distinct digits.
+const RADIX: u32 = 1 << DIGIT_BITS;
 /// Passes over both 32-bit words at most.
 const MAX_PASSES: usize = (64 / DIGIT_BITS) as usize;
 /// Byte stride of the per-pass settings (the uniform dynamic-offset alignment).
@@ -88,13 +89,12 @@ impl RadixSort {
         n: u32,
         tile_count: u32,
     ) -> Result<usize, GpuError> {
-        let bits = DIGIT_BITS;
         let blocks = n.div_ceil(BLOCK);
-        let counts = (1 << bits) * blocks;
+        let counts = RADIX * blocks;
         self.hist.ensure(ctx, 4 * counts as u64)?;
-        let passes: Vec<(u32, u32)> = (0..32 / bits)
-            .map(|p| (0, p * bits))
-            .chain((0..tile_bits(tile_count).div_ceil(bits)).map(|p| (1, p * bits)))
+        let passes: Vec<(u32, u32)> = (0..32 / DIGIT_BITS)
+            .map(|p| (0, p * DIGIT_BITS))
+            .chain((0..tile_bits(tile_count).div_ceil(DIGIT_BITS)).map(|p| (1, p * DIGIT_BITS)))
             .collect();
         let mut settings = [0u8; MAX_PASSES * PARAMS_STRIDE];
         for (p, &(word, shift)) in passes.iter().enumerate() {

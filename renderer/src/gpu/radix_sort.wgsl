@@ -45,17 +45,18 @@ fn digit_of(key: vec2<u32>) -> u32 {
     return (select(key.x, key.y, params.word == 1u) >> params.shift) & (RADIX - 1u);
 }
 
-// The 16-bit counter of `part` in a packed set of sixteen (parts 0-7 in `lo`).
-fn counter(lo: vec4<u32>, hi: vec4<u32>, part: u32) -> u32 {
-    let word = part >> 1u;
-    let packed = select(hi[(word - 4u) & 3u], lo[word & 3u], word < 4u);
-    return (packed >> ((part & 1u) * 16u)) & 0xffffu;
-}
 
 // Sixteen 16-bit counters packed in eight u32, parts 0-7 in `lo`.
 struct Packed {
     lo: vec4<u32>,
     hi: vec4<u32>,
+}
+
+// The 16-bit counter of `part`.
+fn counter(c: Packed, part: u32) -> u32 {
+    let word = part >> 1u;
+    let packed = select(c.hi[(word - 4u) & 3u], c.lo[word & 3u], word < 4u);
+    return (packed >> ((part & 1u) * 16u)) & 0xffffu;
 }
 
 // Adds `value` to the counter of `part`.
@@ -75,7 +76,7 @@ fn exclusive(c: Packed) -> Packed {
     var sum = 0u;
     for (var part = 0u; part < 16u; part++) {
         add(&out, part, sum);
-        sum += counter(c.lo, c.hi, part);
+        sum += counter(c, part);
     }
     return out;
 }
@@ -135,13 +136,11 @@ fn scatter(
         var own = Packed(vec4<u32>(0u), vec4<u32>(0u));
         for (var k = 0u; k < ITEMS; k++) {
             let part = (entries[k] >> shift) & 15u;
-            within[k] = counter(own.lo, own.hi, part);
+            within[k] = counter(own, part);
             add(&own, part, 1u);
         }
-        let own_lo = own.lo;
-        let own_hi = own.hi;
-        var lo = own_lo;
-        var hi = own_hi;
+        var lo = own.lo;
+        var hi = own.hi;
         ranks_lo[lid] = lo;
         ranks_hi[lid] = hi;
         workgroupBarrier();
@@ -161,12 +160,10 @@ fn scatter(
             workgroupBarrier();
         }
         let starts = exclusive(Packed(ranks_lo[THREADS - 1u], ranks_hi[THREADS - 1u]));
-        let before_lo = lo - own_lo;
-        let before_hi = hi - own_hi;
+        let before = Packed(lo - own.lo, hi - own.hi);
         for (var k = 0u; k < ITEMS; k++) {
             let part = (entries[k] >> shift) & 15u;
-            let at = counter(starts.lo, starts.hi, part) + counter(before_lo, before_hi, part)
-                + within[k];
+            let at = counter(starts, part) + counter(before, part) + within[k];
             order[at] = entries[k];
         }
         workgroupBarrier();

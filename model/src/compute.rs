@@ -3,10 +3,11 @@
 //! `cuda` cargo feature; asking for CUDA there is a clear error, not a silent fallback.
 //!
 //! Device rule for the project's own ops (`crate::ops`): their hand-written kernels are CPU
-//! kernels. On another device `grid_sample` runs as candle tensor ops (gathers and
-//! weights), `transpose_last2` as candle's strided copy, the convolution through its
-//! differentiable gather path, and the differentiable rasterizer on the CPU (its input is
-//! copied to the CPU and its images back, gradients likewise).
+//! kernels, and the bilinear sampler's also CUDA kernels. On another device `grid_sample`
+//! runs as candle tensor ops (gathers and weights); off the CPU `transpose_last2` is
+//! candle's strided copy, the convolution is candle's own, and the differentiable
+//! rasterizer runs on the CPU (its input is copied to the CPU and its images back,
+//! gradients likewise).
 
 use candle_core::Device;
 use serde::{Deserialize, Serialize};

@@ -25,6 +25,8 @@ fn random(seed: u64, shape: &[usize], lo: f32, hi: f32) -> Tensor {
 fn values(t: &Tensor) -> Vec<f32> {
     t.to_device(&Device::Cpu)
         .unwrap()
+        .to_dtype(DType::F32)
+        .unwrap()
         .flatten_all()
         .unwrap()
         .to_vec1()
@@ -58,7 +60,11 @@ fn with_grads(
         .iter()
         .map(|v| v.as_tensor().clone())
         .collect::<Vec<_>>());
-    let weights = random(99, out.dims(), -1.0, 1.0).to_device(device).unwrap();
+    let weights = random(99, out.dims(), -1.0, 1.0)
+        .to_dtype(out.dtype())
+        .unwrap()
+        .to_device(device)
+        .unwrap();
     let grads = (&out * &weights)
         .unwrap()
         .sum_all()
@@ -99,6 +105,44 @@ fn grid_sample_and_upsampling_agree_with_the_cpu_kernel() {
     });
 }
 
+/// The CUDA kernels in f64 on the points the convention singles out: NaN and infinite
+/// coordinates, points at and beyond one pixel outside, on the image's edges and on integer
+/// coordinates (the kink). Same samples and gradients as the CPU, all finite.
+#[test]
+fn the_sampler_kernels_agree_in_f64_off_and_on_the_edges() {
+    let input = random(7, &[2, 3, 9, 11], -1.0, 1.0)
+        .to_dtype(DType::F64)
+        .unwrap();
+    let (nan, inf) = (f64::NAN, f64::INFINITY);
+    let points = [
+        (nan, 2.0),
+        (3.0, inf),
+        (-inf, 1.0),
+        (1e30, 1e30),
+        (0.0, 0.0),
+        (10.0, 8.0),
+        (-1.0, 4.0),
+        (11.0, 4.0),
+        (-0.5, 3.5),
+        (3.5, 8.5),
+        (4.0, 5.0),
+        (10.999, 0.25),
+    ];
+    let flat: Vec<f64> = points.iter().flat_map(|&(x, y)| [x, y]).collect();
+    let grid = Tensor::from_vec([flat.clone(), flat].concat(), (2, 3, 4, 2), &Device::Cpu).unwrap();
+    same_on_both("grid_sample f64", &[&input, &grid], 1e-12, &|t| {
+        grid_sample(&t[0], &t[1]).unwrap()
+    });
+    let out = grid_sample(
+        &input.to_device(&gpu()).unwrap(),
+        &grid.to_device(&gpu()).unwrap(),
+    )
+    .unwrap();
+    let v = values(&out);
+    assert!(v.iter().all(|x| x.is_finite()));
+    assert_eq!(v[0], 0.0, "a NaN point samples zero");
+}
+
 #[test]
 fn the_convolution_and_the_transpose_agree_with_the_cpu() {
     let x = random(3, &[2, 16, 24, 40], -1.0, 1.0);
@@ -115,7 +159,7 @@ fn the_convolution_and_the_transpose_agree_with_the_cpu() {
             .forward(&t[0])
             .unwrap()
     });
-    // Inference (no variables): the CPU's im2col kernel against the GPU's gather.
+    // Inference (no variables): the CPU's im2col kernel against candle's convolution.
     let run = |device: &Device| {
         let map = std::collections::HashMap::from([
             ("weight".to_string(), weight.to_device(device).unwrap()),

@@ -19,13 +19,16 @@ use candle_core::{CpuStorage, CustomOp2, CustomOp3, Layout, Result, Shape, Tenso
 use rayon::prelude::*;
 
 use super::cpu::{float_dtype, float_kernel, slice, Float, OpError};
+#[cfg(feature = "cuda")]
+use {super::bilinear_cuda as cuda, candle_core::CudaStorage};
 
 /// Samples `input` `(N, C, H, W)` bilinearly at the pixel coordinates in `grid`
 /// `(N, Ho, Wo, 2)` (last axis `x, y`; see the module doc for the convention), giving
 /// `(N, C, Ho, Wo)`. Differentiable with respect to both `input` and `grid`; `f32` or `f64`
-/// tensors of one dtype. Off the CPU it is [`super::grid_sample_by_gathers`].
+/// tensors of one dtype. On the CPU and on CUDA (`cuda` feature) it runs as kernels; on any
+/// other device it is [`super::grid_sample_by_gathers`].
 pub fn grid_sample(input: &Tensor, grid: &Tensor) -> Result<Tensor> {
-    if !input.device().is_cpu() {
+    if !(input.device().is_cpu() || input.device().is_cuda()) {
         return super::grid_sample_by_gathers(input, grid);
     }
     let (n, _, h, w) = input.dims4()?;
@@ -161,6 +164,35 @@ impl Dims {
     fn hw(&self) -> usize {
         self.h * self.w
     }
+
+    /// Runs CUDA kernel `name` of `bilinear.cu` for `op` with these sizes: `threads`
+    /// threads into a new buffer of `out_len` values (`zeroed` first for a kernel that
+    /// accumulates).
+    #[cfg(feature = "cuda")]
+    fn launch(
+        &self,
+        op: &'static str,
+        name: &'static str,
+        (threads, out_len): (usize, usize),
+        zeroed: bool,
+        inputs: &[(&CudaStorage, &Layout)],
+    ) -> Result<CudaStorage> {
+        let dims = cuda::KernelDims {
+            c: self.c,
+            h: self.h,
+            w: self.w,
+            p: self.p,
+        };
+        cuda::Kernel {
+            op,
+            name,
+            dims,
+            threads,
+            out_len,
+            zeroed,
+        }
+        .launch(inputs)
+    }
 }
 
 /// The forward op: `(input, grid) -> output`.
@@ -208,6 +240,27 @@ impl CustomOp2 for GridSample {
         Ok((out, Shape::from((n, d.c, ho, wo))))
     }
 
+    #[cfg(feature = "cuda")]
+    fn cuda_fwd(
+        &self,
+        s1: &CudaStorage,
+        l1: &Layout,
+        s2: &CudaStorage,
+        l2: &Layout,
+    ) -> Result<(CudaStorage, Shape)> {
+        let (n, d) = Dims::of(l1, l2)?;
+        let len = n * d.c * d.p;
+        let out = d.launch(
+            Self::NAME,
+            "grid_sample",
+            (len, len),
+            false,
+            &[(s1, l1), (s2, l2)],
+        )?;
+        let (_, ho, wo, _) = l2.shape().dims4()?;
+        Ok((out, Shape::from((n, d.c, ho, wo))))
+    }
+
     fn bwd(
         &self,
         input: &Tensor,
@@ -231,7 +284,8 @@ impl CustomOp2 for GridSample {
 
 /// Gradient with respect to the input: `(grid, d output) -> d input`, scattering each output
 /// gradient onto its four taps (one thread per input plane, so no two threads write one
-/// element and the sums are deterministic).
+/// element and the sums are deterministic; the CUDA kernel adds atomically, so there the
+/// order of the sums, and their last bits, may vary).
 struct InputGrad {
     h: usize,
     w: usize,
@@ -239,6 +293,18 @@ struct InputGrad {
 
 impl InputGrad {
     const NAME: &'static str = "grid-sample-input-grad";
+
+    /// `N` and the sizes, from the output gradient's `(N, C, Ho, Wo)` layout.
+    fn dims(&self, grad: &Layout) -> Result<(usize, Dims)> {
+        let (n, c, ho, wo) = grad.shape().dims4()?;
+        let d = Dims {
+            c,
+            h: self.h,
+            w: self.w,
+            p: ho * wo,
+        };
+        Ok((n, d))
+    }
 
     fn run<T: Float>(grid: &[T], grad: &[T], d: Dims) -> Vec<T> {
         let taps = Taps::all(grid, d);
@@ -270,20 +336,33 @@ impl CustomOp2 for InputGrad {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
-        let (n, c, ho, wo) = l2.shape().dims4()?;
-        let d = Dims {
-            c,
-            h: self.h,
-            w: self.w,
-            p: ho * wo,
-        };
+        let (n, d) = self.dims(l2)?;
         let dtype = float_dtype(Self::NAME, &[s1, s2])?;
         let out = float_kernel!(dtype, T => Self::run(
                 slice::<T>(Self::NAME, s1, l1)?,
                 slice::<T>(Self::NAME, s2, l2)?,
                 d,
         ));
-        Ok((out, Shape::from((n, c, self.h, self.w))))
+        Ok((out, Shape::from((n, d.c, self.h, self.w))))
+    }
+
+    #[cfg(feature = "cuda")]
+    fn cuda_fwd(
+        &self,
+        s1: &CudaStorage,
+        l1: &Layout,
+        s2: &CudaStorage,
+        l2: &Layout,
+    ) -> Result<(CudaStorage, Shape)> {
+        let (n, d) = self.dims(l2)?;
+        let out = d.launch(
+            Self::NAME,
+            "grid_sample_input_grad",
+            (n * d.c * d.p, n * d.c * d.hw()),
+            true,
+            &[(s1, l1), (s2, l2)],
+        )?;
+        Ok((out, Shape::from((n, d.c, self.h, self.w))))
     }
 }
 
@@ -339,6 +418,27 @@ impl CustomOp3 for GridGrad {
                 slice::<T>(Self::NAME, s3, l3)?,
                 d,
         ));
+        Ok((out, l2.shape().clone()))
+    }
+
+    #[cfg(feature = "cuda")]
+    fn cuda_fwd(
+        &self,
+        s1: &CudaStorage,
+        l1: &Layout,
+        s2: &CudaStorage,
+        l2: &Layout,
+        s3: &CudaStorage,
+        l3: &Layout,
+    ) -> Result<(CudaStorage, Shape)> {
+        let (n, d) = Dims::of(l1, l2)?;
+        let out = d.launch(
+            Self::NAME,
+            "grid_sample_grid_grad",
+            (n * d.p, n * d.p * 2),
+            false,
+            &[(s1, l1), (s2, l2), (s3, l3)],
+        )?;
         Ok((out, l2.shape().clone()))
     }
 }

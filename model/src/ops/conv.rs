@@ -4,6 +4,7 @@
 //! named and shaped as candle-nn's `Conv2d` (`weight` `(out, in, k, k)`, `bias` `(out,)`),
 //! so files are interchangeable. Where no gradient is tracked (inference) the columns come
 //! from one parallel unrolling pass ([`super::im2col`]) with the bias folded into the product.
+//! Off the CPU the convolution is candle's own (see `Conv::forward`).
 
 use candle_core::{Module, Result, Tensor};
 use candle_nn::{Init, VarBuilder};
@@ -147,6 +148,16 @@ impl Module for Conv {
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let (cout, cin, k, _) = self.weight.dims4()?;
         let n = x.dim(0)?;
+        if !x.device().is_cpu() {
+            // Off the CPU: candle's own convolution (its im2col kernel and one matrix
+            // product, its own backward), a few launches; the gather below would build and
+            // upload a k^2 Ho Wo index on the host and launch about ten kernels per call.
+            let y = x.conv2d(&self.weight, self.padding, self.stride, 1, 1)?;
+            return match &self.bias {
+                Some(b) => y.broadcast_add(&b.reshape((1, cout, 1, 1))?),
+                None => Ok(y),
+            };
+        }
         if let (Some(folded), false, true) = (&self.folded, x.track_op(), x.device().is_cpu()) {
             // No gradient wanted (inference, fixed inputs to LPIPS): one parallel im2col
             // pass with a row of ones for the bias column (a CPU kernel; other devices

@@ -43,6 +43,14 @@ pub enum OpError {
         /// The op.
         op: &'static str,
     },
+    /// A CUDA kernel's source did not compile (NVRTC's log; `cuda` feature only).
+    #[error("{op}: the CUDA kernel did not compile: {log}")]
+    Compile {
+        /// The op.
+        op: &'static str,
+        /// The compiler's message.
+        log: String,
+    },
 }
 
 impl OpError {

@@ -10,13 +10,15 @@
 //! - [`transpose_last2`]: a tiled transpose (candle's strided copy of a permuted tensor is
 //!   slow on the CPU).
 //!
-//! The kernels run on CPU tensors of `f32` (training) or `f64` (gradient checks); on other
-//! devices each op follows the rule in `crate::compute` ([`grid_sample_by_gathers`] is
-//! `grid_sample` off the CPU). Second
+//! The kernels run on CPU tensors of `f32` (training) or `f64` (gradient checks), and the
+//! sampler's also on CUDA; on other devices each op follows the rule in `crate::compute`
+//! ([`grid_sample_by_gathers`] is `grid_sample` where no kernel runs). Second
 //! derivatives are not supported: the gradients these ops return are not themselves
 //! differentiable.
 
 mod bilinear;
+#[cfg(feature = "cuda")]
+mod bilinear_cuda;
 mod conv;
 mod cpu;
 mod gather_sample;

@@ -3,8 +3,8 @@
 # run from the repository root there with gpu_carry/ from `bash scripts/build_cuda.sh` and
 # the Vulkan loader packages in .gl/ (see /work/.library/device/README.md). Writes JSON and
 # logs to $GPU_RESULTS (default results/gpu/raw). Each step has its own time limit so one failure
-# does not cost the rest. Name parts to run only those (render rtests ops model profile node
-# train gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
+# does not cost the rest. Name parts to run only those (render rtests ops model ab profile
+# node train gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
 # it needs the gsplat wheel in .whl/ (pip download --no-deps gsplat==1.5.3 -d .whl) and
 # compiles gsplat's CUDA code first (minutes), in the background while the other parts run.
 #   bash scripts/gpu_bench.sh [PART...]
@@ -87,6 +87,20 @@ want model && for preset in tiny small paper; do
   run "model_$preset" 60 $bin bench model --preset $preset --set device=cuda --runs 20 --warmup 3
 done
 want model && run model_tiny_cpu 60 $bin bench model --preset tiny --runs 10
+# A change against the build before it, on the same machine: with gpu_carry/baseline.xz (a
+# `stereosplat` built by build_cuda.sh from the earlier commit), `bench model` per preset
+# from each binary in turn, two rounds, so machine-to-machine spread cannot pass for a gain.
+want ab && [ -f gpu_carry/baseline.xz ] && {
+  xz -dc gpu_carry/baseline.xz >/tmp/gpu_bin/baseline && chmod +x /tmp/gpu_bin/baseline
+  for round in 1 2; do
+    for preset in tiny small paper; do
+      for build in baseline stereosplat; do
+        run "ab_${preset}_${build}_$round" 60 "/tmp/gpu_bin/$build" bench model \
+          --preset $preset --set device=cuda --runs 20 --warmup 3
+      done
+    done
+  done
+}
 # Where `tiny`'s time on CUDA goes: every kernel of `bench model` (one warm-up and one timed
 # reconstruction, plus each branch once) under Nsight Compute, per kernel name: launches and
 # GPU time. Their sum against the wall-clock figure above says how much is kernel work.

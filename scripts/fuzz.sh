@@ -5,29 +5,41 @@
 # output (`--example fuzz_seeds`), runs each target for SECONDS, and fails if any input
 # crashed, panicked, hung (over $FUZZ_TIMEOUT_S s) or asked for more than $FUZZ_RSS_MB MiB.
 #   bash scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]
+#   bash scripts/fuzz.sh --build      # only install cargo-fuzz and build the targets
 # (default 20 s, every target). Corpora grow in fuzz/corpus/<target>; a failing input is
-# kept in fuzz/artifacts/<target>/ and `cargo fuzz run TARGET FILE` replays it.
+# kept in fuzz/artifacts/<target>/ and `cargo fuzz run TARGET FILE` replays it. `--build`
+# touches neither the workspace's target directory nor the corpora, so CI runs it beside
+# the tests (.ci/run).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+build_only=false
+if [ "${1:-}" = "--build" ]; then
+  build_only=true
+  shift
+fi
 seconds="${1:-20}"
 shift || true
 timeout_s="${FUZZ_TIMEOUT_S:-25}"
 rss_mb="${FUZZ_RSS_MB:-2048}"
 
-# The seeds first, from the workspace's own (uninstrumented) build.
-cargo run --release --example fuzz_seeds -- fuzz/corpus
-
 # cargo-fuzz passes -Z flags (sanitizer, coverage passes) to rustc; the stable compiler takes
 # them with RUSTC_BOOTSTRAP=1, so no nightly toolchain is needed. Only cargo-fuzz gets it:
-# cargo fingerprints it, and the workspace build above would start again from scratch.
+# cargo fingerprints it, and the workspace build would start again from scratch.
 if ! cargo fuzz --version >/dev/null 2>&1; then
   cargo install cargo-fuzz --locked --version 0.13.2
 fi
-fuzz() { RUSTC_BOOTSTRAP=1 cargo fuzz "$@"; }
+# The fuzz profile's own debug setting stands (line numbers in a crash's report), whatever
+# the caller set for the workspace's release builds (.ci/run).
+fuzz() { env -u CARGO_PROFILE_RELEASE_DEBUG RUSTC_BOOTSTRAP=1 cargo fuzz "$@"; }
 # Sixteen codegen units: a much faster build of the instrumented tree, a little slower runs.
 flags=(--release --sanitizer address --codegen-units 16)
 
 fuzz build "${flags[@]}"
+if $build_only; then
+  exit 0
+fi
+# The seeds, from the workspace's own (uninstrumented) build.
+cargo run --release --example fuzz_seeds -- fuzz/corpus
 if [ "$#" -gt 0 ]; then
   targets=("$@")
 else

@@ -123,6 +123,7 @@ impl Kernel {
         let int = |v: usize| i32::try_from(v).map_err(|_| too_large(op, v));
         let d = self.dims;
         let (c, h, w, p) = (int(d.c)?, int(d.h)?, int(d.w)?, int(d.p)?);
+        int(d.h * d.w)?; // the kernels' flat pixel index within a plane
         let total = self.threads as i64;
         let blocks = self.threads.div_ceil(THREADS_PER_BLOCK as usize);
         let blocks = u32::try_from(blocks).map_err(|_| too_large(op, self.threads))?;

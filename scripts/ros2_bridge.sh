@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Builds the ROS 2 bridge (ros2_bridge/: zenoh-plugin-ros2dds in a small binary) into
-# target/release/stereosplat-ros2-bridge (the workspace's target directory: the dependencies
-# it shares with the workspace build are compiled once). It compiles Cyclone DDS from C, so it
-# needs cmake and clang/libclang (bindgen); .ci/setup installs them. Not part of the
+# target/release/stereosplat-ros2-bridge (the workspace's target directory; see
+# ros2_bridge/Cargo.toml: the two builds still compile 173 crates each). It compiles Cyclone
+# DDS from C, so it needs cmake and clang/libclang (bindgen); .ci/setup installs them. Not part of the
 # workspace build: `cargo test --workspace` never compiles it; node/tests/ros2_bridge.rs runs
 # it and fails, naming this script, when it is missing (.ci/setup builds it).
 #   scripts/ros2_bridge.sh            build (incremental; from scratch about 11.5 CPU-minutes:

@@ -7,7 +7,8 @@ import sys
 from pathlib import Path
 
 
-def median(path: Path, key: str = "median_ms") -> float:
+def field(path: Path, key: str = "median_ms") -> float:
+    """One number of a `bench model` JSON."""
     return json.loads(path.read_text())[key]
 
 
@@ -21,8 +22,8 @@ def main() -> None:
                 this = d / f"ab_{preset}_stereosplat_{rnd}.json"
                 if not (base.exists() and this.exists()):
                     continue
-                b, t = median(base), median(this)
-                cb, ct = median(base, "cost_volume_median_ms"), median(this, "cost_volume_median_ms")
+                b, t = field(base), field(this)
+                cb, ct = field(base, "cost_volume_median_ms"), field(this, "cost_volume_median_ms")
                 print(f"| {d.name} | {preset} | {rnd} | {b:.1f} | {t:.1f} | {b / t:.2f}x | {cb:.1f} / {ct:.1f} |")
 
 

@@ -177,16 +177,10 @@ impl Dims {
         zeroed: bool,
         inputs: &[(&CudaStorage, &Layout)],
     ) -> Result<CudaStorage> {
-        let dims = cuda::KernelDims {
-            c: self.c,
-            h: self.h,
-            w: self.w,
-            p: self.p,
-        };
         cuda::Kernel {
             op,
             name,
-            dims,
+            sizes: [self.c, self.h, self.w, self.p],
             threads,
             out_len,
             zeroed,

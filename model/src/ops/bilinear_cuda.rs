@@ -47,23 +47,15 @@ fn ptx(op: &'static str) -> Result<&'static str> {
     })
 }
 
-/// Sizes every kernel takes: channels, input plane `h x w`, output points per plane `p`.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct KernelDims {
-    pub c: usize,
-    pub h: usize,
-    pub w: usize,
-    pub p: usize,
-}
-
 /// One launch of a kernel of `bilinear.cu`.
 pub(super) struct Kernel {
     /// The op, for errors.
     pub op: &'static str,
     /// The kernel's name without its dtype suffix.
     pub name: &'static str,
-    /// The sizes it is passed.
-    pub dims: KernelDims,
+    /// The sizes every kernel takes, in its argument order: channels `c`, the input plane's
+    /// `h` and `w`, output points per plane `p`.
+    pub sizes: [usize; 4],
     /// How many threads it runs (one per output value or point).
     pub threads: usize,
     /// Values in its output buffer.
@@ -121,9 +113,9 @@ impl Kernel {
             ptx(op)?,
         )?;
         let int = |v: usize| i32::try_from(v).map_err(|_| too_large(op, v));
-        let d = self.dims;
-        let (c, h, w, p) = (int(d.c)?, int(d.h)?, int(d.w)?, int(d.p)?);
-        int(d.h * d.w)?; // the kernels' flat pixel index within a plane
+        let sizes: Vec<i32> = self.sizes.map(int).into_iter().collect::<Result<_>>()?;
+        let [_, h, w, _] = self.sizes;
+        int(h * w)?; // the kernels' flat pixel index within a plane
         let total = self.threads as i64;
         let blocks = self.threads.div_ceil(THREADS_PER_BLOCK as usize);
         let blocks = u32::try_from(blocks).map_err(|_| too_large(op, self.threads))?;
@@ -132,7 +124,7 @@ impl Kernel {
             builder.arg(view);
         }
         builder.arg(&out);
-        for v in [&c, &h, &w, &p] {
+        for v in &sizes {
             builder.arg(v);
         }
         builder.arg(&total);

@@ -148,33 +148,27 @@ impl Module for Conv {
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let (cout, cin, k, _) = self.weight.dims4()?;
         let n = x.dim(0)?;
-        if !x.device().is_cpu() {
+        let y = if !x.device().is_cpu() {
             // Off the CPU: candle's own convolution (its im2col kernel and one matrix
             // product, its own backward), a few launches; the gather below would build and
             // upload a k^2 Ho Wo index on the host and launch about ten kernels per call.
-            let y = x.conv2d(&self.weight, self.padding, self.stride, 1, 1)?;
-            return match &self.bias {
-                Some(b) => y.broadcast_add(&b.reshape((1, cout, 1, 1))?),
-                None => Ok(y),
-            };
-        }
-        if let (Some(folded), false, true) = (&self.folded, x.track_op(), x.device().is_cpu()) {
+            x.conv2d(&self.weight, self.padding, self.stride, 1, 1)?
+        } else if let (Some(folded), false) = (&self.folded, x.track_op()) {
             // No gradient wanted (inference, fixed inputs to LPIPS): one parallel im2col
-            // pass with a row of ones for the bias column (a CPU kernel; other devices
-            // take the gather below).
+            // pass with a row of ones for the bias column, so no bias is added after.
             let patches = self.patches(self.bias.is_some());
             let (ho, wo) = patches.output_size(x.dim(2)?, x.dim(3)?);
             return folded
                 .broadcast_matmul(&im2col(x, patches)?)?
                 .reshape((n, cout, ho, wo));
-        }
-        let (cols, ho, wo) = self.columns(x)?;
-        let w = self.weight.reshape((1, cout, cin * k * k))?;
-        let y = w.broadcast_matmul(&cols)?;
-        let y = match &self.bias {
-            Some(b) => y.broadcast_add(&b.reshape((1, cout, 1))?)?,
-            None => y,
+        } else {
+            let (cols, ho, wo) = self.columns(x)?;
+            let w = self.weight.reshape((1, cout, cin * k * k))?;
+            w.broadcast_matmul(&cols)?.reshape((n, cout, ho, wo))?
         };
-        y.reshape((n, cout, ho, wo))
+        match &self.bias {
+            Some(b) => y.broadcast_add(&b.reshape((1, cout, 1, 1))?),
+            None => Ok(y),
+        }
     }
 }

@@ -1,0 +1,51 @@
+//! The node's integration tests, one module per former test file, built as one test binary.
+//!
+//! Each test binary links its own copy of everything it uses from zenoh, tokio, candle and
+//! wgpu, and compiles its own instances of their generic code: 29 binaries took 6 min 45 s
+//! (12 min 50 s of CPU) to build on the 2-core CI machine, each streaming test about 40 s of it.
+//! Four tests stay binaries of their own, since they measure the whole process: the resident
+//! memory (`node_burst`, `node_limits`, `node_overload`) and every allocation (`msg_fuzz`).
+//!
+//! Run one file's tests with `cargo test --release -p node --test integration MODULE::`.
+
+#[path = "../cli_support/mod.rs"]
+mod cli_support;
+#[path = "../drive_support/mod.rs"]
+mod drive_support;
+#[path = "../msg_support/mod.rs"]
+mod msg_support;
+#[path = "../python_support/mod.rs"]
+mod python_support;
+
+use drive_support::net_support;
+
+mod bag;
+mod cli_eval;
+mod cli_model;
+mod cli_pareto;
+mod cli_reconstruct;
+mod cli_render;
+mod cli_replay;
+mod fusion;
+mod fusion_keep;
+#[cfg(unix)]
+mod launch;
+mod msg_codec;
+mod msg_interop;
+mod msg_rclpy;
+mod node_bad_input;
+mod node_crash;
+mod node_far;
+mod node_replay;
+mod node_ros2;
+mod node_self_check;
+mod node_stamps_tf;
+mod node_wedge;
+mod python_subscriber;
+mod record;
+mod ros2_bridge;
+mod ros2_transport;
+mod transport;
+mod transport_secure;
+mod view_page;
+mod worker;

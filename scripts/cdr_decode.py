@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Decode and encode ROS 2 CDR messages with rosbags, an independent CDR implementation.
 
-The node's interop test (node/tests/msg_interop.rs) uses it to check that what the node
+The node's interop test (node/tests/integration/msg_interop.rs) uses it to check that what the node
 writes is what a ROS 2 reader sees, and the reverse. One JSON request on stdin, one JSON
 reply on stdout:
 

@@ -2,7 +2,7 @@
 """Serialize and deserialize messages with the real ROS 2 Jazzy typesupport (rclpy), and
 read type hashes from the type descriptions ROS 2 packages install.
 
-The node's test node/tests/msg_rclpy.rs drives it: what the node encodes, rclpy's
+The node's test node/tests/integration/msg_rclpy.rs drives it: what the node encodes, rclpy's
 `deserialize_message` reads to the same field values; what rclpy's `serialize_message`
 writes from those values, the test compares byte for byte with the node's bytes and decodes
 in Rust. One JSON request on stdin, one JSON reply on stdout:

@@ -3,8 +3,8 @@
 
 Software no one here wrote on both layers: the Python `eclipse-zenoh` package receives the
 samples, `rosbags` (ROS 2 Jazzy type store, plus the node's own messages registered from
-node/src/msg/*.msg) deserializes the CDR. node/tests/python_subscriber.rs runs it beside an
-in-process node and compares what it saw with what a Rust subscriber saw.
+node/src/msg/*.msg) deserializes the CDR. node/tests/integration/python_subscriber.rs runs it
+beside an in-process node and compares what it saw with what a Rust subscriber saw.
 
     python3 scripts/zenoh_listen.py --connect tcp/127.0.0.1:7447 [--namespace NS | KEY ...]
                                     [--count N] [--timeout S] [--until-eof]

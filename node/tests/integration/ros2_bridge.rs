@@ -1,7 +1,7 @@
 //! A real ROS 2 node talks to the StereoSplat node: two rclpy nodes (ROS 2 Jazzy from the
 //! wheels, Fast DDS) on one side, the node (plain keys, namespace `stereosplat`) on the
 //! other, and between them the zenoh project's ROS 2 bridge (`zenoh-plugin-ros2dds` 1.10.2
-//! with Cyclone DDS, `ros2_bridge/`, built by `scripts/ros2_bridge.sh`). The publisher node
+//! with Cyclone DDS, `ros2_bridge/`, a workspace member). The publisher node
 //! publishes a generated drive as sensor_msgs/Image, CameraInfo and PoseStamped (read from an
 //! MCAP file this test writes, deserialized by rclpy); the listener node subscribes to the
 //! bin maps, bin poses, latency and diagnostics. Every bin the node publishes arrives in the
@@ -16,8 +16,9 @@
 //! to 127.0.0.1 (Cyclone's receive sockets: to any address, which Cyclone hard-codes; it
 //! sends only to 127.0.0.1). A domain id of its own keeps it apart from other DDS tests.
 //!
-//! Needs the bridge built (`bash scripts/ros2_bridge.sh`, which `.ci/setup` runs) and the
-//! Python side of `.ci/setup`; without them it fails and says what to run.
+//! Needs the bridge built (`cargo test --workspace` builds it; alone, `bash
+//! scripts/ros2_bridge.sh`) and the Python side of `.ci/setup`; without them it fails and says
+//! what to run.
 
 use crate::drive_support;
 use crate::python_support;
@@ -218,7 +219,7 @@ async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
     let bridge = PathBuf::from(format!("{ROOT}/target/release/stereosplat-ros2-bridge"));
     assert!(
         bridge.exists(),
-        "{} is missing: run `bash scripts/ros2_bridge.sh` (.ci/setup does)",
+        "{} is missing: run `cargo test --workspace` or `bash scripts/ros2_bridge.sh`",
         bridge.display()
     );
     let drive = Drive::generate(

@@ -9,7 +9,7 @@
 //! features and the adapter get exact gradients: the pooling is an `index_select` and an
 //! `index_add` (candle's `scatter_add` gradient for its `init` is not trusted, see
 //! `../shared/METHOD_NOTES.md`), checked against finite differences in
-//! `model/tests/volume_fusion.rs`.
+//! `model/tests/integration/volume_fusion.rs`.
 
 use candle_core::{DType, Module, Result, Tensor};
 use candle_nn::{linear, Linear, VarBuilder};

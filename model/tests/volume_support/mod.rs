@@ -1,8 +1,6 @@
 //! What the volume-branch tests share: small volumes, seeded random tensors, a
 //! central-finite-difference gradient check in `f64`, and finiteness checks.
 
-#![allow(dead_code)] // each test binary uses its own part
-
 use candle_core::{backprop::GradStore, DType, Device, Tensor, Var};
 use model::net::volume::VolumeConfig;
 use rand::{Rng, SeedableRng};

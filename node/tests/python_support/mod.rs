@@ -1,8 +1,6 @@
 //! What the tests that run Python share: the check that `python3` imports the packages a
 //! script needs, failing with the install command when it does not, plain or with the ROS 2
-//! paths of `scripts/ros2_env.sh`, and running a script that answers a JSON request (each
-//! test uses a part of it, hence the `dead_code` allowance).
-#![allow(dead_code)]
+//! paths of `scripts/ros2_env.sh`, and running a script that answers a JSON request.
 
 /// How to get the packages.
 pub const INSTALL: &str = "run `pip install -r scripts/requirements.txt` (CI does it in .ci/setup)";

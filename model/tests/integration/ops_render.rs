@@ -2,7 +2,7 @@
 //! through candle (`pack` -> `render` -> weighted sum -> `backward`), match central finite
 //! differences in f64 on small posed scenes.
 //!
-//! Tolerance as in `renderer/tests/cpu_gradients.rs`: |analytic - numeric| <=
+//! Tolerance as in `renderer/tests/integration/cpu_gradients.rs`: |analytic - numeric| <=
 //! 1e-6 + 1e-5 max(|analytic|, |numeric|) for every parameter, step 1e-6. The rasterizer has
 //! discontinuities (tile edges, the 1/255 skip, the 0.99 clamp, early termination); none of
 //! the fixed seeds below sits on one at that step, and one that did would fail loudly.

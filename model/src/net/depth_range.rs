@@ -22,6 +22,15 @@ const PERCENTILES: (f64, f64) = (0.02, 0.98);
 const MARGIN: f32 = 1.25;
 /// The narrowest range kept, as far / near: so few candidates never crowd on one depth.
 const MIN_RATIO: f32 = 3.0;
+/// The pair is matched with its rows averaged in groups of up to 4: SGM's work falls with
+/// the rows while the disparity resolution, which sets the farthest depth it can tell (and
+/// so the `auto_depth_range_max_far` gate), stays that of the full width. Shrinking the
+/// width as well broke the gate: at a third of 272x72 the farthest fitted end of every
+/// held-out street fell to 34-47 m, all 115 bins were fitted, and AbsRel went from 0.139 to
+/// 0.293.
+const ROW_GROUP: usize = 4;
+/// Fewest rows the matched pair keeps: smaller groups are used below it.
+const MIN_FIT_ROWS: usize = 24;
 
 /// A depth range in metres, `0 < near < far`.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -37,12 +46,17 @@ pub struct DepthRange {
 /// preset's) when the pair is not rectified, SGM matches less than 5% of it, anything is
 /// not finite, or the fitted far end is at or beyond `preset.auto_depth_range_max_far`.
 pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<DepthRange> {
-    let (left, right) = (pair_image(images, 0)?, pair_image(images, 1)?);
+    let pair = fit_pair(images)?;
+    let (left, right) = (pair_image(&pair, 0)?, pair_image(&pair, 1)?);
+    let at_fit_size = |camera: &Camera| Camera {
+        intrinsics: camera.intrinsics.scaled(left.width, left.height),
+        ..*camera
+    };
     let view = StereoView {
         left: &left,
         right: &right,
-        left_camera: *cameras.first()?,
-        right_camera: *cameras.get(1)?,
+        left_camera: at_fit_size(cameras.first()?),
+        right_camera: at_fit_size(cameras.get(1)?),
     };
     let baseline = rectified_baseline(&view).ok()?;
     let sgm = SgmReconstructor::new(SgmConfig {
@@ -89,6 +103,17 @@ fn range_within(near: f32, far: f32, preset: &Config) -> Option<DepthRange> {
         near = near.min(far / MIN_RATIO).max(preset.near);
     }
     (near < far).then_some(DepthRange { near, far })
+}
+
+/// The first pair of `images` with its rows averaged in groups of the largest size up to
+/// [`ROW_GROUP`] that keeps at least [`MIN_FIT_ROWS`] rows (1 for shorter images).
+fn fit_pair(images: &Tensor) -> Option<Tensor> {
+    let h = images.dim(2).ok()?;
+    let pair = images.narrow(0, 0, 2).ok()?;
+    match (h / MIN_FIT_ROWS).clamp(1, ROW_GROUP) {
+        1 => Some(pair),
+        group => pair.avg_pool2d((group, 1)).ok(),
+    }
 }
 
 /// View `index` of `images` `(V, 3, H, W)` as an [`RgbImage`].
@@ -145,6 +170,20 @@ mod tests {
         assert!(range.near >= 1.0 && range.far <= 100.0, "{range:?}");
         assert!(range.far / range.near >= MIN_RATIO - 1e-3, "{range:?}");
         assert!(range.far < 10.0, "{range:?}");
+    }
+
+    #[test]
+    fn a_tall_pair_is_matched_with_its_rows_grouped_and_the_same_range() {
+        // 96x192, fx 100, baseline 0.1 m, disparity 4 px: the plane is at 2.5 m; matched at
+        // 96x48 with the same disparities.
+        let pair = plane_pair(96, 192, 4);
+        assert_eq!(fit_pair(&pair).unwrap().dims4().unwrap(), (2, 3, 48, 96));
+        let range = scene_range(&pair, &rig(96, 192, 0.1), &Config::tiny())
+            .expect("a textured plane is matched");
+        assert!(range.near < 2.5 && range.far > 2.5, "{range:?}");
+        // Averaged rows of pixel noise match a little less cleanly (11.8 m here, under 10 m
+        // at full height): still a range about the plane, far below a street's.
+        assert!(range.far < 15.0, "{range:?}");
     }
 
     #[test]

@@ -70,6 +70,9 @@ pub struct BranchReport {
     pub volume_gaussians: usize,
     /// The depth range the candidates spanned, when `auto_depth_range` chose one.
     pub depth_range: Option<DepthRange>,
+    /// Milliseconds of the `auto_depth_range` fit (SGM on the first pair, whether or not
+    /// the range was then used); 0 when off.
+    pub range_fit_ms: f64,
 }
 
 impl LearnedReconstructor {
@@ -229,19 +232,28 @@ impl LearnedReconstructor {
         images: &Tensor,
         cameras: &[Camera],
     ) -> Result<Reconstruction, ReconstructError> {
+        let start = Instant::now();
         let range = match self.net.config().auto_depth_range {
             true => scene_range(images, cameras, self.net.config()),
             false => None,
         };
-        let Some(range) = range else {
-            return self.reconstruct_over_preset_range(images, cameras);
+        let range_fit_ms = match self.net.config().auto_depth_range {
+            true => start.elapsed().as_secs_f64() * 1e3,
+            false => 0.0,
         };
-        let ranged = self.net.with_depth_range(range);
-        let preset = std::mem::replace(&mut self.net, ranged);
-        let out = self.reconstruct_over_preset_range(images, cameras);
-        self.net = preset;
+        let out = match range {
+            None => self.reconstruct_over_preset_range(images, cameras),
+            Some(range) => {
+                let ranged = self.net.with_depth_range(range);
+                let preset = std::mem::replace(&mut self.net, ranged);
+                let out = self.reconstruct_over_preset_range(images, cameras);
+                self.net = preset;
+                out
+            }
+        };
         if let Some(last) = &mut self.last {
-            last.depth_range = Some(range);
+            last.depth_range = range;
+            last.range_fit_ms = range_fit_ms;
         }
         out
     }
@@ -311,6 +323,7 @@ impl LearnedReconstructor {
             cost_volume_gaussians: kept[0],
             volume_gaussians: kept[1],
             depth_range: None,
+            range_fit_ms: 0.0,
         });
         let set = match (cfg.merge_tolerance, cameras.first()) {
             (Some(tolerance), Some(reference)) => {

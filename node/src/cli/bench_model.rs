@@ -79,6 +79,8 @@ struct PresetReport {
     volume_branch: bool,
     cost_volume_median_ms: f64,
     volume_median_ms: f64,
+    /// The `auto_depth_range` fit (SGM on the first pair), median ms; 0 when off.
+    range_fit_median_ms: f64,
     cost_volume_gaussians: usize,
     volume_gaussians: usize,
 }
@@ -208,6 +210,7 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
             volume_branch: cfg.volume_branch,
             cost_volume_median_ms: median(&|b| b.cost_volume_ms),
             volume_median_ms: median(&|b| b.volume_ms),
+            range_fit_median_ms: median(&|b| b.range_fit_ms),
             cost_volume_gaussians: last.cost_volume_gaussians,
             volume_gaussians: last.volume_gaussians,
         };

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The paper's branch ablation (issue 15) at the `tiny` preset: four rows trained with the same
 # data (the transfer mix of scripts/transfer_data.sh), seed, schedule and warm start (the
-# shipped cost-volume weights; the volume branch starts from its seeded initialisation), then
+# cost-volume weights shipped until stop 34, below; the volume branch starts from its seeded
+# initialisation), then
 # evaluated on the same held-out drives as results/unseen_psnr (seeds 1000000 and 1000001,
 # 272x72, a bin every 5th frame, one input pair, LPIPS on):
 #   cv          Branch_CV: the cost-volume branch alone, no view subsampling
@@ -38,7 +39,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 data=data/transfer
 heldout=data/heldout272
-base=model/weights/stereosplat_tiny.safetensors
+# Every row starts from the `tiny` weights shipped until stop 34 (the transfer recipe,
+# scripts/train_tiny_transfer.sh), with the settings they were trained with: no census
+# correlation, the preset's fixed depth range (the shipped `tiny` turns both on).
+base=results/stereosplat_tiny_transfer/train/checkpoint/weights.safetensors
+before_census="--set census_matching=false --set auto_depth_range=false"
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build), e.g. a copy that edits of
 # the tree cannot break while rows train.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
@@ -48,6 +53,7 @@ rows=(cv 3d cv3d stereosplat)
 
 # The settings of a row: the same on every train, resume and eval call.
 settings() {
+  echo -n "$before_census "
   case "$1" in
     cv) echo "--set volume_branch=false --set view_subsampling=false" ;;
     3d) echo "--set volume_branch=true --set cost_volume_branch=false --set view_subsampling=false" ;;

@@ -9,11 +9,14 @@
 #   - the Aloe left image against itself shifted 12 px at 451x390: a fronto-parallel plane
 #     at 400 px x 0.1 m / 12 px = 3.33 m (bad-3, EPE, depth percentiles).
 # Writes OUT/matching_alone.json (one object per line) and prints it.
-#   bash scripts/matching_alone.sh [WEIGHTS] [OUT]
+#   bash scripts/matching_alone.sh [WEIGHTS] [OUT] [--set KEY=VALUE ...]
+# Settings after OUT go to both learned runs (e.g. `--set census_matching=false --set
+# auto_depth_range=false` for the weights shipped before stop 34).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 weights="$(realpath -m "${1:-model/weights/stereosplat_tiny.safetensors}")"
 out="$(realpath -m "${2:-out/matching_alone}")"
+extra=("${@:3}")
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 [ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --quiet --bin stereosplat
 [ -s data/real/aloe/aloeL.jpg ] || { echo "no real pairs: run bash scripts/real_data.sh" >&2; exit 1; }
@@ -60,6 +63,6 @@ print(json.dumps({"what": name, "heldout_bin_avg_absrel": absrel, "heldout_first
 EOF
 }
 run sgm --method sgm
-run as_is --method stereosplat --weights "$weights"
+run as_is --method stereosplat --weights "$weights" "${extra[@]}"
 run matching_alone --method stereosplat --weights "$out/matching_alone.safetensors" \
-  --set depth_logit_bound=0.25
+  --set depth_logit_bound=0.25 "${extra[@]}"

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # Reproduces the one-step enhancer's weights (model/weights/enhancer_tiny.safetensors) from
 # nothing, within 3 hours on the 2-core machine: 8 generated training drives (seeds 20-27:
-# streets the shipped StereoSplat never trained on, so its renders there look like the
+# streets StereoSplat never trained on, so its renders there look like the
 # node's; 300 frames, 272x72) and the 2 held-out drives of the other evaluations (seeds
 # 1000000-1000001); `enhancer-data` makes PAIRS render -> truth pairs on the training drives
-# with the shipped StereoSplat and two earlier checkpoints (the street-only weights of stop
-# 11 and the unbounded stop-10 weights, for variety), K ~ U{1..3} input pairs, and
+# with the StereoSplat `tiny` weights shipped until stop 34 (which it was trained on; kept in
+# results/stereosplat_tiny_transfer/, run with their settings) and two earlier checkpoints
+# (the street-only weights of stop 11 and the unbounded stop-10 weights, for variety),
+# K ~ U{1..3} input pairs, and
 # HELDOUT_PAIRS on the held-out drives; `train-enhancer` trains STEPS steps of batch 4;
 # `eval-enhancer` scores raw against enhanced renders on the held-out pairs (JSON).
 # Run it again after an interruption: drives, pairs and the training's checkpoint are kept
@@ -34,15 +36,17 @@ done
 if [ ! -f "$data/heldout/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
   "$bin" synth-heldout --out "$data/heldout" --sequences 2 --frames 300 --width 272 --height 72
 fi
+before_census=census_matching=false,auto_depth_range=false
+shipped=results/stereosplat_tiny_transfer/train/checkpoint/weights.safetensors@$before_census
 weights=(
-  --weights shipped=model/weights/stereosplat_tiny.safetensors
-  --weights street=results/stereosplat_tiny/train/checkpoint/weights.safetensors
-  --weights unbounded=results/stereosplat_tiny_unbounded/train/checkpoint/weights.safetensors@depth_logit_bound=null
+  --weights "shipped=$shipped"
+  --weights "street=results/stereosplat_tiny/train/checkpoint/weights.safetensors@$before_census"
+  --weights "unbounded=results/stereosplat_tiny_unbounded/train/checkpoint/weights.safetensors@depth_logit_bound=null,$before_census"
 )
 "$bin" enhancer-data --data "$data/drives" --out "$data/pairs" --pairs "$pairs" --seed 0 "${weights[@]}"
-# Held-out pairs: the shipped weights only (what the node runs), another seed.
+# Held-out pairs: those weights only (what the node ran), another seed.
 "$bin" enhancer-data --data "$data/heldout" --out "$data/heldout_pairs" --pairs "$heldout_pairs" \
-  --seed 1
+  --seed 1 --weights "shipped=$shipped"
 resume=()
 [ -f "$run/checkpoint/state.json" ] && resume=(--resume)
 "$bin" train-enhancer --pairs "$data/pairs" --preset tiny --out "$run" --steps "$steps" "${resume[@]}"

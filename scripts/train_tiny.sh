@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Reproduces the shipped tiny weights (model/weights/stereosplat_tiny.safetensors) from
-# scratch: eight generated training drives (seeds 0-7, 300 frames each, 272x72), then
+# Reproduces the street-trained tiny weights (results/stereosplat_tiny/train/, the start of
+# scripts/train_tiny_transfer.sh) from scratch, with the settings they were trained with (no
+# census correlation, the fixed depth range): eight generated training drives (seeds 0-7, 300 frames each, 272x72), then
 # `stereosplat train` with the defaults (seed 0, lr 1e-3 after 200 warm-up steps, 2 targets
 # per step) in three phases: steps 1-PHASE1 with stochastic view subsampling (m ~ U{1..3}
 # pairs); then to 3000 with the bin's first pair as input (`--no-subsample`, the evaluation
@@ -15,7 +16,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/train272}"
 run="${2:-runs/tiny}"
-extra=("${@:3}")
+extra=(--set census_matching=false --set auto_depth_range=false "${@:3}")
 bin=target/release/stereosplat
 cargo build --release --bin stereosplat
 for seed in 0 1 2 3 4 5 6 7; do

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Reproduces the shipped tiny weights (model/weights/stereosplat_tiny.safetensors) since issue
-# 14: the street-trained weights of `scripts/train_tiny.sh` (kept in
+# Reproduces the tiny weights shipped from issue 14's first stop until stop 34 (kept in
+# results/stereosplat_tiny_transfer/train/checkpoint/weights.safetensors; the start of every
+# scripts/ablation_tiny.sh row and of scripts/train_tiny_census.sh, which makes today's): the
+# street-trained weights of `scripts/train_tiny.sh` (kept in
 # results/stereosplat_tiny/train/checkpoint/weights.safetensors) fine-tuned on a mix of the
 # plain generated streets (seeds 0-7, as before) and domain-randomised drives (seeds 100-115:
 # photo textures, random lighting and colours, rigs of 45-100 degrees and 5-60 cm baselines at
@@ -9,14 +11,15 @@
 # transfers to real photographs while keeping its street quality. Resumable: drives already
 # written are kept, training resumes from its checkpoint.
 #   bash scripts/train_tiny_transfer.sh [DATA_DIR] [RUN_DIR] [STEPS] [TRAIN FLAGS ...]
-# Flags after STEPS go to every `stereosplat train` call, e.g. `--matching-weight 0.5 --set
-# census_matching=true` (issue 14's candidate recipe, results/transfer_diagnosis/).
+# Flags after STEPS go to every `stereosplat train` call, after the settings those weights
+# were trained with (`census_matching=false`, `auto_depth_range=false`), e.g.
+# `--matching-weight 0.5 --set census_matching=true` (results/transfer_diagnosis/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/transfer}"
 run="${2:-runs/tiny_transfer}"
 steps="${3:-6000}"
-extra=("${@:4}")
+extra=(--set census_matching=false --set auto_depth_range=false "${@:4}")
 base=results/stereosplat_tiny/train/checkpoint/weights.safetensors
 # STEREOSPLAT_BIN: a built binary to use as is, e.g. a copy that edits of the tree cannot break.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
@@ -29,4 +32,4 @@ if [ -f "$run/checkpoint/state.json" ]; then
 else
   "$bin" train "${flags[@]}" --init "$base"
 fi
-echo "weights: $run/stereosplat_tiny.safetensors (copy to model/weights/ to ship them)"
+echo "weights: $run/stereosplat_tiny.safetensors"

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Trains the `tiny` preset with both branches (cost volume + 3D volume, issue 15), warm-started
-# from the shipped cost-volume weights (model/weights/stereosplat_tiny.safetensors): every
-# tensor of that file is loaded, the volume branch (`volume.*`) starts from the seeded
-# initialisation (the run prints which tensors were fresh). Data: the transfer mix of
-# `scripts/transfer_data.sh` (the shipped weights' own data). Schedule: the transfer
+# from the cost-volume weights shipped until stop 34 (results/stereosplat_tiny_transfer/train/
+# checkpoint/weights.safetensors, with their settings: no census correlation, the fixed depth
+# range): every tensor of that file is loaded, the volume branch (`volume.*`) starts from the
+# seeded initialisation (the run prints which tensors were fresh). Data: the transfer mix of
+# `scripts/transfer_data.sh` (those weights' own data). Schedule: the transfer
 # fine-tuning's settings (lr 5e-4 after 100 warm-up steps, relative depth loss at weight 0.5)
 # with stochastic view subsampling (the paper's full StereoSplat row); the volume branch adds
 # its occupancy loss (LiDAR of the whole bin, weight 0.05) and the volume-only render on
@@ -18,7 +19,7 @@ data="${1:-data/transfer}"
 run="${2:-runs/tiny_volume}"
 steps="${3:-3000}"
 extra=("${@:4}")
-base=model/weights/stereosplat_tiny.safetensors
+base=results/stereosplat_tiny_transfer/train/checkpoint/weights.safetensors
 bin=target/release/stereosplat
 if [ ! -f "$data/rand_115/data_poses/synth_drive_0000115_sync/poses.txt" ]; then
   bash scripts/transfer_data.sh "$data"
@@ -26,7 +27,8 @@ fi
 cargo build --release --workspace
 flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4 --warmup 100
   --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
-  --set volume_branch=true "${extra[@]}")
+  --set census_matching=false --set auto_depth_range=false --set volume_branch=true
+  "${extra[@]}")
 if [ -f "$run/checkpoint/state.json" ]; then
   "$bin" train "${flags[@]}" --resume
 else

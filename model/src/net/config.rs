@@ -69,8 +69,8 @@ pub struct Config {
     /// generated streets to real photographs (issue 14).
     #[serde(default)]
     pub census_matching: bool,
-    /// Spend the depth candidates on the depths the pair shows: SGM on the first pair
-    /// measures its disparities and the candidates span them (2nd to 98th percentile, a 25%
+    /// Spend the depth candidates on the depths the pair shows: SGM on the first pair (at up
+    /// to a quarter of the working size) measures its disparities and the candidates span them (2nd to 98th percentile, a 25%
     /// margin, at least a factor 3) inside `near..far` ([`super::depth_range`]). Off: always
     /// `near..far`. Training with it on spans each sample's own range the same way, so the
     /// network learns its candidates relative to it (weights trained without it read them as
@@ -259,6 +259,11 @@ impl Config {
     }
 
     /// Real time on a 2-core CPU: small channels, 32 candidates, Gaussians at 1/2 resolution.
+    /// Since stop 34 (issue 14) with the census correlation in the matching term, and the
+    /// depth range fitted to scenes nearer than 50 m (rooms, objects), which leaves every
+    /// street at 1-100 m: the shipped weights learned the census
+    /// (`scripts/train_tiny_census.sh`), and moved the real pairs from 95% to 60% (Aloe) bad
+    /// pixels at the streets' quality (`results/stereosplat_tiny_census_gate/`).
     pub fn tiny() -> Self {
         Self {
             name: "tiny".into(),
@@ -279,9 +284,9 @@ impl Config {
             unet_channels: 32,
             depth_logit_bound: Some(4.0),
             backbone_matching: false,
-            census_matching: false,
-            auto_depth_range: false,
-            auto_depth_range_max_far: None,
+            census_matching: true,
+            auto_depth_range: true,
+            auto_depth_range_max_far: Some(50.0),
             head_channels: 24,
             gaussian_stride: 2,
             opacity_floor: 0.02,
@@ -308,7 +313,8 @@ impl Config {
     /// Twice the channels and candidates of `tiny`, two transformer layers. One residual block
     /// per encoder, as `tiny`: with two (no normalisation in the blocks) training stalled at
     /// LPIPS 0.68 where one block reaches 0.47 in the same 400 steps
-    /// (`results/stereosplat_small/README.md`).
+    /// (`results/stereosplat_small/README.md`). Without `tiny`'s census correlation and fitted
+    /// range: no `small` weights were trained with them.
     pub fn small() -> Self {
         Self {
             name: "small".into(),
@@ -324,12 +330,16 @@ impl Config {
             unet_channels: 48,
             head_channels: 48,
             volume: VolumeConfig::small(),
+            census_matching: false,
+            auto_depth_range: false,
+            auto_depth_range_max_far: None,
             ..Self::tiny()
         }
     }
 
     /// The paper's settings: 192 candidates, Gaussians at full resolution, six transformer
-    /// layers (DepthSplat's), 128-channel features.
+    /// layers (DepthSplat's), 128-channel features; without `tiny`'s census correlation and
+    /// fitted range, as `small`.
     pub fn paper() -> Self {
         Self {
             name: "paper".into(),
@@ -348,6 +358,9 @@ impl Config {
             gaussian_stride: 1,
             max_gaussians: 2_000_000,
             volume: VolumeConfig::paper(),
+            census_matching: false,
+            auto_depth_range: false,
+            auto_depth_range_max_far: None,
             ..Self::tiny()
         }
     }
@@ -369,15 +382,19 @@ impl Config {
     /// `tiny` with the 3D-volume branch beside the cost volume (the paper's CV + 3D row), its
     /// own weights (`model/weights/stereosplat_tiny-3d.safetensors`, `bash
     /// scripts/train_tiny_3d.sh`): better depth and LPIPS than `tiny` and Gaussians where the
-    /// input pair saw nothing, at about 2.3 times its latency at 272x72 (`results/tiny_3d/`). The
+    /// input pair saw nothing, at about 1.8 times its latency at 272x72 (`results/pareto/`). The
     /// volume's Gaussians that an input view already explains are dropped
-    /// (`volume_fusion_margin` 0.5).
+    /// (`volume_fusion_margin` 0.5). Its weights were trained from the `tiny` weights shipped
+    /// until stop 34, without the census correlation or the fitted range, so it runs without.
     pub fn tiny_3d() -> Self {
         Self {
             name: "tiny-3d".into(),
             volume_branch: true,
             volume_fusion_margin: Some(0.5),
             view_subsampling: false,
+            census_matching: false,
+            auto_depth_range: false,
+            auto_depth_range_max_far: None,
             ..Self::tiny()
         }
     }

@@ -155,7 +155,8 @@ fn a_generated_pair_gives_the_files_and_its_depth() {
         assert!(s["gaussians"].as_u64().unwrap() > 1000);
         let ply = renderer::ply::load_ply(out.join("gaussians.ply")).unwrap();
         assert_eq!(ply.len() as u64, s["gaussians"].as_u64().unwrap());
-        // Without `auto_depth_range` the preset's range is used and none is reported.
+        // A street reaches beyond the preset's 50-m bound on the fitted far end
+        // (`auto_depth_range_max_far`): the preset's range is used and none is reported.
         assert!(
             s["depth_range_m"].is_null(),
             "{method}: {}",

@@ -69,10 +69,10 @@ pub struct Config {
     /// generated streets to real photographs (issue 14).
     #[serde(default)]
     pub census_matching: bool,
-    /// Spend the depth candidates on the depths the pair shows: SGM on the first pair (at up
-    /// to a quarter of the working size) measures its disparities and the candidates span them (2nd to 98th percentile, a 25%
-    /// margin, at least a factor 3) inside `near..far` ([`super::depth_range`]). Off: always
-    /// `near..far`. Training with it on spans each sample's own range the same way, so the
+    /// Spend the depth candidates on the depths the pair shows: SGM on the first pair (its
+    /// rows averaged in groups of up to 4, at full width) measures its disparities and the
+    /// candidates span them (2nd to 98th percentile, a 25% margin, at least a factor 3)
+    /// inside `near..far` ([`super::depth_range`]). Off: always `near..far`. Training with it on spans each sample's own range the same way, so the
     /// network learns its candidates relative to it (weights trained without it read them as
     /// fixed depths, and the streets break under it). Pseudo pairs of the progressive pass
     /// keep `near..far`.
@@ -330,10 +330,7 @@ impl Config {
             unet_channels: 48,
             head_channels: 48,
             volume: VolumeConfig::small(),
-            census_matching: false,
-            auto_depth_range: false,
-            auto_depth_range_max_far: None,
-            ..Self::tiny()
+            ..Self::tiny().without_census_or_fit()
         }
     }
 
@@ -358,10 +355,7 @@ impl Config {
             gaussian_stride: 1,
             max_gaussians: 2_000_000,
             volume: VolumeConfig::paper(),
-            census_matching: false,
-            auto_depth_range: false,
-            auto_depth_range_max_far: None,
-            ..Self::tiny()
+            ..Self::tiny().without_census_or_fit()
         }
     }
 
@@ -392,10 +386,18 @@ impl Config {
             volume_branch: true,
             volume_fusion_margin: Some(0.5),
             view_subsampling: false,
+            ..Self::tiny().without_census_or_fit()
+        }
+    }
+
+    /// These settings without the census correlation and the fitted depth range, for the
+    /// presets built on `tiny` whose weights were trained without them.
+    fn without_census_or_fit(self) -> Self {
+        Self {
             census_matching: false,
             auto_depth_range: false,
             auto_depth_range_max_far: None,
-            ..Self::tiny()
+            ..self
         }
     }
 

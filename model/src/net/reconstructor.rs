@@ -232,14 +232,13 @@ impl LearnedReconstructor {
         images: &Tensor,
         cameras: &[Camera],
     ) -> Result<Reconstruction, ReconstructError> {
-        let start = Instant::now();
-        let range = match self.net.config().auto_depth_range {
-            true => scene_range(images, cameras, self.net.config()),
-            false => None,
-        };
-        let range_fit_ms = match self.net.config().auto_depth_range {
-            true => start.elapsed().as_secs_f64() * 1e3,
-            false => 0.0,
+        let (range, range_fit_ms) = match self.net.config().auto_depth_range {
+            true => {
+                let start = Instant::now();
+                let range = scene_range(images, cameras, self.net.config());
+                (range, start.elapsed().as_secs_f64() * 1e3)
+            }
+            false => (None, 0.0),
         };
         let out = match range {
             None => self.reconstruct_over_preset_range(images, cameras),

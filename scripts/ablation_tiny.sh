@@ -41,9 +41,9 @@ data=data/transfer
 heldout=data/heldout272
 # Every row starts from the `tiny` weights shipped until stop 34 (the transfer recipe,
 # scripts/train_tiny_transfer.sh), with the settings they were trained with: no census
-# correlation, the preset's fixed depth range (the shipped `tiny` turns both on).
+# correlation, the preset's fixed depth range, no SGM hints (the shipped `tiny` turns all on).
 base=results/stereosplat_tiny_transfer/train/checkpoint/weights.safetensors
-before_census="--set census_matching=false --set auto_depth_range=false"
+before_census="--set census_matching=false --set auto_depth_range=false --set sgm_guidance=null"
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build), e.g. a copy that edits of
 # the tree cannot break while rows train.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"

@@ -11,7 +11,7 @@
 # Writes OUT/matching_alone.json (one object per line) and prints it.
 #   bash scripts/matching_alone.sh [WEIGHTS] [OUT] [--set KEY=VALUE ...]
 # Settings after OUT go to both learned runs (e.g. `--set census_matching=false --set
-# auto_depth_range=false` for the weights shipped before stop 34).
+# auto_depth_range=false --set sgm_guidance=null` for the weights shipped before stop 34).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 weights="$(realpath -m "${1:-model/weights/stereosplat_tiny.safetensors}")"

@@ -16,7 +16,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/train272}"
 run="${2:-runs/tiny}"
-extra=(--set census_matching=false --set auto_depth_range=false "${@:3}")
+extra=(--set census_matching=false --set auto_depth_range=false --set sgm_guidance=null "${@:3}")
 bin=target/release/stereosplat
 cargo build --release --bin stereosplat
 for seed in 0 1 2 3 4 5 6 7; do

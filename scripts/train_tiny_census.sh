@@ -5,8 +5,9 @@
 # more steps on the transfer mix (scripts/transfer_data.sh) with the soft census correlation
 # in the matching term (`census_matching=true`) and the matching loss at weight 0.5, at seed 0,
 # in its own run folder runs/tiny_census/cv_census05, then copied into model/weights/. The
-# `tiny` preset runs them with the census on and the depth range fitted to near scenes
-# (`auto_depth_range=true`, `auto_depth_range_max_far=50`). Resumable: run it again after any
+# `tiny` preset runs them with the census on, the depth range fitted to near scenes
+# (`auto_depth_range=true`, `auto_depth_range_max_far=50`) and, since stop 35, SGM's matches
+# guiding near scenes (`sgm_guidance=10`; trained without them). Resumable: run it again after any
 # interruption. About 45 minutes on the 2-core machine (0.57 steps/s).
 #   bash scripts/train_tiny_census.sh
 set -euo pipefail

@@ -12,14 +12,14 @@
 # written are kept, training resumes from its checkpoint.
 #   bash scripts/train_tiny_transfer.sh [DATA_DIR] [RUN_DIR] [STEPS] [TRAIN FLAGS ...]
 # Flags after STEPS go to every `stereosplat train` call, after the settings those weights
-# were trained with (`census_matching=false`, `auto_depth_range=false`), e.g.
+# were trained with (`census_matching=false`, `auto_depth_range=false`, `sgm_guidance=null`), e.g.
 # `--matching-weight 0.5 --set census_matching=true` (results/transfer_diagnosis/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/transfer}"
 run="${2:-runs/tiny_transfer}"
 steps="${3:-6000}"
-extra=(--set census_matching=false --set auto_depth_range=false "${@:4}")
+extra=(--set census_matching=false --set auto_depth_range=false --set sgm_guidance=null "${@:4}")
 base=results/stereosplat_tiny/train/checkpoint/weights.safetensors
 # STEREOSPLAT_BIN: a built binary to use as is, e.g. a copy that edits of the tree cannot break.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"

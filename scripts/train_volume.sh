@@ -27,7 +27,7 @@ fi
 cargo build --release --workspace
 flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4 --warmup 100
   --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
-  --set census_matching=false --set auto_depth_range=false --set volume_branch=true
+  --set census_matching=false --set auto_depth_range=false --set sgm_guidance=null --set volume_branch=true
   "${extra[@]}")
 if [ -f "$run/checkpoint/state.json" ]; then
   "$bin" train "${flags[@]}" --resume

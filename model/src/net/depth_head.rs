@@ -28,6 +28,8 @@ pub struct ExtraCosts<'a> {
     pub backbone: Option<&'a Tensor>,
     /// With `census_matching`: the aggregated census correlation of the grey images.
     pub census: Option<&'a Tensor>,
+    /// With `sgm_guidance`: the hints' bumps ([`super::guidance`]), added as they are.
+    pub guidance: Option<&'a Tensor>,
 }
 
 /// The head's estimate at 1/4 resolution.
@@ -125,6 +127,9 @@ impl DepthHead {
                 sharpened = (sharpened + extra.broadcast_mul(&weight)?)?;
             }
         }
+        if let Some(guidance) = extra.guidance {
+            sharpened = (sharpened + guidance)?;
+        }
         let unet = self.logits.forward(&x)?;
         let unet = match self.logit_bound {
             Some(b) => ((unet / b as f64)?.tanh()? * b as f64)?,
@@ -196,7 +201,7 @@ mod tests {
                 &features,
                 ExtraCosts {
                     backbone: Some(&backbone),
-                    census: None,
+                    ..ExtraCosts::default()
                 },
             )
             .unwrap();
@@ -230,7 +235,7 @@ mod tests {
                     &features,
                     ExtraCosts {
                         backbone: Some(backbone.as_tensor()),
-                        census: None,
+                        ..ExtraCosts::default()
                     },
                 )
                 .unwrap();

@@ -8,6 +8,7 @@
 use candle_core::Tensor;
 use renderer::Camera;
 
+use super::guidance::SgmHints;
 use super::Config;
 use crate::baseline::{rectified_baseline, SgmConfig, SgmReconstructor};
 use crate::frame::RgbImage;
@@ -41,12 +42,30 @@ pub struct DepthRange {
     pub far: f32,
 }
 
+/// What SGM on the first pair found: the depth range to use (`None`: the preset's) and its
+/// disparities, the hints of `sgm_guidance`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneFit {
+    /// The fitted range; `None` when anything is not finite or the fitted far end is at or
+    /// beyond `preset.auto_depth_range_max_far`.
+    pub range: Option<DepthRange>,
+    /// SGM's disparities of the first pair at the fit's size.
+    pub hints: SgmHints,
+}
+
 /// The range of the scene that the first pair of `images` `(2K, 3, H, W)` in `[0, 1]` (left,
 /// right, ...) with its `cameras` shows, inside `preset`'s `[near, far]`; `None` (keep the
 /// preset's) when the pair is not rectified, SGM matches less than 5% of it, anything is
 /// not finite, or the fitted far end is at or beyond `preset.auto_depth_range_max_far`.
 pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<DepthRange> {
-    let pair = fit_pair(images)?;
+    fit_scene(images, cameras, preset)?.range
+}
+
+/// SGM on the first pair of `images` with its `cameras`: its disparities and the range they
+/// span ([`scene_range`]); `None` when the pair is not rectified or SGM matches less than 5%
+/// of it.
+pub fn fit_scene(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<SceneFit> {
+    let (pair, row_group) = fit_pair(images)?;
     let (left, right) = (pair_image(&pair, 0)?, pair_image(&pair, 1)?);
     let at_fit_size = |camera: &Camera| Camera {
         intrinsics: camera.intrinsics.scaled(left.width, left.height),
@@ -80,13 +99,21 @@ pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Opti
     let far = fb / low.max(f32::MIN_POSITIVE);
     // A NaN bound fits nothing: only a far end known to be below it passes.
     let within = |max: f32| far.partial_cmp(&max) == Some(std::cmp::Ordering::Less);
-    if preset
+    let gated = preset
         .auto_depth_range_max_far
-        .is_some_and(|max| !within(max))
-    {
-        return None;
-    }
-    range_within(fb / high, far, preset)
+        .is_some_and(|max| !within(max));
+    Some(SceneFit {
+        range: (!gated)
+            .then(|| range_within(fb / high, far, preset))
+            .flatten(),
+        hints: SgmHints {
+            width: map.width as usize,
+            height: map.height as usize,
+            disparity: map.disparity,
+            row_group,
+            fx_baseline: fb,
+        },
+    })
 }
 
 /// `[near, far]` clamped into the preset's range and widened about its geometric mean to
@@ -106,13 +133,14 @@ fn range_within(near: f32, far: f32, preset: &Config) -> Option<DepthRange> {
 }
 
 /// The first pair of `images` with its rows averaged in groups of the largest size up to
-/// [`ROW_GROUP`] that keeps at least [`MIN_FIT_ROWS`] rows (1 for shorter images).
-fn fit_pair(images: &Tensor) -> Option<Tensor> {
+/// [`ROW_GROUP`] that keeps at least [`MIN_FIT_ROWS`] rows (1 for shorter images), and that
+/// group size.
+fn fit_pair(images: &Tensor) -> Option<(Tensor, usize)> {
     let h = images.dim(2).ok()?;
     let pair = images.narrow(0, 0, 2).ok()?;
     match (h / MIN_FIT_ROWS).clamp(1, ROW_GROUP) {
-        1 => Some(pair),
-        group => pair.avg_pool2d((group, 1)).ok(),
+        1 => Some((pair, 1)),
+        group => Some((pair.avg_pool2d((group, 1)).ok()?, group)),
     }
 }
 
@@ -177,7 +205,8 @@ mod tests {
         // 96x192, fx 100, baseline 0.1 m, disparity 4 px: the plane is at 2.5 m; matched at
         // 96x48 with the same disparities.
         let pair = plane_pair(96, 192, 4);
-        assert_eq!(fit_pair(&pair).unwrap().dims4().unwrap(), (2, 3, 48, 96));
+        let (grouped, group) = fit_pair(&pair).unwrap();
+        assert_eq!((grouped.dims4().unwrap(), group), ((2, 3, 48, 96), 4));
         let range = scene_range(&pair, &rig(96, 192, 0.1), &Config::tiny())
             .expect("a textured plane is matched");
         assert!(range.near < 2.5 && range.far > 2.5, "{range:?}");

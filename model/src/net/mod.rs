@@ -17,6 +17,7 @@ pub mod depth_range;
 mod encoders;
 mod gaussian_head;
 mod geometry;
+pub mod guidance;
 pub mod merge;
 pub mod pair_fusion;
 pub mod prune;

@@ -11,7 +11,7 @@ use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
 use super::config::weights_preset;
-use super::depth_range::{scene_range, DepthRange};
+use super::depth_range::DepthRange;
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
 use super::warm_start::{frozen, load_matching, WarmStart};
@@ -232,22 +232,20 @@ impl LearnedReconstructor {
         images: &Tensor,
         cameras: &[Camera],
     ) -> Result<Reconstruction, ReconstructError> {
-        let (range, range_fit_ms) = match self.net.config().auto_depth_range {
-            true => {
-                let start = Instant::now();
-                let range = scene_range(images, cameras, self.net.config());
-                (range, start.elapsed().as_secs_f64() * 1e3)
-            }
-            false => (None, 0.0),
-        };
-        let out = match range {
-            None => self.reconstruct_over_preset_range(images, cameras),
-            Some(range) => {
-                let ranged = self.net.with_depth_range(range);
-                let preset = std::mem::replace(&mut self.net, ranged);
+        let start = Instant::now();
+        let fitted = self.net.fitted_to_scene(images, cameras);
+        let range_fit_ms =
+            match self.net.config().auto_depth_range || self.net.config().sgm_guidance.is_some() {
+                true => start.elapsed().as_secs_f64() * 1e3,
+                false => 0.0,
+            };
+        let (out, range) = match fitted {
+            None => (self.reconstruct_over_preset_range(images, cameras), None),
+            Some((fitted, range)) => {
+                let preset = std::mem::replace(&mut self.net, fitted);
                 let out = self.reconstruct_over_preset_range(images, cameras);
                 self.net = preset;
-                out
+                (out, range)
             }
         };
         if let Some(last) = &mut self.last {

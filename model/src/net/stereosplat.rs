@@ -3,6 +3,8 @@
 //! triplane the cost-volume Gaussians and the views' features fill; the output set is
 //! G = G_cv ∪ G_vol (only G_vol without `cost_volume_branch`: the paper's Branch_3D row).
 
+use std::sync::Arc;
+
 use candle_core::{Device, Module, Result, Tensor};
 use candle_nn::VarBuilder;
 
@@ -13,9 +15,10 @@ use super::blocks::conv;
 use super::census_volume::census_volume;
 use super::cost_volume::{candidate_depths, cost_volume};
 use super::depth_head::{peak, DepthHead, ExtraCosts};
-use super::depth_range::DepthRange;
+use super::depth_range::{fit_scene, DepthRange};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
+use super::guidance::{hint_volume, GuidanceStrength, SgmHints};
 use super::transformer::MultiViewTransformer;
 use super::volume::{BranchInputs, GaussiansPerBranch, VolumeBranch, VolumeOutput};
 use super::Config;
@@ -104,6 +107,8 @@ pub struct StereoSplat {
     gaussians: GaussianHead,
     volume: Option<VolumeBranch>,
     depths: Vec<f64>,
+    /// With `sgm_guidance`: SGM's matches of the first pair ([`StereoSplat::fitted_to_scene`]).
+    guidance: Option<Arc<SgmHints>>,
     cfg: Config,
     device: Device,
 }
@@ -134,6 +139,7 @@ impl StereoSplat {
             gaussians: GaussianHead::new(vb.pp("gaussians"), cfg, context)?,
             volume,
             depths: candidate_depths(cfg),
+            guidance: None,
             cfg: cfg.clone(),
             device: vb.device().clone(),
         })
@@ -148,6 +154,34 @@ impl StereoSplat {
         net.cfg.far = range.far;
         net.depths = candidate_depths(&net.cfg);
         net
+    }
+
+    /// The same network fitted to the scene the first pair of `images` shows: its depth
+    /// range with `auto_depth_range`, SGM's matches as hints with `sgm_guidance`, both from
+    /// one SGM run ([`fit_scene`]) and both only on scenes whose fitted range passes
+    /// `auto_depth_range_max_far` (near scenes, where SGM's disparities are large and its
+    /// matches precise; on the streets the hints cost 0.5 dB). `None` when neither is on
+    /// or SGM could not match the pair; the range is `None` where the preset's stays.
+    pub fn fitted_to_scene(
+        &self,
+        images: &Tensor,
+        cameras: &[Camera],
+    ) -> Option<(Self, Option<DepthRange>)> {
+        let cfg = &self.cfg;
+        if !cfg.auto_depth_range && cfg.sgm_guidance.is_none() {
+            return None;
+        }
+        let fit = fit_scene(images, cameras, cfg)?;
+        let near_scene = fit.range.is_some();
+        let range = fit.range.filter(|_| cfg.auto_depth_range);
+        let mut net = match range {
+            Some(range) => self.with_depth_range(range),
+            None => self.clone(),
+        };
+        if cfg.sgm_guidance.is_some() && near_scene {
+            net.guidance = Some(Arc::new(fit.hints));
+        }
+        Some((net, range))
     }
 
     /// The preset.
@@ -215,9 +249,25 @@ impl StereoSplat {
             .census_matching
             .then(|| census_volume(images, cameras, &self.depths, &self.cfg, COST_STRIDE))
             .transpose()?;
+        let guidance = match (&self.guidance, self.cfg.sgm_guidance) {
+            (Some(hints), Some(height)) => Some(hint_volume(
+                hints,
+                &self.depths,
+                v,
+                (h, w),
+                COST_STRIDE,
+                GuidanceStrength {
+                    height,
+                    width: self.cfg.sgm_guidance_width,
+                },
+                &self.device,
+            )?),
+            _ => None,
+        };
         let extra = ExtraCosts {
             backbone: backbone_cost.as_ref(),
             census: census_cost.as_ref(),
+            guidance: guidance.as_ref(),
         };
         let coarse = self.depth_head.forward(&cost, &features, extra)?;
 

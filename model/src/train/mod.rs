@@ -37,7 +37,6 @@ pub use pseudo_mix::mix_pseudo_pairs;
 use crate::bins::BinConfig;
 use crate::compute::ComputeDevice;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
-use crate::net::depth_range::scene_range;
 use crate::net::volume::VolumeConfig;
 use crate::net::{load_matching, Config, StereoSplat, WarmStart};
 use renderer::RenderSettings;
@@ -300,12 +299,12 @@ impl Trainer {
                 &mut rng,
             )?;
             // With `auto_depth_range` the candidates span the sample's own scene, as they
-            // will at inference, so the network learns them relative to that range.
-            let ranged = match self.net.config().auto_depth_range {
-                true => scene_range(&sample.images, &sample.cameras, self.net.config())
-                    .map(|range| self.net.with_depth_range(range)),
-                false => None,
-            };
+            // will at inference, so the network learns them relative to that range; with
+            // `sgm_guidance` the sample's SGM hints join the logits, as at inference.
+            let ranged = self
+                .net
+                .fitted_to_scene(&sample.images, &sample.cameras)
+                .map(|(net, _)| net);
             let net = ranged.as_ref().unwrap_or(&self.net);
             let prediction = net.forward(&sample.images, &sample.cameras)?;
             let l = losses(

@@ -39,8 +39,8 @@ impl SgmHints {
         let mut right = vec![f32::NAN; self.disparity.len()];
         for (left, out) in self
             .disparity
-            .chunks(self.width)
-            .zip(right.chunks_mut(self.width))
+            .chunks(self.width.max(1))
+            .zip(right.chunks_mut(self.width.max(1)))
         {
             for (x, &d) in left.iter().enumerate() {
                 let xr = (x as f32 - d).round();

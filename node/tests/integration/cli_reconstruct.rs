@@ -465,8 +465,8 @@ fn real_aloe_pair_sgm_keeps_its_score_and_the_learned_one_is_finite() {
         println!("{method}: {t}");
         let check = &s["check"];
         println!("{method}: self-check {check}");
-        // The learned model fails the self-check on this real pair (score 0.06 with the
-        // shipped weights): by default SGM's reconstruction is written instead.
+        // The learned model fails the self-check on this real pair (score 0.55 with the
+        // stop-35 weights, 0.6 passes): by default SGM's reconstruction is written instead.
         let replaced = check["verdict"] == "fail" && check["action"] == "sgm";
         if method == "stereosplat" {
             assert!(check["verdict"] == "pass" || replaced, "{check}");
@@ -483,8 +483,9 @@ fn real_aloe_pair_sgm_keeps_its_score_and_the_learned_one_is_finite() {
 
 #[test]
 fn sgm_guidance_brings_the_learned_model_closer_to_the_aloe_truth() {
-    // The shipped tiny guides its depth head with SGM's matches on near scenes (measured:
-    // 49.1% bad-3 against 59.6% without, 12.8 px EPE against 16.8; SGM 17.0%).
+    // The shipped tiny guides its depth head with SGM's matches on near scenes (measured
+    // with the stop-35 weights: 41.7% bad-3 against 57.3% without, 11.9 px EPE against 14.6;
+    // SGM 17.0%).
     let data = aloe();
     let mut scores = Vec::new();
     for guidance in ["10", "null"] {
@@ -518,5 +519,5 @@ fn sgm_guidance_brings_the_learned_model_closer_to_the_aloe_truth() {
         guided_bad3 < 52.0 && guided_bad3 < plain_bad3 - 5.0,
         "{scores:?}"
     );
-    assert!(guided_epe < plain_epe - 2.0, "{scores:?}");
+    assert!(guided_epe < plain_epe - 1.5, "{scores:?}");
 }

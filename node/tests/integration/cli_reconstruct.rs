@@ -173,19 +173,7 @@ fn auto_depth_range_fits_the_aloe_pair_and_is_reported() {
     for max_far in ["50", "5"] {
         let out = temp_dir(&format!("reconstruct-aloe-auto-range-{max_far}"));
         let bound = format!("auto_depth_range_max_far={max_far}");
-        let args = aloe_args(
-            &out,
-            &[
-                "--method",
-                "stereosplat",
-                "--on-check-fail",
-                "flag",
-                "--set",
-                "auto_depth_range=true",
-                "--set",
-                &bound,
-            ],
-        );
+        let args = aloe_args(&out, &learned_flagged(&["auto_depth_range=true", &bound]));
         let (ok, text) = reconstruct(&args);
         assert!(ok, "{text}");
         let s = summary(&out);
@@ -435,6 +423,15 @@ fn aloe() -> PathBuf {
     dir
 }
 
+/// The learned model's own output (`--on-check-fail flag`) with `settings` (`KEY=VALUE`).
+fn learned_flagged<'a>(settings: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec!["--method", "stereosplat", "--on-check-fail", "flag"];
+    for setting in settings {
+        args.extend(["--set", setting]);
+    }
+    args
+}
+
 /// `reconstruct` arguments for the Aloe pair (and its calibration) into `out`, then `extra`.
 fn aloe_args(out: &Path, extra: &[&str]) -> Vec<String> {
     let data = aloe();
@@ -491,17 +488,7 @@ fn sgm_guidance_brings_the_learned_model_closer_to_the_aloe_truth() {
     for guidance in ["10", "null"] {
         let out = temp_dir(&format!("reconstruct-aloe-guidance-{guidance}"));
         let setting = format!("sgm_guidance={guidance}");
-        let mut args = aloe_args(
-            &out,
-            &[
-                "--method",
-                "stereosplat",
-                "--on-check-fail",
-                "flag",
-                "--set",
-                &setting,
-            ],
-        );
+        let mut args = aloe_args(&out, &learned_flagged(&[&setting]));
         args.extend([
             "--truth-disparity".into(),
             data.join("aloeGT.png").display().to_string(),

@@ -349,13 +349,15 @@ impl LearnedReconstructor {
     }
 
     /// Each pair (views `2k`, `2k + 1`) through the cost-volume branch alone, the predictions
-    /// joined in view order: the first pair's Gaussians are exactly what it gives alone. (The
-    /// volume branch then sees all views at once: it reasons in the bin frame.)
+    /// joined in view order: the first pair's Gaussians are exactly what it gives alone. SGM's
+    /// hints (`sgm_guidance`) were matched on the first pair and guide it only. (The volume
+    /// branch then sees all views at once: it reasons in the bin frame.)
     fn pair_by_pair(&self, images: &Tensor, cameras: &[Camera]) -> candle_core::Result<Prediction> {
+        let unguided = self.net.without_hints();
         let parts = (0..cameras.len() / 2)
             .map(|k| {
-                self.net
-                    .cost_volume(&images.narrow(0, 2 * k, 2)?, &cameras[2 * k..2 * k + 2])
+                let net = if k == 0 { &self.net } else { &unguided };
+                net.cost_volume(&images.narrow(0, 2 * k, 2)?, &cameras[2 * k..2 * k + 2])
             })
             .collect::<candle_core::Result<Vec<_>>>()?;
         Prediction::cat(&parts)

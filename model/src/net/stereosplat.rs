@@ -184,6 +184,14 @@ impl StereoSplat {
         Some((net, range))
     }
 
+    /// The same network without SGM's hints: for the pairs after the one they were matched
+    /// on, which run through the network alone (pair by pair).
+    pub fn without_hints(&self) -> Self {
+        let mut net = self.clone();
+        net.guidance = None;
+        net
+    }
+
     /// The preset.
     pub fn config(&self) -> &Config {
         &self.cfg
@@ -250,7 +258,8 @@ impl StereoSplat {
             .then(|| census_volume(images, cameras, &self.depths, &self.cfg, COST_STRIDE))
             .transpose()?;
         let guidance = match (&self.guidance, self.cfg.sgm_guidance) {
-            (Some(hints), Some(height)) => Some(hint_volume(
+            // Hints matched at another size than these images' do not belong to them.
+            (Some(hints), Some(height)) if hints.width == width => Some(hint_volume(
                 hints,
                 &self.depths,
                 v,

@@ -23,6 +23,7 @@ mod enhance;
 mod enhance_train;
 mod eval;
 mod generate;
+mod guidance;
 mod kitti360;
 mod lpips;
 mod metrics;

@@ -408,6 +408,12 @@ impl Config {
         }
     }
 
+    /// Whether the first pair is matched by SGM before the network runs: for the fitted
+    /// depth range, SGM's hints, or both ([`super::StereoSplat::fitted_to_scene`]).
+    pub fn fits_scene(&self) -> bool {
+        self.auto_depth_range || self.sgm_guidance.is_some()
+    }
+
     /// These settings without the census correlation, the fitted depth range and SGM's
     /// hints, for the presets built on `tiny` whose weights were trained without them.
     fn without_census_or_fit(self) -> Self {

@@ -53,17 +53,11 @@ pub struct SceneFit {
     pub hints: SgmHints,
 }
 
-/// The range of the scene that the first pair of `images` `(2K, 3, H, W)` in `[0, 1]` (left,
-/// right, ...) with its `cameras` shows, inside `preset`'s `[near, far]`; `None` (keep the
-/// preset's) when the pair is not rectified, SGM matches less than 5% of it, anything is
-/// not finite, or the fitted far end is at or beyond `preset.auto_depth_range_max_far`.
-pub fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<DepthRange> {
-    fit_scene(images, cameras, preset)?.range
-}
-
-/// SGM on the first pair of `images` with its `cameras`: its disparities and the range they
-/// span ([`scene_range`]); `None` when the pair is not rectified or SGM matches less than 5%
-/// of it.
+/// SGM on the first pair of `images` `(2K, 3, H, W)` in `[0, 1]` (left, right, ...) with
+/// its `cameras`: its disparities, and the range of the scene they span inside `preset`'s
+/// `[near, far]` (`None`, keep the preset's, when anything is not finite or the fitted far
+/// end is at or beyond `preset.auto_depth_range_max_far`). `None` when the pair is not
+/// rectified or SGM matches less than 5% of it.
 pub fn fit_scene(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<SceneFit> {
     let (pair, row_group) = fit_pair(images)?;
     let (left, right) = (pair_image(&pair, 0)?, pair_image(&pair, 1)?);
@@ -162,6 +156,11 @@ fn pair_image(images: &Tensor, index: usize) -> Option<RgbImage> {
 mod tests {
     use super::*;
     use candle_core::Device;
+
+    /// The fitted range alone.
+    fn scene_range(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option<DepthRange> {
+        fit_scene(images, cameras, preset)?.range
+    }
 
     /// A textured left image and its right image for a plane at disparity `shift` px.
     fn plane_pair(w: usize, h: usize, shift: usize) -> Tensor {

@@ -234,11 +234,10 @@ impl LearnedReconstructor {
     ) -> Result<Reconstruction, ReconstructError> {
         let start = Instant::now();
         let fitted = self.net.fitted_to_scene(images, cameras);
-        let range_fit_ms =
-            match self.net.config().auto_depth_range || self.net.config().sgm_guidance.is_some() {
-                true => start.elapsed().as_secs_f64() * 1e3,
-                false => 0.0,
-            };
+        let range_fit_ms = match self.net.config().fits_scene() {
+            true => start.elapsed().as_secs_f64() * 1e3,
+            false => 0.0,
+        };
         let (out, range) = match fitted {
             None => (self.reconstruct_over_preset_range(images, cameras), None),
             Some((fitted, range)) => {

@@ -168,7 +168,7 @@ impl StereoSplat {
         cameras: &[Camera],
     ) -> Option<(Self, Option<DepthRange>)> {
         let cfg = &self.cfg;
-        if !cfg.auto_depth_range && cfg.sgm_guidance.is_none() {
+        if !cfg.fits_scene() {
             return None;
         }
         let fit = fit_scene(images, cameras, cfg)?;

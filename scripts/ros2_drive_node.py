@@ -3,18 +3,21 @@
 zenoh ROS 2 bridge: node/tests/ros2_bridge.rs runs them. Run through scripts/ros2_env.sh.
 
     ros2_drive_node.py publish --mcap DRIVE.mcap --namespace NS [--period S] [--match-timeout S]
-    ros2_drive_node.py listen --namespace NS --bins N [--timeout S]
+    ros2_drive_node.py listen --namespace NS --bins N [--timeout S] [--match-timeout S]
 
 `publish` (node `stereosplat_drive`): reads the node's input topics from an MCAP file (as
 `stereosplat record` writes them: /NS/left/image, /NS/right/image, /NS/left/camera_info,
 /NS/right/camera_info, /NS/pose), deserializes each payload into its rclpy message with
 `deserialize_message`, waits until every publisher has a matched subscription (the bridge's
-DDS reader), then publishes them in log-time order, `--period` seconds apart per frame (the
-camera infos first), and prints `{"published": {topic: count}}`.
+DDS reader) and prints `{"matched": true}`, then publishes them in log-time order, `--period`
+seconds apart per frame (the camera infos first), and prints `{"published": {topic: count}}`.
 
 `listen` (node `stereosplat_listener`): subscribes to /NS/bin/map (sensor_msgs/PointCloud2),
 /NS/bin/pose (geometry_msgs/PoseStamped), /NS/latency (stereosplat_msgs/BinLatency) and
-/NS/diagnostics (stereosplat_msgs/Diagnostics), prints `{"ready": true}`, and once N bin
+/NS/diagnostics (stereosplat_msgs/Diagnostics), waits until each subscription has a matched
+publisher (the bridge's DDS writer: the bridge makes one only once it has discovered the
+subscription, and a volatile subscription misses whatever was written before it matched),
+prints `{"ready": true}`, and once N bin
 poses arrived (or after `--timeout`, then a second more for stragglers) prints a JSON summary:
 each map's frame_id, stamp, width, height, point_step and field names, each pose's frame_id,
 stamp and position, the latencies' bin ids and the number of diagnostics messages.
@@ -76,6 +79,7 @@ def publish(args):
     if not matched:
         missing = [t for t, p in pubs.items() if p.get_subscription_count() == 0]
         sys.exit(f'no subscription matched {missing} within {args.match_timeout} s')
+    print(json.dumps({'matched': True}), flush=True)
     counts = {}
     infos = [(t, m) for t, m in messages if t.endswith('camera_info')][:2]
     for topic, msg in infos:
@@ -121,6 +125,11 @@ def listen(args):
         node.create_subscription(BinLatency, f'/{ns}/latency', on_latency, QOS),
         node.create_subscription(Diagnostics, f'/{ns}/diagnostics', on_diagnostics, QOS),
     ]
+    matched = spin_until(node, lambda: all(s.get_publisher_count() > 0 for s in subs),
+                         args.match_timeout)
+    if not matched:
+        missing = [s.topic_name for s in subs if s.get_publisher_count() == 0]
+        sys.exit(f'no publisher matched {missing} within {args.match_timeout} s')
     print(json.dumps({'ready': True}), flush=True)
     spin_until(node, lambda: len(got['poses']) >= args.bins, args.timeout)
     spin_until(node, lambda: False, 1.0)
@@ -142,6 +151,7 @@ def main():
     p.add_argument('--namespace', default='stereosplat')
     p.add_argument('--bins', type=int, required=True)
     p.add_argument('--timeout', type=float, default=120.0)
+    p.add_argument('--match-timeout', type=float, default=60.0)
     args = parser.parse_args()
     {'publish': publish, 'listen': listen}[args.command](args)
 

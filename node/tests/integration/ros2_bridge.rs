@@ -297,8 +297,11 @@ async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
         ("publisher", publisher.child.id()),
     ];
     let (published, got, multicast, sockets) = tokio::task::spawn_blocking(move || {
-        // Sockets and multicast groups while all three run (the publisher is mid-drive).
-        std::thread::sleep(std::time::Duration::from_secs(3));
+        // Sockets and multicast groups while all three run: the publisher has matched the
+        // bridge's readers and is about to drive (a fixed sleep was too short on a loaded
+        // machine, where importing rclpy alone can take seconds).
+        let matched: Value = serde_json::from_str(&publisher.line(&logs)).unwrap();
+        assert_eq!(matched["matched"], true);
         let sockets: Vec<_> = pids
             .iter()
             .map(|&(what, pid)| (what, udp_sockets_of(pid)))

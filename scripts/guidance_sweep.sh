@@ -3,7 +3,9 @@
 # the learned model's own output (`--on-check-fail flag`), through `stereosplat reconstruct`
 # with the calibrations of scripts/real_pairs.sh. One JSON object per line on stdout and in
 # OUT/sweep.jsonl. Needs the pairs (bash scripts/real_data.sh).
-#   bash scripts/guidance_sweep.sh [OUT] [--weights W] [--set KEY=VALUE ...]
+#   [GRID="H:W ..."] bash scripts/guidance_sweep.sh [OUT] [--weights W] [--set KEY=VALUE ...]
+# GRID: the height:width settings (height null turns the hints off); the default is the grid
+# of results/sgm_guidance/sweep_census_weights.jsonl.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-out/guidance_sweep}"
@@ -13,7 +15,7 @@ bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 data=data/real
 mkdir -p "$out"
 : >"$out/sweep.jsonl"
-for hw in null:1 2:1 5:1 10:1 20:1 5:2 10:2 20:2; do
+for hw in ${GRID:-null:1 2:1 5:1 10:1 20:1 5:2 10:2 20:2}; do
   height=${hw%:*} width=${hw#*:}
   for pair in aloe motorcycle; do
     case "$pair" in

@@ -13,9 +13,13 @@ import pathlib
 import numpy as np
 from PIL import Image
 
+from disparity_errors import breakdown
+
 METHODS = ("sgm", "stereosplat")
 TRUTH_PAIRS = ("aloe", "motorcycle")
 PICTURE_OAKD = ("desk", "living_room", "toy")
+# Each ground-truth pair's disparity file under the data folder and its scale to pixels.
+TRUTH_FILES = {"aloe": ("aloe/aloeGT.png", 1.0), "motorcycle": ("motorcycle/motorcycle_disp.png", 1 / 256)}
 PICTURE_HEIGHT = 180
 
 
@@ -23,6 +27,18 @@ def load_errors(run: pathlib.Path) -> np.ndarray:
     """Per-pixel photometric error, NaN where the run scored nothing."""
     raw = np.asarray(Image.open(run / "photometric_error16.png"), dtype=np.float64)
     return np.where(raw > 0, (raw - 1) / 65534.0, np.nan)
+
+
+def region_errors(args, pair: str, scores: dict) -> dict:
+    """Each method's bad-3 by region (half-occluded, distance to truth edges) on `pair`."""
+    name, scale = TRUTH_FILES[pair]
+    truth = np.asarray(Image.open(args.data / name), dtype=np.float64) * scale
+    out = {}
+    for m in METHODS:
+        s = scores[m]
+        out[m] = breakdown(truth, s["fx"] * s["baseline_m"], args.runs / pair / m)
+        out[m].pop("run")
+    return out
 
 
 def pair_scores(pair_dir: pathlib.Path) -> dict:
@@ -37,6 +53,8 @@ def pair_scores(pair_dir: pathlib.Path) -> dict:
             "name": s["method"],
             "seconds": s["reconstruct_s"],
             "working_size": s["working_size"],
+            "fx": s["fx"],
+            "baseline_m": s["baseline_m"],
             "depth_density": s["depth_density"],
             "depth_percentiles_m": s["depth_percentiles_m"],
             "photometric_own": s["photometric"]["mae"],
@@ -116,6 +134,26 @@ def main():
                 f"{t['density']:.1f} | {t['bad3_predicted']:.2f} | "
                 f"{fmt(r['photometric_common'], '.4f')} | {check(r)} | {r['seconds']:.1f} |"
             )
+    regions = {p: region_errors(args, p, truth[p]) for p in TRUTH_PAIRS}
+    lines += [
+        "",
+        "### Where the errors are (`scripts/disparity_errors.py`)",
+        "",
+        "bad-3 % over the truth's half-occluded pixels (the right camera does not see them) and",
+        "over the rest, banded by distance to the nearest truth depth edge (a jump over 3 px);",
+        "share: % of the truth's pixels in each set.",
+        "",
+        "| pair | method | occluded (share) | visible | " + " | ".join(
+            f"edge {b['edge_distance_px']} px" for b in regions[TRUTH_PAIRS[0]]["sgm"]["bands"]) + " |",
+        "| --- | --- | --- | --- | " + " | ".join("---" for _ in regions[TRUTH_PAIRS[0]]["sgm"]["bands"]) + " |",
+    ]
+    for p in TRUTH_PAIRS:
+        for m in METHODS:
+            r = regions[p][m]
+            lines.append(
+                f"| {p} | {truth[p][m]['name']} | {r['bad3_occluded']:.1f} ({r['occluded_share']:.1f}) | "
+                f"{r['bad3_visible']:.1f} | " + " | ".join(
+                    f"{b['bad3']:.1f} ({b['share']:.1f})" for b in r["bands"]) + " |")
     lines += [
         "",
         "## OAK-D pairs (no ground truth): photometric consistency",
@@ -170,7 +208,7 @@ def main():
             montage(left, args.runs / "oak-d" / n, "photometric_error.png", pictures / f"oakd_{n}.png")
             lines.append(f"![{n}](pictures/oakd_{n}.png)")
     (args.out / "README.md").write_text("\n".join(lines) + "\n")
-    scores = {"command": args.command, "learned": learned, "truth": truth, "oak-d": oakd}
+    scores = {"command": args.command, "learned": learned, "truth": truth, "regions": regions, "oak-d": oakd}
     (args.out / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
     print("\n".join(lines[:40 + len(oakd_names)]))
     print(f"wrote {args.out}/README.md, scores.json, pictures/")

@@ -1,0 +1,102 @@
+"""Where a reconstruction's disparity errors are, against a ground-truth disparity: bad-3 over
+the truth's pixels split into those the right camera does not see (half-occluded: a nearer
+truth pixel of the row lands on or left of their match) and the rest, the rest banded by
+distance to the nearest truth depth edge (a jump of over 3 px to the next pixel).
+
+    python3 scripts/disparity_errors.py TRUTH.png FX_BASELINE RUN_DIR [RUN_DIR ...] [--truth-scale S]
+
+TRUTH.png: disparity in input pixels times 1/S (0: unknown); FX_BASELINE: fx (input pixels)
+times the baseline (metres), so disparity = FX_BASELINE / depth; each RUN_DIR holds the
+`depth.png` of `stereosplat reconstruct` (16-bit, depth x 256, 0: none). A pixel without a
+prediction counts as wrong, as in `reconstruct`'s own bad-3. Prints one JSON object per run.
+"""
+import argparse
+import json
+import pathlib
+
+import numpy as np
+from PIL import Image, ImageFilter
+
+EDGE_JUMP_PX = 3.0
+BAD_PX = 3.0
+BANDS_PX = (3, 7, 15, 31)
+
+
+def half_occluded(truth: np.ndarray) -> np.ndarray:
+    """Known pixels whose match in the right image is hidden by a nearer pixel of the row or
+    falls outside it."""
+    h, w = truth.shape
+    occluded = np.zeros(truth.shape, bool)
+    columns = np.arange(w, dtype=np.float64)
+    for y in range(h):
+        row = truth[y]
+        known = row > 0
+        landing = np.where(known, columns - row, np.inf)
+        # Leftmost landing of the known pixels to the right of each pixel.
+        right_min = np.minimum.accumulate(landing[::-1])[::-1]
+        right_min = np.append(right_min[1:], np.inf)
+        occluded[y] = known & ((right_min < landing - 1.0) | (landing < 0))
+    return occluded
+
+
+def edge_distance_bands(truth: np.ndarray) -> list:
+    """Masks of the pixels within each of BANDS_PX of a truth depth edge (cumulative)."""
+    gx = np.abs(np.diff(truth, axis=1, append=truth[:, -1:]))
+    gy = np.abs(np.diff(truth, axis=0, append=truth[-1:]))
+    edges = (((gx > EDGE_JUMP_PX) | (gy > EDGE_JUMP_PX)) * 255).astype(np.uint8)
+    image, grown, masks = Image.fromarray(edges), 0, []
+    for r in BANDS_PX:
+        # r passes of a 3x3 maximum: the square of half-width r about every edge pixel.
+        for _ in range(r - grown):
+            image = image.filter(ImageFilter.MaxFilter(3))
+        grown = r
+        masks.append(np.asarray(image) > 0)
+    return masks
+
+
+def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
+    depth = np.asarray(Image.open(run / "depth.png"), dtype=np.float64) / 256.0
+    disparity = np.where(depth > 0, fx_baseline / np.maximum(depth, 1e-12), 0.0)
+    known = truth > 0
+    wrong = (depth <= 0) | (np.abs(disparity - truth) > BAD_PX)
+    occluded = half_occluded(truth)
+    total = known.sum()
+    out = {
+        "run": str(run),
+        "bad3": 100.0 * wrong[known].mean(),
+        "occluded_share": 100.0 * occluded[known].mean(),
+        "bad3_occluded": 100.0 * wrong[known & occluded].mean(),
+        "bad3_visible": 100.0 * wrong[known & ~occluded].mean(),
+        "signed_median_px": float(np.median((disparity - truth)[known & (depth > 0)])),
+        "bands": [],
+    }
+    inside = np.zeros(truth.shape, bool)
+    lows = [0] + [b + 1 for b in BANDS_PX]
+    for low, band in zip(lows, edge_distance_bands(truth) + [None]):
+        ring = known & ~occluded & ~inside & (band if band is not None else True)
+        inside |= band if band is not None else known
+        high = BANDS_PX[len(out["bands"])] if band is not None else None
+        out["bands"].append({
+            "edge_distance_px": f"{low}-{high}" if high is not None else f">{low - 1}",
+            "share": round(100.0 * ring.sum() / total, 2),
+            "bad3": round(100.0 * wrong[ring].mean(), 2) if ring.any() else None,
+        })
+    for key in ("bad3", "occluded_share", "bad3_occluded", "bad3_visible", "signed_median_px"):
+        out[key] = round(float(out[key]), 2)
+    return out
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("truth")
+    parser.add_argument("fx_baseline", type=float)
+    parser.add_argument("runs", nargs="+", type=pathlib.Path)
+    parser.add_argument("--truth-scale", type=float, default=1.0)
+    args = parser.parse_args()
+    truth = np.asarray(Image.open(args.truth), dtype=np.float64) * args.truth_scale
+    for run in args.runs:
+        print(json.dumps(breakdown(truth, args.fx_baseline, run)))
+
+
+if __name__ == "__main__":
+    main()

@@ -71,7 +71,6 @@ def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
     occluded = half_occluded(truth)
     total = known.sum()
     out = {
-        "run": str(run),
         "bad3": 100.0 * wrong[known].mean(),
         "occluded_share": 100.0 * occluded[known].mean(),
         "bad3_occluded": 100.0 * wrong[known & occluded].mean(),
@@ -79,14 +78,15 @@ def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
         "signed_median_px": float(np.median((disparity - truth)[known & (depth > 0)])),
         "bands": [],
     }
+    labels = [f"{low}-{high}" for low, high in zip((0,) + tuple(b + 1 for b in BANDS_PX), BANDS_PX)]
+    labels.append(f">{BANDS_PX[-1]}")
+    within = edge_distance_bands(truth) + [np.ones(truth.shape, bool)]
     inside = np.zeros(truth.shape, bool)
-    lows = [0] + [b + 1 for b in BANDS_PX]
-    for low, band in zip(lows, edge_distance_bands(truth) + [None]):
-        ring = known & ~occluded & ~inside & (band if band is not None else True)
-        inside |= band if band is not None else known
-        high = BANDS_PX[len(out["bands"])] if band is not None else None
+    for label, band in zip(labels, within):
+        ring = known & ~occluded & band & ~inside
+        inside |= band
         out["bands"].append({
-            "edge_distance_px": f"{low}-{high}" if high is not None else f">{low - 1}",
+            "edge_distance_px": label,
             "share": round(100.0 * ring.sum() / total, 2),
             "bad3": round(100.0 * wrong[ring].mean(), 2) if ring.any() else None,
         })
@@ -104,7 +104,7 @@ def main():
     args = parser.parse_args()
     truth = np.asarray(Image.open(args.truth), dtype=np.float64) * args.truth_scale
     for run in args.runs:
-        print(json.dumps(breakdown(truth, args.fx_baseline, run)))
+        print(json.dumps({"run": str(run), **breakdown(truth, args.fx_baseline, run)}))
 
 
 if __name__ == "__main__":

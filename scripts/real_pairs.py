@@ -37,7 +37,6 @@ def region_errors(args, pair: str, scores: dict) -> dict:
     for m in METHODS:
         s = scores[m]
         out[m] = breakdown(truth, s["fx"] * s["baseline_m"], args.runs / pair / m)
-        out[m].pop("run")
     return out
 
 

@@ -9,6 +9,13 @@ TRUTH.png: disparity in input pixels times 1/S (0: unknown); FX_BASELINE: fx (in
 times the baseline (metres), so disparity = FX_BASELINE / depth; each RUN_DIR holds the
 `depth.png` of `stereosplat reconstruct` (16-bit, depth x 256, 0: none). A pixel without a
 prediction counts as wrong, as in `reconstruct`'s own bad-3. Prints one JSON object per run.
+
+Two more splits tell where a wrong disparity comes from. `too_near_visible`: the share of the
+visible pixels whose disparity is over 3 px too large (a nearer surface drawn over them).
+`centres`: the same bad-3 taken at the centres of the run's Gaussians (`gaussians.ply`,
+projected into the left camera of `summary.json`) on the visible pixels they land on: the
+depth the network put on each Gaussian, before the rendering blends neighbours, so the gap
+between it and the rendered figure is what the Gaussians' extent adds.
 """
 import argparse
 import json
@@ -60,6 +67,23 @@ def edge_distance_bands(truth: np.ndarray) -> list:
     return masks
 
 
+def gaussian_centres(run: pathlib.Path, shape: tuple) -> tuple:
+    """Pixel rows, columns and depths of the run's Gaussians (3DGS PLY, 18 floats each, in
+    the left camera's frame) projected with the intrinsics of its `summary.json`, those that
+    land in an image of `shape`."""
+    raw = (run / "gaussians.ply").read_bytes()
+    start = raw.index(b"end_header\n") + len(b"end_header\n")
+    xyz = np.frombuffer(raw[start:], dtype="<f4").reshape(-1, 18)[:, :3].astype(np.float64)
+    s = json.loads((run / "summary.json").read_text())
+    z = xyz[:, 2]
+    ahead = z > 1e-9
+    xyz, z = xyz[ahead], z[ahead]
+    col = np.round(s["fx"] * xyz[:, 0] / z + s["cx"] - 0.5).astype(np.int64)
+    row = np.round(s["fy"] * xyz[:, 1] / z + s["cy"] - 0.5).astype(np.int64)
+    inside = (col >= 0) & (col < shape[1]) & (row >= 0) & (row < shape[0])
+    return row[inside], col[inside], z[inside]
+
+
 def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
     """The run's bad-3 (%) over the truth's known pixels, its half-occluded share and bad-3
     there, bad-3 on the visible rest and per edge-distance band (each band's share of the
@@ -76,8 +100,16 @@ def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
         "bad3_occluded": 100.0 * wrong[known & occluded].mean(),
         "bad3_visible": 100.0 * wrong[known & ~occluded].mean(),
         "signed_median_px": float(np.median((disparity - truth)[known & (depth > 0)])),
+        "too_near_visible": 100.0 * (disparity - truth > BAD_PX)[known & ~occluded].mean(),
         "bands": [],
     }
+    if (run / "gaussians.ply").exists():
+        row, col, z = gaussian_centres(run, truth.shape)
+        at = truth[row, col]
+        seen = (at > 0) & ~occluded[row, col]
+        error = fx_baseline / z[seen] - at[seen]
+        out["centres_bad3_visible"] = 100.0 * (np.abs(error) > BAD_PX).mean()
+        out["centres_too_near_visible"] = 100.0 * (error > BAD_PX).mean()
     labels = [f"{low}-{high}" for low, high in zip((0,) + tuple(b + 1 for b in BANDS_PX), BANDS_PX)]
     labels.append(f">{BANDS_PX[-1]}")
     within = edge_distance_bands(truth) + [np.ones(truth.shape, bool)]
@@ -90,8 +122,10 @@ def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
             "share": round(100.0 * ring.sum() / total, 2),
             "bad3": round(100.0 * wrong[ring].mean(), 2) if ring.any() else None,
         })
-    for key in ("bad3", "occluded_share", "bad3_occluded", "bad3_visible", "signed_median_px"):
-        out[key] = round(float(out[key]), 2)
+    for key in ("bad3", "occluded_share", "bad3_occluded", "bad3_visible", "signed_median_px",
+                "too_near_visible", "centres_bad3_visible", "centres_too_near_visible"):
+        if key in out:
+            out[key] = round(float(out[key]), 2)
     return out
 
 

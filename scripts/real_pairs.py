@@ -140,18 +140,21 @@ def main():
         "",
         "bad-3 % over the truth's half-occluded pixels (the right camera does not see them) and",
         "over the rest, banded by distance to the nearest truth depth edge (a jump over 3 px);",
-        "share: % of the truth's pixels in each set.",
+        "share: % of the truth's pixels in each set. Too near: visible pixels over 3 px too",
+        "large (a nearer surface drawn over them); centres: bad-3 at the Gaussians' centres on",
+        "the visible pixels they project to (the depth before the rendering blends neighbours).",
         "",
-        "| pair | method | occluded (share) | visible | " + " | ".join(
+        "| pair | method | occluded (share) | visible | too near | centres | " + " | ".join(
             f"edge {b['edge_distance_px']} px" for b in regions[TRUTH_PAIRS[0]]["sgm"]["bands"]) + " |",
-        "| --- | --- | --- | --- | " + " | ".join("---" for _ in regions[TRUTH_PAIRS[0]]["sgm"]["bands"]) + " |",
+        "| --- | --- | --- | --- | --- | --- | " + " | ".join("---" for _ in regions[TRUTH_PAIRS[0]]["sgm"]["bands"]) + " |",
     ]
     for p in TRUTH_PAIRS:
         for m in METHODS:
             r = regions[p][m]
             lines.append(
                 f"| {p} | {truth[p][m]['name']} | {r['bad3_occluded']:.1f} ({r['occluded_share']:.1f}) | "
-                f"{r['bad3_visible']:.1f} | " + " | ".join(
+                f"{r['bad3_visible']:.1f} | {r['too_near_visible']:.1f} | {r['centres_bad3_visible']:.1f} | "
+                + " | ".join(
                     f"{b['bad3']:.1f} ({b['share']:.1f})" for b in r["bands"]) + " |")
     lines += [
         "",

@@ -10,6 +10,9 @@
 # Resumable: run it again after any interruption. About 40 minutes on the 2-core machine
 # (1.08 steps/s).
 #   bash scripts/train_tiny_guided.sh [RUN_DIR] [STEPS]
+# Environment: INIT, the weights a fresh run starts from (default the census weights);
+# SETTINGS, extra `--set` flags (e.g. "--set convex_upsampling=true"); SHIP=0 leaves
+# model/weights/ alone (an experiment).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 run="${1:-runs/tiny_guided}" steps="${2:-2400}"
@@ -18,11 +21,13 @@ bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 bash scripts/transfer_data.sh data/transfer
 flags=(--data data/transfer --preset tiny --out "$run" --steps "$steps" --lr 5e-4 --warmup 100
   --seed 0 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
-  --matching-weight 0.5 --set volume_branch=false --set view_subsampling=false)
+  --matching-weight 0.5 --set volume_branch=false --set view_subsampling=false ${SETTINGS:-})
 if [ -f "$run/checkpoint/state.json" ]; then
   "$bin" train "${flags[@]}" --resume
 else
-  "$bin" train "${flags[@]}" --init results/stereosplat_tiny_census_gate/stereosplat_tiny.safetensors
+  "$bin" train "${flags[@]}" --init "${INIT:-results/stereosplat_tiny_census_gate/stereosplat_tiny.safetensors}"
 fi
-cp "$run/stereosplat_tiny.safetensors" model/weights/stereosplat_tiny.safetensors
-echo "weights: model/weights/stereosplat_tiny.safetensors"
+if [ "${SHIP:-1}" != 0 ]; then
+  cp "$run/stereosplat_tiny.safetensors" model/weights/stereosplat_tiny.safetensors
+  echo "weights: model/weights/stereosplat_tiny.safetensors"
+fi

@@ -99,6 +99,25 @@ pub struct Config {
     pub sgm_guidance_width: f32,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
+    /// Upsample the depth head's 1/4 estimate to the Gaussians' grid by learned convex
+    /// combinations of 3x3 cells ([`super::convex_upsample`], RAFT's upsampler) instead of
+    /// bilinearly, so a depth edge stays an edge at the finer grid. Adds weights
+    /// (`gaussians.upsample.*`, starting at bilinear).
+    #[serde(default)]
+    pub convex_upsampling: bool,
+    /// With `sgm_guidance`: SGM's hints also reach the Gaussian heads' depth refinement, per
+    /// pixel of their grid ([`super::guidance::hint_map`]), through a learned convolution
+    /// starting at zero (`gaussians.zero_guided_refine.*`): the cost volume's cells are four
+    /// pixels wide and its matches spread a near surface over the cells beside it; SGM's
+    /// per-pixel matches tell the refinement where the surface ends.
+    #[serde(default)]
+    pub fine_guidance: bool,
+    /// Take the depth head's expectation over the `2 r + 1` candidates about the softmax's
+    /// peak only (sub-pixel MAP), not over all: a cell the softmax splits between a near and
+    /// a far surface gets the stronger one's depth, not a depth between them. Inference
+    /// setting; `None`: the full expectation (what training uses).
+    #[serde(default)]
+    pub depth_window: Option<usize>,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
     pub gaussian_stride: usize,
     /// Gaussians below this opacity are not emitted.
@@ -306,6 +325,9 @@ impl Config {
             sgm_guidance: Some(10.0),
             sgm_guidance_width: 2.0,
             head_channels: 24,
+            convex_upsampling: false,
+            fine_guidance: false,
+            depth_window: None,
             gaussian_stride: 2,
             opacity_floor: 0.02,
             max_gaussians: 200_000,

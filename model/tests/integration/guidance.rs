@@ -94,3 +94,58 @@ fn hints_guide_the_first_pair_towards_the_plane_and_no_later_pair() {
     eprintln!("mean |depth - plane|: {with:.4} m with hints, {without:.4} m without");
     assert!(with < without, "{with} against {without}");
 }
+
+#[test]
+fn fine_hints_start_at_no_change_and_reach_the_refinement() {
+    use candle_core::{DType, Var};
+    use candle_nn::{VarBuilder, VarMap};
+    use model::net::{load_matching, StereoSplat};
+    // The shipped weights; the guided refinement's convolution starts at zero.
+    let varmap = VarMap::new();
+    let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+    let cfg = Config::tiny();
+    let fine_cfg = cfg.clone().with_settings(&["fine_guidance=true"]).unwrap();
+    let fine = StereoSplat::new(vb, &fine_cfg).unwrap();
+    let report = load_matching(&varmap, &default_weights("tiny")).unwrap();
+    assert_eq!(report.fresh.len(), 2, "{:?}", report.fresh);
+    let shipped = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+    let (images, cameras) = (plane_pair(), rig());
+    let fit = |net: &StereoSplat| net.fitted_to_scene(&images, &cameras).unwrap().0;
+    let (plain, fine) = (fit(shipped.net()), fit(&fine));
+    let before = depths(&plain.forward(&images, &cameras).unwrap());
+    let at_zero = depths(&fine.forward(&images, &cameras).unwrap());
+    let change = before[0]
+        .iter()
+        .zip(&at_zero[0])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0f32, f32::max);
+    assert!(
+        change < 1e-5,
+        "the zero convolution moved the depth by {change} m"
+    );
+    // A non-zero guided refinement (the gap channel's centre tap, input channel 24 of
+    // 26 after the trunk's 24): the depth moves, and its gradients stay finite.
+    for (name, var) in varmap.data().lock().unwrap().iter() {
+        if name.ends_with("zero_guided_refine.weight") {
+            let mut w = vec![0f32; var.elem_count()];
+            w[24 * 9 + 4] = 1.0;
+            var.set(&Tensor::from_vec(w, var.shape(), &Device::Cpu).unwrap())
+                .unwrap();
+        }
+    }
+    let prediction = fine.forward(&images, &cameras).unwrap();
+    let moved = depths(&prediction)[0]
+        .iter()
+        .zip(&before[0])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0f32, f32::max);
+    assert!(moved > 1e-4, "the hints did not reach the refinement");
+    // Gradients through the hinted refinement stay finite.
+    let grads = prediction.depth.sum_all().unwrap().backward().unwrap();
+    for var in varmap.all_vars() {
+        if let Some(g) = grads.get(Var::as_tensor(&var)) {
+            let g: Vec<f32> = g.flatten_all().unwrap().to_vec1().unwrap();
+            assert!(g.iter().all(|x| x.is_finite()));
+        }
+    }
+}

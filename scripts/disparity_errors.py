@@ -15,7 +15,8 @@ visible pixels whose disparity is over 3 px too large (a nearer surface drawn ov
 `centres`: the same bad-3 taken at the centres of the run's Gaussians (`gaussians.ply`,
 projected into the left camera of `summary.json`) on the visible pixels they land on: the
 depth the network put on each Gaussian, before the rendering blends neighbours, so the gap
-between it and the rendered figure is what the Gaussians' extent adds.
+between it and the rendered figure is what the Gaussians' extent adds; `gaussian_extent_px`
+is the median over the Gaussians of their largest standard deviation in input pixels.
 """
 import argparse
 import json
@@ -68,20 +69,22 @@ def edge_distance_bands(truth: np.ndarray) -> list:
 
 
 def gaussian_centres(run: pathlib.Path, shape: tuple) -> tuple:
-    """Pixel rows, columns and depths of the run's Gaussians (3DGS PLY, 18 floats each, in
-    the left camera's frame) projected with the intrinsics of its `summary.json`, those that
-    land in an image of `shape`."""
+    """Pixel rows, columns, depths and extents (largest standard deviation, in pixels) of
+    the run's Gaussians (3DGS PLY, 18 floats each, in the left camera's frame) projected with
+    the intrinsics of its `summary.json`, those that land in an image of `shape`."""
     raw = (run / "gaussians.ply").read_bytes()
     start = raw.index(b"end_header\n") + len(b"end_header\n")
-    xyz = np.frombuffer(raw[start:], dtype="<f4").reshape(-1, 18)[:, :3].astype(np.float64)
+    rows = np.frombuffer(raw[start:], dtype="<f4").reshape(-1, 18).astype(np.float64)
+    xyz, log_scales = rows[:, :3], rows[:, 10:13]
     s = json.loads((run / "summary.json").read_text())
     z = xyz[:, 2]
     ahead = z > 1e-9
-    xyz, z = xyz[ahead], z[ahead]
+    xyz, z, log_scales = xyz[ahead], z[ahead], log_scales[ahead]
     col = np.round(s["fx"] * xyz[:, 0] / z + s["cx"] - 0.5).astype(np.int64)
     row = np.round(s["fy"] * xyz[:, 1] / z + s["cy"] - 0.5).astype(np.int64)
+    extent = s["fx"] * np.exp(log_scales.max(axis=1)) / z
     inside = (col >= 0) & (col < shape[1]) & (row >= 0) & (row < shape[0])
-    return row[inside], col[inside], z[inside]
+    return row[inside], col[inside], z[inside], extent[inside]
 
 
 def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
@@ -104,7 +107,8 @@ def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
         "bands": [],
     }
     if (run / "gaussians.ply").exists():
-        row, col, z = gaussian_centres(run, truth.shape)
+        row, col, z, extent = gaussian_centres(run, truth.shape)
+        out["gaussian_extent_px"] = float(np.median(extent))
         at = truth[row, col]
         seen = (at > 0) & ~occluded[row, col]
         error = fx_baseline / z[seen] - at[seen]
@@ -123,7 +127,8 @@ def breakdown(truth: np.ndarray, fx_baseline: float, run: pathlib.Path) -> dict:
             "bad3": round(100.0 * wrong[ring].mean(), 2) if ring.any() else None,
         })
     for key in ("bad3", "occluded_share", "bad3_occluded", "bad3_visible", "signed_median_px",
-                "too_near_visible", "centres_bad3_visible", "centres_too_near_visible"):
+                "too_near_visible", "centres_bad3_visible", "centres_too_near_visible",
+                "gaussian_extent_px"):
         if key in out:
             out[key] = round(float(out[key]), 2)
     return out

@@ -14,7 +14,6 @@ use crate::ops::Conv;
 use renderer::Camera;
 
 use super::blocks::{conv, ConvRelu};
-use super::convex_upsample::ConvexUpsample;
 use super::depth_head::metric_depth;
 use super::geometry::{camera_to_world, orientation_matrix, rays};
 use super::Config;
@@ -25,9 +24,6 @@ use crate::ops::{upsample_bilinear, SplatTensors};
 const TRUNK_OUT: usize = 15;
 /// Largest change of normalised inverse depth the refinement makes.
 const MAX_REFINE: f64 = 0.1;
-/// The hint's gap to the coarse depth (normalised inverse depth, a candidate is about
-/// 0.03) is scaled by this before the guided refinement reads it, to the trunk features' size.
-const HINT_GAIN: f64 = 10.0;
 /// Largest offset from the depth ray, in pixel footprints at the Gaussian's depth.
 const MAX_OFFSET: f64 = 2.0;
 /// Largest change of log-scale from one pixel footprint.
@@ -41,14 +37,8 @@ pub struct HeadInputs<'a> {
     pub context: &'a Tensor,
     /// Image at the Gaussians' pixels, `(V, 3, Hg, Wg)`, in `[0, 1]`.
     pub image: &'a Tensor,
-    /// The depth head's normalised inverse depth, upsampled bilinearly, `(V, 1, Hg, Wg)`.
+    /// The depth head's normalised inverse depth, upsampled, `(V, 1, Hg, Wg)`.
     pub coarse: &'a Tensor,
-    /// The same at the depth head's 1/4 resolution, `(V, 1, h, w)`: what the convex
-    /// upsampler (`convex_upsampling`) blends instead.
-    pub coarse_cells: &'a Tensor,
-    /// With `fine_guidance`: SGM's hints on this grid, `(V, 2, Hg, Wg)`
-    /// ([`super::guidance::hint_map`]); `None` where the pair has none (read as no hint).
-    pub fine_hints: Option<&'a Tensor>,
     /// The cost volume's softmax at 1/4 resolution, `(V, D, h, w)`.
     pub probabilities: &'a Tensor,
     /// The views' cameras (bin frame).
@@ -73,13 +63,6 @@ pub struct GaussianHead {
     out: Conv,
     opacity_hidden: ConvRelu,
     opacity_out: Conv,
-    /// With `convex_upsampling`: the learned upsampler of the coarse depth, reading the
-    /// trunk's features.
-    upsample: Option<ConvexUpsample>,
-    /// With `fine_guidance`: a zero-initialised 3x3 convolution from the trunk's features,
-    /// the hint's difference to the coarse depth and the hint's presence to a term of the
-    /// refinement's logit, so where SGM matched the refinement can pull the depth to it.
-    guided_refine: Option<Conv>,
     stride: usize,
 }
 
@@ -95,14 +78,6 @@ impl GaussianHead {
             out: conv(vb.pp("out"), c, TRUNK_OUT, 1, 1)?,
             opacity_hidden: ConvRelu::new(vb.pp("opacity0"), cfg.candidates, 16, 1)?,
             opacity_out: conv(vb.pp("opacity1"), 16, 1, 3, 1)?,
-            upsample: cfg
-                .convex_upsampling
-                .then(|| ConvexUpsample::new(vb.pp("upsample"), c))
-                .transpose()?,
-            guided_refine: cfg
-                .fine_guidance
-                .then(|| Conv::zeros(vb.pp("zero_guided_refine"), (c + 2, 1), 3, 1, 1))
-                .transpose()?,
             stride: cfg.gaussian_stride,
         })
     }
@@ -112,18 +87,10 @@ impl GaussianHead {
         let (v, _, hg, wg) = x.coarse.dims4()?;
         let p = hg * wg;
         let device = x.coarse.device();
-        let hidden = super::blocks::chain(&self.spatial, &Tensor::cat(&[x.context, x.coarse], 1)?)?;
-        let t = self.out.forward(&hidden)?;
-        let refine_logit = match &self.guided_refine {
-            Some(conv) => (t.narrow(1, 0, 1)? + conv.forward(&guide(x, &hidden)?)?)?,
-            None => t.narrow(1, 0, 1)?,
-        };
-        let refine = (refine_logit.tanh()? * MAX_REFINE)?;
-        let coarse = match &self.upsample {
-            Some(upsample) => upsample.forward(x.coarse_cells, &hidden)?,
-            None => x.coarse.clone(),
-        };
-        let inverse = (coarse + refine)?.clamp(0f32, 1f32)?;
+        let t = super::blocks::chain(&self.spatial, &Tensor::cat(&[x.context, x.coarse], 1)?)?;
+        let t = self.out.forward(&t)?;
+        let refine = (t.narrow(1, 0, 1)?.tanh()? * MAX_REFINE)?;
+        let inverse = (x.coarse + refine)?.clamp(0f32, 1f32)?;
         let depth_map = metric_depth(&inverse, x.net)?;
         let t = t.reshape((v, TRUNK_OUT, p))?;
         let part = |from: usize, n: usize| t.narrow(1, from + 1, n);
@@ -174,19 +141,6 @@ impl GaussianHead {
     }
 }
 
-/// The guided refinement's input: the trunk's features `hidden`, the hint minus the coarse
-/// depth (times [`HINT_GAIN`], zero where there is no hint) and the hint's presence.
-fn guide(x: &HeadInputs, hidden: &Tensor) -> Result<Tensor> {
-    let Some(hints) = x.fine_hints else {
-        let (v, _, h, w) = x.coarse.dims4()?;
-        let none = Tensor::zeros((v, 2, h, w), hidden.dtype(), hidden.device())?;
-        return Tensor::cat(&[hidden, &none], 1);
-    };
-    let valid = hints.narrow(1, 1, 1)?;
-    let gap = ((hints.narrow(1, 0, 1)? - x.coarse)? * &valid)?;
-    Tensor::cat(&[hidden, &(gap * HINT_GAIN)?, &valid], 1)
-}
-
 /// One value per view as `(V, 1, 1)`.
 fn per_view(cameras: &[Camera], device: &Device, f: impl Fn(&Camera) -> f32) -> Result<Tensor> {
     let values: Vec<f32> = cameras.iter().map(f).collect();
@@ -218,69 +172,4 @@ fn orientations(cameras: &[Camera], device: &Device) -> Result<Tensor> {
         .flat_map(|c| orientation_matrix(c).into_iter().flatten())
         .collect();
     Tensor::from_vec(data, (cameras.len(), 4, 4), device)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::net::depth_head::normalised_inverse;
-    use crate::net::geometry::test_camera;
-    use candle_core::DType;
-    use candle_nn::VarMap;
-
-    #[test]
-    fn the_guided_refinement_pulls_hinted_pixels_to_their_hint_and_leaves_the_rest() {
-        let cfg = Config::tiny()
-            .with_settings(&["fine_guidance=true"])
-            .unwrap();
-        let varmap = VarMap::new();
-        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
-        let context = 8;
-        let head = GaussianHead::new(vb, &cfg, context).unwrap();
-        // The trunk's own refinement off (its output layer at zero); the guided
-        // convolution's gap tap at 1: the logit gains 10 x (hint - coarse).
-        for (name, var) in varmap.data().lock().unwrap().iter() {
-            if name.starts_with("out.") {
-                var.set(&var.zeros_like().unwrap()).unwrap();
-            }
-            if name == "zero_guided_refine.weight" {
-                let mut w = vec![0f32; var.elem_count()];
-                w[cfg.head_channels * 9 + 4] = 1.0;
-                var.set(&Tensor::from_vec(w, var.shape(), &Device::Cpu).unwrap())
-                    .unwrap();
-            }
-        }
-        let (v, h, w) = (2, 20, 40);
-        let dev = &Device::Cpu;
-        let coarse = Tensor::full(0.5f32, (v, 1, h, w), dev).unwrap();
-        // Hints of 0.55 on the left half of each view.
-        let left: Vec<f32> = (0..v * h * w).map(|i| f32::from(i % w < w / 2)).collect();
-        let valid = Tensor::from_vec(left, (v, 1, h, w), dev).unwrap();
-        let hints = Tensor::cat(&[(&valid * 0.55).unwrap(), valid.clone()], 1).unwrap();
-        let cameras = [test_camera(0.0), test_camera(0.5)];
-        let out = head
-            .forward(&HeadInputs {
-                context: &Tensor::zeros((v, context, h, w), DType::F32, dev).unwrap(),
-                image: &Tensor::zeros((v, 3, h, w), DType::F32, dev).unwrap(),
-                coarse: &coarse,
-                coarse_cells: &Tensor::full(0.5f32, (v, 1, h / 2, w / 2), dev).unwrap(),
-                fine_hints: Some(&hints),
-                probabilities: &Tensor::full(1.0 / 32.0f32, (v, 32, h / 2, w / 2), dev).unwrap(),
-                cameras: &cameras,
-                net: &cfg,
-            })
-            .unwrap();
-        let depth: Vec<f32> = out.depth.flatten_all().unwrap().to_vec1().unwrap();
-        for (i, d) in depth.iter().enumerate() {
-            let x = normalised_inverse(*d as f64, &cfg) as f32;
-            // Inner pixels (the 3x3 convolution sees the edge of the hinted half beside it).
-            let col = i % w;
-            if (2..w / 2 - 1).contains(&col) {
-                // 0.5 + 0.1 tanh(10 x 0.05) = 0.5462
-                assert!((x - 0.5462).abs() < 1e-3, "hinted pixel {i}: {x}");
-            } else if col > w / 2 + 1 && col < w - 2 {
-                assert!((x - 0.5).abs() < 1e-5, "unhinted pixel {i}: {x}");
-            }
-        }
-    }
 }

@@ -105,47 +105,6 @@ pub fn hint_volume(
     Tensor::from_vec(out, (views, d, h, w), device)
 }
 
-/// SGM's hints on the Gaussians' `grid` `(V, 2, hg, wg)` (pixel `(i, j)` is image pixel
-/// `(stride i, stride j)`), for the heads' refinement (`fine_guidance`): channel 0 the
-/// hinted depth as normalised inverse depth over `near..far` (1 at `near`, 0 at `far`,
-/// clamped to `[0, 1]`; 0 where none), channel 1 one where hinted, zero elsewhere. Each
-/// pixel reads the `(stride + 1)`-pixel square about it as the cost-volume cells do, so a
-/// square across a depth edge or matched too sparsely gets no hint; views 0 and 1 take the
-/// first pair's hints, later views none.
-pub fn hint_map(
-    hints: &SgmHints,
-    views: usize,
-    grid: (usize, usize),
-    stride: usize,
-    (near, far): (f32, f32),
-    device: &Device,
-) -> Result<Tensor> {
-    let (h, w) = grid;
-    let mut out = vec![0f32; views * 2 * h * w];
-    let right = hints.right_view();
-    let (a, b) = (1.0 / near as f64, 1.0 / far as f64);
-    for (view, map) in [&hints.disparity, &right]
-        .into_iter()
-        .enumerate()
-        .take(views)
-    {
-        let (value, valid) = out[view * 2 * h * w..(view + 1) * 2 * h * w].split_at_mut(h * w);
-        for i in 0..h {
-            for j in 0..w {
-                let Some(d) = cell_hint(hints, map, i, j, stride) else {
-                    continue;
-                };
-                let inverse = (d as f64 / hints.fx_baseline as f64 - b) / (a - b);
-                if inverse.is_finite() {
-                    value[i * w + j] = inverse.clamp(0.0, 1.0) as f32;
-                    valid[i * w + j] = 1.0;
-                }
-            }
-        }
-    }
-    Tensor::from_vec(out, (views, 2, h, w), device)
-}
-
 /// The continuous candidate index of a disparity (`None` outside the candidates by more
 /// than one step, or not finite): candidates are uniform in inverse depth, so the index is
 /// linear in disparity.
@@ -303,48 +262,6 @@ mod tests {
             assert!(v.iter().all(|x| x.is_finite()));
             // Views 2 and 3 (a second pair) have no hints.
             assert!(v[2 * 11 * 32..].iter().all(|&x| x == 0.0));
-        }
-    }
-
-    #[test]
-    fn the_fine_map_holds_each_pixels_inverse_depth_and_no_hint_across_an_edge() {
-        // Left half at 50 px (2 m), right half at 20 px (5 m) on a 16 x 4 map; near 1 m,
-        // far 100 m: inverse (1/2 - 0.01) / 0.99 = 0.4949 and (1/5 - 0.01) / 0.99 = 0.1919.
-        let mut hints = flat_map(16, 4, 50.0);
-        for row in hints.disparity.chunks_mut(16) {
-            for d in &mut row[8..] {
-                *d = 20.0;
-            }
-        }
-        let map = hint_map(&hints, 3, (2, 8), 2, (1.0, 100.0), &Device::Cpu).unwrap();
-        assert_eq!(map.dims(), &[3, 2, 2, 8]);
-        let v: Vec<f32> = map.flatten_all().unwrap().to_vec1().unwrap();
-        let (value, valid) = v[..32].split_at(16);
-        // Pixel column 4 reads image columns 7..=9, across the edge: no hint.
-        for i in 0..2 {
-            assert_eq!(valid[i * 8 + 4], 0.0);
-            assert!((value[i * 8 + 1] - 0.4949).abs() < 1e-3, "{value:?}");
-            assert!((value[i * 8 + 6] - 0.1919).abs() < 1e-3, "{value:?}");
-            assert_eq!(valid[i * 8 + 6], 1.0);
-        }
-        // The third view (a later pair) has none.
-        assert!(v[64..].iter().all(|&x| x == 0.0));
-        // Matches beyond the range clamp into [0, 1]; none stays finite.
-        for d in [1e6f32, 1e-6, f32::NAN] {
-            let m = hint_map(
-                &flat_map(16, 4, d),
-                2,
-                (2, 8),
-                2,
-                (1.0, 100.0),
-                &Device::Cpu,
-            )
-            .unwrap();
-            let m: Vec<f32> = m.flatten_all().unwrap().to_vec1().unwrap();
-            assert!(
-                m.iter().all(|x| x.is_finite() && (0.0..=1.0).contains(x)),
-                "{d}"
-            );
         }
     }
 

@@ -11,7 +11,6 @@
 pub(crate) mod blocks;
 mod census_volume;
 mod config;
-mod convex_upsample;
 mod cost_volume;
 mod depth_head;
 pub mod depth_range;

@@ -18,7 +18,7 @@ use super::depth_head::{peak, DepthHead, ExtraCosts};
 use super::depth_range::{fit_scene, DepthRange};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
-use super::guidance::{hint_map, hint_volume, GuidanceStrength, SgmHints};
+use super::guidance::{hint_volume, GuidanceStrength, SgmHints};
 use super::transformer::MultiViewTransformer;
 use super::volume::{BranchInputs, GaussiansPerBranch, VolumeBranch, VolumeOutput};
 use super::Config;
@@ -257,10 +257,9 @@ impl StereoSplat {
             .census_matching
             .then(|| census_volume(images, cameras, &self.depths, &self.cfg, COST_STRIDE))
             .transpose()?;
-        // Hints matched at another size than these images' do not belong to them.
-        let hints = self.guidance.as_deref().filter(|h| h.width == width);
-        let guidance = match (hints, self.cfg.sgm_guidance) {
-            (Some(hints), Some(height)) => Some(hint_volume(
+        let guidance = match (&self.guidance, self.cfg.sgm_guidance) {
+            // Hints matched at another size than these images' do not belong to them.
+            (Some(hints), Some(height)) if hints.width == width => Some(hint_volume(
                 hints,
                 &self.depths,
                 v,
@@ -291,17 +290,6 @@ impl StereoSplat {
                 upsample_bilinear(t, hg, wg)
             }
         };
-        let fine_hints = match hints.filter(|_| self.cfg.fine_guidance) {
-            Some(hints) => Some(hint_map(
-                hints,
-                v,
-                (hg, wg),
-                g,
-                (self.cfg.near, self.cfg.far),
-                &self.device,
-            )?),
-            None => None,
-        };
         let image = every_nth_pixel(images, g)?;
         let confidence = up(&peak(&coarse.probabilities)?)?;
         let context = Tensor::cat(&[&image, &up(&features)?, &up(&bb.half)?, &confidence], 1)?;
@@ -309,8 +297,6 @@ impl StereoSplat {
             context: &context,
             image: &image,
             coarse: &up(&coarse.inverse)?,
-            coarse_cells: &coarse.inverse,
-            fine_hints: fine_hints.as_ref(),
             probabilities: &coarse.probabilities,
             cameras,
             net: &self.cfg,

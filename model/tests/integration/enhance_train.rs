@@ -54,7 +54,11 @@ fn data_config(pairs: usize) -> DataConfig {
 fn pairs(data: &Path, out: &Path, n: usize) -> usize {
     let sources = [Source {
         label: "shipped".into(),
-        config: model::net::Config::tiny(),
+        // As `tiny-plus`, the preset that runs the enhancer, reads the depth: over all the
+        // candidates, as the renders the enhancer learned on.
+        config: model::net::Config::tiny()
+            .with_settings(&["depth_window=null"])
+            .unwrap(),
         path: default_weights("tiny"),
     }];
     make_pairs(data, out, &sources, &data_config(n), &mut |_, _| {}).unwrap()

@@ -105,12 +105,6 @@ pub struct Config {
     /// setting (training always takes the full expectation); `None`: the full expectation.
     #[serde(default)]
     pub depth_window: Option<usize>,
-    /// Every Gaussian's scale times this, after the heads: below 1 a splat draws less of a
-    /// near surface over the farther one beside it (sharper depth edges) and leaves more of
-    /// the gaps between splats open. Inference setting (training always uses 1); must be
-    /// positive and finite.
-    #[serde(default = "one_f32")]
-    pub splat_scale: f32,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
     pub gaussian_stride: usize,
     /// Gaussians below this opacity are not emitted.
@@ -322,7 +316,6 @@ impl Config {
             sgm_guidance_width: 2.0,
             head_channels: 24,
             depth_window: Some(2),
-            splat_scale: 1.0,
             gaussian_stride: 2,
             opacity_floor: 0.02,
             max_gaussians: 200_000,

@@ -108,14 +108,9 @@ impl GaussianHead {
         let (rot, pos) = poses(x.cameras, device)?;
         let means = rot.matmul(&local)?.broadcast_add(&pos)?;
 
-        let scale = x.net.splat_scale;
-        if !(scale.is_finite() && scale > 0.0) {
-            candle_core::bail!("splat_scale must be positive and finite, not {scale}");
-        }
-        let log_scales = (footprint
+        let log_scales = footprint
             .log()?
-            .broadcast_add(&(part(3, 3)?.tanh()? * MAX_LOG_SCALE)?)?
-            + f64::from(scale).ln())?;
+            .broadcast_add(&(part(3, 3)?.tanh()? * MAX_LOG_SCALE)?)?;
         let identity = Tensor::new(&[1f32, 0., 0., 0.], device)?.reshape((1, 4, 1))?;
         let local_rot = part(6, 4)?.broadcast_add(&identity)?;
         let rotations = orientations(x.cameras, device)?.matmul(&local_rot)?;

@@ -25,6 +25,8 @@ import pathlib
 import numpy as np
 from PIL import Image, ImageFilter
 
+from ply import load_ply
+
 EDGE_JUMP_PX = 3.0
 BAD_PX = 3.0
 BANDS_PX = (3, 7, 15, 31)
@@ -70,12 +72,11 @@ def edge_distance_bands(truth: np.ndarray) -> list:
 
 def gaussian_centres(run: pathlib.Path, shape: tuple) -> tuple:
     """Pixel rows, columns, depths and extents (largest standard deviation, in pixels) of
-    the run's Gaussians (3DGS PLY, 18 floats each, in the left camera's frame) projected with
+    the run's Gaussians (`gaussians.ply`, in the left camera's frame) projected with
     the intrinsics of its `summary.json`, those that land in an image of `shape`."""
-    raw = (run / "gaussians.ply").read_bytes()
-    start = raw.index(b"end_header\n") + len(b"end_header\n")
-    rows = np.frombuffer(raw[start:], dtype="<f4").reshape(-1, 18).astype(np.float64)
-    xyz, log_scales = rows[:, :3], rows[:, 10:13]
+    ply = load_ply(run / "gaussians.ply")
+    column = lambda *names: np.stack([ply[n] for n in names], axis=1).astype(np.float64)
+    xyz, log_scales = column("x", "y", "z"), column("scale_0", "scale_1", "scale_2")
     s = json.loads((run / "summary.json").read_text())
     z = xyz[:, 2]
     ahead = z > 1e-9

@@ -11,7 +11,7 @@
 # (1.08 steps/s).
 #   bash scripts/train_tiny_guided.sh [RUN_DIR] [STEPS]
 # Environment: INIT, the weights a fresh run starts from (default the census weights);
-# SETTINGS, extra `--set` flags (e.g. "--set convex_upsampling=true"); SHIP=0 leaves
+# SETTINGS, extra `--set` flags (e.g. "--set sgm_guidance=20"); SHIP=0 leaves
 # model/weights/ alone (an experiment).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -62,8 +62,9 @@ pub struct DepthHead {
     backbone_weight: Option<Tensor>,
     /// With `census_matching`: the same for the census correlation.
     census_weight: Option<Tensor>,
-    /// The preset's `depth_window`.
-    window: Option<usize>,
+    /// The preset's `depth_window` and each candidate's index `(1, D, 1, 1)` (the window is
+    /// counted in indices).
+    window: Option<(usize, Tensor)>,
 }
 
 /// The variable `name`, starting at zero, when `on`.
@@ -100,7 +101,10 @@ impl DepthHead {
             logit_bound: cfg.depth_logit_bound,
             backbone_weight: extra_weight(&vb, cfg.backbone_matching, "zero_backbone_weight")?,
             census_weight: extra_weight(&vb, cfg.census_matching, "zero_census_weight")?,
-            window: cfg.depth_window,
+            window: cfg
+                .depth_window
+                .map(|r| Ok::<_, candle_core::Error>((r, candidate_indices(d, vb.device())?)))
+                .transpose()?,
         })
     }
 
@@ -140,8 +144,10 @@ impl DepthHead {
         };
         let logits = (unet + &sharpened)?;
         let probabilities = candle_nn::ops::softmax(&logits, 1)?;
-        let inverse = match self.window {
-            Some(r) => windowed_expectation(&probabilities, &self.candidates, r)?,
+        let inverse = match &self.window {
+            Some((r, indices)) => {
+                windowed_expectation(&probabilities, &self.candidates, indices, *r)?
+            }
             None => probabilities
                 .broadcast_mul(&self.candidates)?
                 .sum_keepdim(1)?,
@@ -159,15 +165,17 @@ impl DepthHead {
 /// et al.'s sub-pixel MAP, NeurIPS 2018): where the softmax has two modes (a near and a far
 /// surface in one cell) it keeps the stronger instead of averaging them into a depth
 /// between, nearer than the background and farther than the foreground.
-fn windowed_expectation(probabilities: &Tensor, candidates: &Tensor, r: usize) -> Result<Tensor> {
-    let d = probabilities.dim(1)?;
+/// `indices` are the candidates' indices `(1, D, 1, 1)` ([`candidate_indices`]).
+fn windowed_expectation(
+    probabilities: &Tensor,
+    candidates: &Tensor,
+    indices: &Tensor,
+    r: usize,
+) -> Result<Tensor> {
     let best = probabilities
         .argmax_keepdim(1)?
         .to_dtype(probabilities.dtype())?;
-    let index = Tensor::arange(0u32, d as u32, probabilities.device())?
-        .to_dtype(probabilities.dtype())?
-        .reshape((1, d, 1, 1))?;
-    let inside = index
+    let inside = indices
         .broadcast_sub(&best)?
         .abs()?
         .le(r as f64)?
@@ -178,6 +186,12 @@ fn windowed_expectation(probabilities: &Tensor, candidates: &Tensor, r: usize) -
     kept.broadcast_mul(candidates)?
         .sum_keepdim(1)?
         .broadcast_div(&mass)
+}
+
+/// `0, 1, ..., d - 1` as `(1, d, 1, 1)` floats: what [`windowed_expectation`] measures the
+/// distance to the peak in.
+fn candidate_indices(d: usize, device: &candle_core::Device) -> Result<Tensor> {
+    Tensor::arange(0f32, d as f32, device)?.reshape((1, d, 1, 1))
 }
 
 /// Normalised inverse depth of a metric `depth` (1 at `near`, 0 at `far`, outside `[0, 1]`
@@ -230,12 +244,17 @@ mod tests {
         let candidates = Tensor::from_vec(candidates, (1, d, 1, 1), &Device::Cpu).unwrap();
         let column = |p: Vec<f32>| Tensor::from_vec(p, (1, d, 1, 1), &Device::Cpu).unwrap();
         let at = |p: &Tensor, r| -> f32 {
-            windowed_expectation(p, &candidates, r)
-                .unwrap()
-                .flatten_all()
-                .unwrap()
-                .to_vec1::<f32>()
-                .unwrap()[0]
+            windowed_expectation(
+                p,
+                &candidates,
+                &candidate_indices(d, &Device::Cpu).unwrap(),
+                r,
+            )
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap()[0]
         };
         // 0.65 about candidate 2 (inverse 0.8), 0.35 on candidate 8 (0.2): the full
         // expectation is 0.595, a depth neither surface has; the window keeps the first

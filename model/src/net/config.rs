@@ -105,6 +105,13 @@ pub struct Config {
     /// setting (training always takes the full expectation); `None`: the full expectation.
     #[serde(default)]
     pub depth_window: Option<usize>,
+    /// With `sgm_guidance`'s hints present (near scenes): each Gaussian of the first pair
+    /// whose pixels SGM matched consistently takes SGM's depth instead of the network's; the
+    /// network's depth fills the rest and the network sets every Gaussian's colour, opacity,
+    /// shape and offset. A hybrid (the network alone cannot place real foreground edges:
+    /// it draws them over their background), inference only.
+    #[serde(default)]
+    pub sgm_snap: bool,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
     pub gaussian_stride: usize,
     /// Gaussians below this opacity are not emitted.
@@ -288,7 +295,10 @@ impl Config {
     /// unchanged, since none is fitted. Since stop 37 its depth is the softmax's expectation
     /// within 2 candidates of the peak (`depth_window`): Aloe 41.7% to 40.4%, OAK-D
     /// 0.0380 to 0.0373, streets 22.86 to 22.82 dB at the same AbsRel
-    /// (`results/refinement_experiments/`).
+    /// (`results/refinement_experiments/`). Since stop 38, on near scenes, the first pair's
+    /// Gaussians where SGM matched consistently take SGM's depth (`sgm_snap`, a hybrid):
+    /// Aloe 40.4% to 32.7%, Motorcycle 22.9% to 20.3%, OAK-D 0.0373 to 0.0362; streets
+    /// identical (`results/refinement_experiments/sgm_snap/`).
     pub fn tiny() -> Self {
         Self {
             name: "tiny".into(),
@@ -316,6 +326,7 @@ impl Config {
             sgm_guidance_width: 2.0,
             head_channels: 24,
             depth_window: Some(2),
+            sgm_snap: true,
             gaussian_stride: 2,
             opacity_floor: 0.02,
             max_gaussians: 200_000,
@@ -433,6 +444,7 @@ impl Config {
     fn without_tiny_extras(self) -> Self {
         Self {
             depth_window: None,
+            sgm_snap: false,
             census_matching: false,
             auto_depth_range: false,
             auto_depth_range_max_far: None,

@@ -16,6 +16,7 @@ use renderer::Camera;
 use super::blocks::{conv, ConvRelu};
 use super::depth_head::metric_depth;
 use super::geometry::{camera_to_world, orientation_matrix, rays};
+use super::guidance::SnapTargets;
 use super::Config;
 use crate::ops::{upsample_bilinear, SplatTensors};
 
@@ -46,6 +47,9 @@ pub struct HeadInputs<'a> {
     /// The network's settings: their `near..far` turn the inverse depth into metres (the
     /// range the candidates spanned, which `auto_depth_range` may have fitted to the pair).
     pub net: &'a Config,
+    /// With `sgm_snap` and hints: SGM's depth for the Gaussians it matched, which replaces
+    /// the refined depth there.
+    pub snap: Option<&'a SnapTargets>,
 }
 
 /// What the heads predict.
@@ -91,6 +95,10 @@ impl GaussianHead {
         let t = self.out.forward(&t)?;
         let refine = (t.narrow(1, 0, 1)?.tanh()? * MAX_REFINE)?;
         let inverse = (x.coarse + refine)?.clamp(0f32, 1f32)?;
+        let inverse = match x.snap {
+            Some(snap) => snap.mask.where_cond(&snap.inverse, &inverse)?,
+            None => inverse,
+        };
         let depth_map = metric_depth(&inverse, x.net)?;
         let t = t.reshape((v, TRUNK_OUT, p))?;
         let part = |from: usize, n: usize| t.narrow(1, from + 1, n);

@@ -82,27 +82,102 @@ pub fn hint_volume(
     let (h, w) = grid;
     let d = depths.len();
     let mut out = vec![0f32; views * d * h * w];
-    let right = hints.right_view();
     let candidate = candidate_index(depths, hints.fx_baseline);
+    for cell in hinted_cells(hints, views, grid, stride) {
+        let Some(k_star) = candidate(cell.disparity) else {
+            continue;
+        };
+        for k in 0..d {
+            let z = (k as f32 - k_star) / strength.width.max(1e-3);
+            out[((cell.view * d + k) * h + cell.i) * w + cell.j] =
+                strength.height * (-0.5 * z * z).exp();
+        }
+    }
+    Tensor::from_vec(out, (views, d, h, w), device)
+}
+
+/// With `sgm_snap`: SGM's own depth for the Gaussians it matched, as the heads apply it.
+pub struct SnapTargets {
+    /// Normalised inverse depth (1 = the nearest candidate, 0 = the farthest) of each
+    /// Gaussian's hinted disparity, `(V, 1, Hg, Wg)`; 0 where `mask` is 0.
+    pub inverse: Tensor,
+    /// 1 where the Gaussian takes `inverse`, 0 where it keeps the network's, `(V, 1, Hg,
+    /// Wg)` as `u8`.
+    pub mask: Tensor,
+}
+
+/// The targets of `sgm_snap` for `views` views on the Gaussians' `grid` (Gaussian `(i, j)`
+/// sits on image pixel `(stride i, stride j)`) within the candidate `depths` (nearest
+/// first, uniform in inverse depth): a Gaussian of the first pair whose `(stride + 1)`-pixel
+/// square SGM matched consistently (the rule of the hint volume's cells) takes the median
+/// match, when it lies within the candidates; later views and the rest keep the network's.
+pub fn snap_targets(
+    hints: &SgmHints,
+    depths: &[f64],
+    views: usize,
+    grid: (usize, usize),
+    stride: usize,
+    device: &Device,
+) -> Result<SnapTargets> {
+    let (h, w) = grid;
+    let mut inverse = vec![0f32; views * h * w];
+    let mut mask = vec![0u8; views * h * w];
+    let normalised = |disparity: f32| {
+        let (near, far) = (*depths.first()?, *depths.last()?);
+        let t =
+            (disparity as f64 / hints.fx_baseline as f64 - 1.0 / far) / (1.0 / near - 1.0 / far);
+        // The ends count as inside though rounding may put them a hair outside.
+        (t.is_finite() && (-1e-6..=1.0 + 1e-6).contains(&t)).then_some(t.clamp(0.0, 1.0) as f32)
+    };
+    for cell in hinted_cells(hints, views, grid, stride) {
+        if let Some(t) = normalised(cell.disparity) {
+            let at = (cell.view * h + cell.i) * w + cell.j;
+            (inverse[at], mask[at]) = (t, 1);
+        }
+    }
+    Ok(SnapTargets {
+        inverse: Tensor::from_vec(inverse, (views, 1, h, w), device)?,
+        mask: Tensor::from_vec(mask, (views, 1, h, w), device)?,
+    })
+}
+
+/// A cell of a hinted view and SGM's disparity there.
+struct HintedCell {
+    view: usize,
+    i: usize,
+    j: usize,
+    disparity: f32,
+}
+
+/// The cells of `grid` (cell `(i, j)` on image pixel `(stride i, stride j)`) that SGM hints,
+/// in views 0 (the left map) and 1 (the right view's, from it), at most `views` of them.
+fn hinted_cells(
+    hints: &SgmHints,
+    views: usize,
+    grid: (usize, usize),
+    stride: usize,
+) -> Vec<HintedCell> {
+    let right = hints.right_view();
+    let mut cells = Vec::new();
     for (view, map) in [&hints.disparity, &right]
         .into_iter()
         .enumerate()
         .take(views)
     {
-        let volume = &mut out[view * d * h * w..(view + 1) * d * h * w];
-        for i in 0..h {
-            for j in 0..w {
-                let Some(k_star) = cell_hint(hints, map, i, j, stride).and_then(&candidate) else {
-                    continue;
-                };
-                for k in 0..d {
-                    let z = (k as f32 - k_star) / strength.width.max(1e-3);
-                    volume[(k * h + i) * w + j] = strength.height * (-0.5 * z * z).exp();
+        for i in 0..grid.0 {
+            for j in 0..grid.1 {
+                if let Some(disparity) = cell_hint(hints, map, i, j, stride) {
+                    cells.push(HintedCell {
+                        view,
+                        i,
+                        j,
+                        disparity,
+                    });
                 }
             }
         }
     }
-    Tensor::from_vec(out, (views, d, h, w), device)
+    cells
 }
 
 /// The continuous candidate index of a disparity (`None` outside the candidates by more
@@ -262,6 +337,45 @@ mod tests {
             assert!(v.iter().all(|x| x.is_finite()));
             // Views 2 and 3 (a second pair) have no hints.
             assert!(v[2 * 11 * 32..].iter().all(|&x| x == 0.0));
+        }
+    }
+
+    /// `snap_targets`' inverse depths and mask for `hints` on a `grid` at stride 2 over 4 views.
+    fn snaps(hints: &SgmHints, depths: &[f64], grid: (usize, usize)) -> (Vec<f32>, Vec<u8>) {
+        let t = snap_targets(hints, depths, 4, grid, 2, &Device::Cpu).unwrap();
+        let flat = |t: &Tensor| t.flatten_all().unwrap();
+        (
+            flat(&t.inverse).to_vec1().unwrap(),
+            flat(&t.mask).to_vec1().unwrap(),
+        )
+    }
+
+    #[test]
+    fn snaps_take_the_hinted_depth_within_the_candidates_on_the_first_pair_only() {
+        let depths = depths(11);
+        let grid = (8, 16);
+        let cells = 8 * 16;
+        // 50 px at fx B = 100: 2 m, normalised inverse (0.5 - 0.01) / (1 - 0.01).
+        let (inverse, mask) = snaps(&flat_map(32, 16, 50.0), &depths, grid);
+        for (i, (&t, &m)) in inverse.iter().zip(&mask).enumerate() {
+            let view = i / cells;
+            // The right view's columns left of 50 px see no left pixel: all of them here.
+            let expected = view == 0;
+            assert_eq!(m == 1, expected, "cell {i}");
+            let want = if expected { 0.49 / 0.99 } else { 0.0 };
+            assert!((t - want).abs() < 1e-6, "cell {i}: {t}");
+        }
+        // The range's ends are kept (1 m: 1, 100 m: 0); nearer, farther, zero, infinite,
+        // negative and NaN disparities snap nothing.
+        for (d, want) in [(100.0, 1.0), (1.0, 0.0)] {
+            let (inverse, mask) = snaps(&flat_map(32, 16, d), &depths, grid);
+            assert_eq!(mask[0], 1, "disparity {d}");
+            assert_eq!(inverse[0], want, "disparity {d}");
+        }
+        for d in [100.5, 0.5, 0.0, f32::INFINITY, -5.0, f32::NAN] {
+            let (inverse, mask) = snaps(&flat_map(32, 16, d), &depths, grid);
+            assert!(mask.iter().all(|&m| m == 0), "disparity {d}");
+            assert!(inverse.iter().all(|&t| t == 0.0), "disparity {d}");
         }
     }
 

@@ -18,7 +18,7 @@ use super::depth_head::{peak, DepthHead, ExtraCosts};
 use super::depth_range::{fit_scene, DepthRange};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
-use super::guidance::{hint_volume, GuidanceStrength, SgmHints};
+use super::guidance::{hint_volume, snap_targets, GuidanceStrength, SgmHints};
 use super::transformer::MultiViewTransformer;
 use super::volume::{BranchInputs, GaussiansPerBranch, VolumeBranch, VolumeOutput};
 use super::Config;
@@ -257,9 +257,10 @@ impl StereoSplat {
             .census_matching
             .then(|| census_volume(images, cameras, &self.depths, &self.cfg, COST_STRIDE))
             .transpose()?;
-        let guidance = match (&self.guidance, self.cfg.sgm_guidance) {
-            // Hints matched at another size than these images' do not belong to them.
-            (Some(hints), Some(height)) if hints.width == width => Some(hint_volume(
+        // Hints matched at another size than these images' do not belong to them.
+        let hints = self.guidance.as_deref().filter(|h| h.width == width);
+        let guidance = match (hints, self.cfg.sgm_guidance) {
+            (Some(hints), Some(height)) => Some(hint_volume(
                 hints,
                 &self.depths,
                 v,
@@ -290,6 +291,10 @@ impl StereoSplat {
                 upsample_bilinear(t, hg, wg)
             }
         };
+        let snap = hints
+            .filter(|_| self.cfg.sgm_snap)
+            .map(|hints| snap_targets(hints, &self.depths, v, (hg, wg), g, &self.device))
+            .transpose()?;
         let image = every_nth_pixel(images, g)?;
         let confidence = up(&peak(&coarse.probabilities)?)?;
         let context = Tensor::cat(&[&image, &up(&features)?, &up(&bb.half)?, &confidence], 1)?;
@@ -300,6 +305,7 @@ impl StereoSplat {
             probabilities: &coarse.probabilities,
             cameras,
             net: &self.cfg,
+            snap: snap.as_ref(),
         })?;
         Ok(Prediction {
             splats: heads.splats,

@@ -1,6 +1,7 @@
 //! SGM's hints (`sgm_guidance`) with the shipped `tiny` weights on a near textured plane:
 //! they pull the first pair towards the plane and leave a later pair exactly as the network
-//! alone predicts it (the hints were matched on the first pair only).
+//! alone predicts it (the hints were matched on the first pair only); with `sgm_snap` the
+//! first pair's Gaussians SGM matched sit at SGM's depth.
 
 use candle_core::{Device, Tensor};
 use model::net::{default_weights, Config, LearnedReconstructor, Prediction};
@@ -24,6 +25,11 @@ fn plane_pair() -> Tensor {
 }
 
 fn rig() -> [Camera; 2] {
+    rig_at(glam::Vec3::ZERO)
+}
+
+/// The rig with its left camera at `origin`.
+fn rig_at(origin: glam::Vec3) -> [Camera; 2] {
     let k = Intrinsics {
         fx: 100.0,
         fy: 100.0,
@@ -32,7 +38,8 @@ fn rig() -> [Camera; 2] {
         width: WIDTH as u32,
         height: HEIGHT as u32,
     };
-    [0.0, 0.1].map(|x| Camera::from_camera_to_world(k, glam::Quat::IDENTITY, glam::Vec3::X * x))
+    [0.0, 0.1]
+        .map(|x| Camera::from_camera_to_world(k, glam::Quat::IDENTITY, origin + glam::Vec3::X * x))
 }
 
 /// Each view's depth map, flattened.
@@ -63,7 +70,8 @@ fn plane_error(depth: &[f32]) -> f32 {
 
 #[test]
 fn hints_guide_the_first_pair_towards_the_plane_and_no_later_pair() {
-    let cfg = Config::tiny();
+    // The hints alone, without the snap that replaces the depth where SGM matched.
+    let cfg = Config::tiny().with_settings(&["sgm_snap=false"]).unwrap();
     assert!(cfg.sgm_guidance.is_some() && cfg.gaussian_stride == 2);
     let shipped = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
     // Two pairs: the second the first again, so guided or not it would give the same maps.
@@ -93,4 +101,60 @@ fn hints_guide_the_first_pair_towards_the_plane_and_no_later_pair() {
     let (with, without) = (plane_error(&guided[0]), plane_error(&alone[0]));
     eprintln!("mean |depth - plane|: {with:.4} m with hints, {without:.4} m without");
     assert!(with < without, "{with} against {without}");
+}
+
+/// Share of `depth`'s middle-half cells within 3% of the plane (a quarter pixel of disparity).
+fn on_plane(depth: &[f32]) -> f32 {
+    let (w, h) = (WIDTH / 2, HEIGHT / 2);
+    let cells: Vec<f32> = (0..h)
+        .flat_map(|y| (w / 4..3 * w / 4).map(move |x| depth[y * w + x]))
+        .collect();
+    cells
+        .iter()
+        .filter(|d| (*d - PLANE_M).abs() < 0.03 * PLANE_M)
+        .count() as f32
+        / cells.len() as f32
+}
+
+#[test]
+fn snapped_gaussians_take_sgms_depth_on_the_first_pair_only_and_stay_finite_far_out() {
+    let cfg = Config::tiny();
+    assert!(cfg.sgm_snap);
+    let shipped = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+    let pair = plane_pair();
+    let images = Tensor::cat(&[&pair, &pair], 0).unwrap();
+    // The rig at the origin and 100 km out: the snap works in the camera's frame.
+    for offset in [glam::Vec3::ZERO, glam::Vec3::new(1.0e5, -1.0e5, 50.0)] {
+        let cameras = [rig_at(offset), rig_at(offset)].concat();
+        let (fitted, _) = shipped
+            .net()
+            .fitted_to_scene(&images, &cameras)
+            .expect("a textured plane is matched");
+        let predict = |net| {
+            LearnedReconstructor::from_net(net, 0)
+                .cost_volume_prediction(&images, &cameras)
+                .unwrap()
+        };
+        let snapped = predict(fitted.clone());
+        let alone = depths(&predict(fitted.without_hints()));
+        let snapped_depths = depths(&snapped);
+        let means: Vec<f32> = snapped
+            .splats
+            .means
+            .flatten_all()
+            .unwrap()
+            .to_vec1()
+            .unwrap();
+        assert!(means.iter().all(|m| m.is_finite()), "{offset}");
+        // SGM matches the 8-px plane exactly: nearly every middle Gaussian of both views of
+        // the first pair sits on it, far more than the network alone puts there.
+        for view in 0..2 {
+            let (with, without) = (on_plane(&snapped_depths[view]), on_plane(&alone[view]));
+            eprintln!("{offset} view {view}: {with:.3} of the cells on the plane snapped, {without:.3} alone");
+            assert!(with > 0.9 && with > without, "{with} against {without}");
+        }
+        // The later pair is the network alone.
+        assert_eq!(snapped_depths[2], alone[2]);
+        assert_eq!(snapped_depths[3], alone[3]);
+    }
 }

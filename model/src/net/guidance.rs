@@ -9,6 +9,9 @@
 
 use candle_core::{Device, Result, Tensor};
 
+use super::depth_head::normalised_inverse;
+use super::Config;
+
 /// Least share of a cell's pixels SGM must have matched for the cell to be hinted.
 const MIN_VALID: f32 = 0.5;
 /// Largest spread (max - min, pixels) of a cell's matched disparities for the cell to be
@@ -107,13 +110,14 @@ pub struct SnapTargets {
 }
 
 /// The targets of `sgm_snap` for `views` views on the Gaussians' `grid` (Gaussian `(i, j)`
-/// sits on image pixel `(stride i, stride j)`) within the candidate `depths` (nearest
-/// first, uniform in inverse depth): a Gaussian of the first pair whose `(stride + 1)`-pixel
-/// square SGM matched consistently (the rule of the hint volume's cells) takes the median
-/// match, when it lies within the candidates; later views and the rest keep the network's.
+/// sits on image pixel `(stride i, stride j)`) within the network's `near..far` (`net`, as
+/// the heads turn the inverse depth back into metres): a Gaussian of the first pair whose
+/// `(stride + 1)`-pixel square SGM matched consistently (the rule of the hint volume's cells)
+/// takes the median match, when it lies within the range; later views and the rest keep the
+/// network's.
 pub fn snap_targets(
     hints: &SgmHints,
-    depths: &[f64],
+    net: &Config,
     views: usize,
     grid: (usize, usize),
     stride: usize,
@@ -123,9 +127,7 @@ pub fn snap_targets(
     let mut inverse = vec![0f32; views * h * w];
     let mut mask = vec![0u8; views * h * w];
     let normalised = |disparity: f32| {
-        let (near, far) = (*depths.first()?, *depths.last()?);
-        let t =
-            (disparity as f64 / hints.fx_baseline as f64 - 1.0 / far) / (1.0 / near - 1.0 / far);
+        let t = normalised_inverse(hints.fx_baseline as f64 / disparity as f64, net);
         // The ends count as inside though rounding may put them a hair outside.
         (t.is_finite() && (-1e-6..=1.0 + 1e-6).contains(&t)).then_some(t.clamp(0.0, 1.0) as f32)
     };
@@ -340,9 +342,12 @@ mod tests {
         }
     }
 
-    /// `snap_targets`' inverse depths and mask for `hints` on a `grid` at stride 2 over 4 views.
-    fn snaps(hints: &SgmHints, depths: &[f64], grid: (usize, usize)) -> (Vec<f32>, Vec<u8>) {
-        let t = snap_targets(hints, depths, 4, grid, 2, &Device::Cpu).unwrap();
+    /// `snap_targets`' inverse depths and mask for `hints` on a `grid` at stride 2 over 4
+    /// views, within `tiny`'s 1..100 m (the range of [`depths`]).
+    fn snaps(hints: &SgmHints, grid: (usize, usize)) -> (Vec<f32>, Vec<u8>) {
+        let net = Config::tiny();
+        assert_eq!((net.near, net.far), (1.0, 100.0));
+        let t = snap_targets(hints, &net, 4, grid, 2, &Device::Cpu).unwrap();
         let flat = |t: &Tensor| t.flatten_all().unwrap();
         (
             flat(&t.inverse).to_vec1().unwrap(),
@@ -352,11 +357,10 @@ mod tests {
 
     #[test]
     fn snaps_take_the_hinted_depth_within_the_candidates_on_the_first_pair_only() {
-        let depths = depths(11);
         let grid = (8, 16);
         let cells = 8 * 16;
         // 50 px at fx B = 100: 2 m, normalised inverse (0.5 - 0.01) / (1 - 0.01).
-        let (inverse, mask) = snaps(&flat_map(32, 16, 50.0), &depths, grid);
+        let (inverse, mask) = snaps(&flat_map(32, 16, 50.0), grid);
         for (i, (&t, &m)) in inverse.iter().zip(&mask).enumerate() {
             let view = i / cells;
             // The right view's columns left of 50 px see no left pixel: all of them here.
@@ -368,12 +372,12 @@ mod tests {
         // The range's ends are kept (1 m: 1, 100 m: 0); nearer, farther, zero, infinite,
         // negative and NaN disparities snap nothing.
         for (d, want) in [(100.0, 1.0), (1.0, 0.0)] {
-            let (inverse, mask) = snaps(&flat_map(32, 16, d), &depths, grid);
+            let (inverse, mask) = snaps(&flat_map(32, 16, d), grid);
             assert_eq!(mask[0], 1, "disparity {d}");
             assert_eq!(inverse[0], want, "disparity {d}");
         }
         for d in [100.5, 0.5, 0.0, f32::INFINITY, -5.0, f32::NAN] {
-            let (inverse, mask) = snaps(&flat_map(32, 16, d), &depths, grid);
+            let (inverse, mask) = snaps(&flat_map(32, 16, d), grid);
             assert!(mask.iter().all(|&m| m == 0), "disparity {d}");
             assert!(inverse.iter().all(|&t| t == 0.0), "disparity {d}");
         }

@@ -293,7 +293,7 @@ impl StereoSplat {
         };
         let snap = hints
             .filter(|_| self.cfg.sgm_snap)
-            .map(|hints| snap_targets(hints, &self.depths, v, (hg, wg), g, &self.device))
+            .map(|hints| snap_targets(hints, &self.cfg, v, (hg, wg), g, &self.device))
             .transpose()?;
         let image = every_nth_pixel(images, g)?;
         let confidence = up(&peak(&coarse.probabilities)?)?;

@@ -2,12 +2,15 @@
 //! correlation with each of its N nearest views by camera translation, over depth candidates
 //! uniform in inverse depth, averaged over those views. Warping is bilinear sampling at the
 //! projected points (`ops::grid_sample`), so any relative pose works, not only the
-//! horizontal shift of a rectified pair, and 1 to K stereo pairs use the same weights.
+//! horizontal shift of a rectified pair, and 1 to K stereo pairs use the same weights. A
+//! rectified pair (every sweep point on its own row) takes the same values along rows
+//! ([`super::row_correlation`]), without the warped `(C, D, h, w)` features.
 
 use candle_core::{Result, Tensor};
 use renderer::Camera;
 
-use super::geometry::{nearest_views, sweep_grid};
+use super::geometry::{nearest_views, sweep_points};
+use super::row_correlation::{row_correlation, RowTaps};
 use super::Config;
 use crate::ops::grid_sample;
 
@@ -36,19 +39,19 @@ pub fn cost_volume(
     let neighbours = nearest_views(cameras, cfg.match_views);
     let mut volumes = Vec::with_capacity(v);
     for (i, sources) in neighbours.iter().enumerate() {
-        let reference = features.get(i)?.unsqueeze(1)?; // (C, 1, h, w)
+        let reference = features.get(i)?; // (C, h, w)
         let mut sum: Option<Tensor> = None;
         for &j in sources {
-            let grid = sweep_grid(
-                &cameras[i],
-                &cameras[j],
-                depths,
-                stride,
-                (h, w),
-                features.device(),
-            )?;
-            let warped = grid_sample(&features.narrow(0, j, 1)?, &grid)?.reshape((c, d, h, w))?;
-            let corr = warped.broadcast_mul(&reference)?.sum(0)?;
+            let points = sweep_points(&cameras[i], &cameras[j], depths, stride, (h, w));
+            let corr = match RowTaps::new(&points, d, h, w) {
+                Some(taps) => row_correlation(&reference, &features.get(j)?, &taps)?,
+                None => {
+                    let grid = Tensor::from_vec(points, (1, d * h, w, 2), features.device())?;
+                    let warped =
+                        grid_sample(&features.narrow(0, j, 1)?, &grid)?.reshape((c, d, h, w))?;
+                    warped.broadcast_mul(&reference.unsqueeze(1)?)?.sum(0)?
+                }
+            };
             sum = Some(match sum {
                 Some(s) => (s + corr)?,
                 None => corr,

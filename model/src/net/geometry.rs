@@ -1,5 +1,5 @@
 //! Camera geometry the network needs as constant tensors: viewing rays of a feature grid,
-//! the plane-sweep sampling grid between two views, the nearest views by translation, and
+//! the plane-sweep sampling points between two views, the nearest views by translation, and
 //! the rotations that carry camera-frame Gaussians into the bin's frame. Computed in `f64`
 //! on the CPU (the cameras are inputs, not learned) and handed to candle as `f32`.
 
@@ -46,19 +46,18 @@ pub fn orientation_matrix(camera: &Camera) -> [[f32; 4]; 4] {
     [[w, -x, -y, -z], [x, w, -z, y], [y, z, w, -x], [z, -y, x, w]]
 }
 
-/// The plane-sweep grid from reference camera `reference` into `source`: for each depth in
-/// `depths` and each pixel of the reference's `h` x `w` grid (both with `stride`), the point
-/// at that depth on the pixel's ray, projected into the source's grid, as `(1, D h, w, 2)`
-/// pixel coordinates for `ops::grid_sample`. Points behind or at the source camera get NaN,
-/// which samples zero.
-pub fn sweep_grid(
+/// The plane-sweep points from reference camera `reference` into `source`: for each depth
+/// in `depths` and each pixel of the reference's `h` x `w` grid (both with `stride`), the
+/// point at that depth on the pixel's ray, projected into the source's grid, in pixel
+/// coordinates (`x, y` interleaved in depth, row, column order: `ops::grid_sample`'s
+/// `(1, D h, w, 2)` grid). Points behind or at the source camera get NaN, which samples zero.
+pub fn sweep_points(
     reference: &Camera,
     source: &Camera,
     depths: &[f64],
     stride: usize,
     (h, w): (usize, usize),
-    device: &Device,
-) -> Result<Tensor> {
+) -> Vec<f32> {
     let to_source = source.rotation.as_dmat3() * camera_to_world(reference);
     let offset =
         source.rotation.as_dmat3() * (reference.position.as_dvec3() - source.position.as_dvec3());
@@ -78,7 +77,7 @@ pub fn sweep_grid(
             }
         }
     }
-    Tensor::from_vec(data, (1, depths.len() * h, w, 2), device)
+    data
 }
 
 /// For each view, the indices of its `n` nearest other views by camera translation (ties to
@@ -117,8 +116,7 @@ mod tests {
     fn sweep_of_a_rectified_pair_shifts_by_the_disparity() {
         let (left, right) = (test_camera(0.0), test_camera(0.5));
         // Depth 10 m, baseline 0.5 m, fx 100: disparity 5 px, 1.25 px on the 1/4 grid.
-        let g = sweep_grid(&left, &right, &[10.0], 4, (10, 20), &Device::Cpu).unwrap();
-        let v: Vec<f32> = g.flatten_all().unwrap().to_vec1().unwrap();
+        let v = sweep_points(&left, &right, &[10.0], 4, (10, 20));
         let (x, y) = (3usize, 2usize);
         let i = (y * 20 + x) * 2;
         assert!((v[i] - (x as f32 - 1.25)).abs() < 1e-5, "{}", v[i]);

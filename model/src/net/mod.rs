@@ -22,6 +22,7 @@ pub mod merge;
 pub mod pair_fusion;
 pub mod prune;
 mod reconstructor;
+mod row_correlation;
 mod stereosplat;
 pub(crate) mod transformer;
 pub mod volume;

@@ -4,7 +4,7 @@
 # the Vulkan loader packages in .gl/ (see /work/.library/device/README.md). Writes JSON and
 # logs to $GPU_RESULTS (default results/gpu/raw). Each step has its own time limit so one failure
 # does not cost the rest. Name parts to run only those (render rtests ops model ab profile
-# node train gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
+# scale node train gputrain gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
 # it needs the gsplat wheel in .whl/ (pip download --no-deps gsplat==1.5.3 -d .whl) and
 # compiles gsplat's CUDA code first (minutes), in the background while the other parts run.
 #   bash scripts/gpu_bench.sh [PART...]
@@ -40,6 +40,14 @@ run() { # NAME LIMIT CMD...: stdout to NAME.json, stderr to NAME.err
   timeout "$limit" "$@" >"$out/$name.json" 2>"$out/$name.err"
   echo "rc=$?" >>"$out/$name.err"
 }
+# The plain streets `gputrain` trains on, written on 8 cores while the parts before it run
+# (their GPU timestamps and kernel times do not count the CPU).
+synth_plain=()
+want gputrain && for seed in 0 1 2 3 4 5 6 7; do
+  timeout 300 $bin synth --out /tmp/plain --seed $seed --frames 300 --width 272 --height 72 \
+    >"$out/synth_plain_$seed.log" 2>&1 &
+  synth_plain+=($!)
+done
 # gsplat's CUDA code compiles (one process, every core) while the tests below run; the
 # timed parts wait for it so the compiler does not share the machine with them.
 want gsplat && {
@@ -104,14 +112,25 @@ want ab && [ -f gpu_carry/baseline.xz ] && {
 # Where `tiny`'s time on CUDA goes: every kernel of `bench model` (one warm-up and one timed
 # reconstruction, plus each branch once) under Nsight Compute, per kernel name: launches and
 # GPU time. Their sum against the wall-clock figure above says how much is kernel work.
-want profile && {
-  log ncu_tiny
+# PROFILE_PRESETS picks the presets (default tiny), PROFILE_LIMIT_S the limit of each.
+want profile && for preset in ${PROFILE_PRESETS:-tiny}; do
+  log "ncu_$preset"
   ncu=$(command -v ncu || ls /opt/nvidia/nsight-compute/*/ncu | head -1)
-  timeout 300 "$ncu" --metrics gpu__time_duration.sum --print-summary per-kernel --csv \
-    $bin bench model --preset tiny --set device=cuda --runs 1 --warmup 1 \
-    >"$out/ncu_tiny.csv" 2>"$out/ncu_tiny.err"
-  echo "rc=$?" >>"$out/ncu_tiny.err"
-}
+  timeout "${PROFILE_LIMIT_S:-300}" "$ncu" --metrics gpu__time_duration.sum --print-summary per-kernel --csv \
+    $bin bench model --preset "$preset" --set device=cuda --runs 1 --warmup 1 \
+    >"$out/ncu_$preset.csv" 2>"$out/ncu_$preset.err"
+  echo "rc=$?" >>"$out/ncu_$preset.err"
+done
+# The rasterizer's cliff between 2M and 4M Gaussians (results/gpu/README.md): a 3M step at
+# full HD, and 2M and 4M at the node's 544x112, where each Gaussian makes few tile keys. If the
+# per-Gaussian stages (project, emit keys) still jump from 2M to 4M there, the cause goes with
+# the Gaussians' buffers, not with the keys' count.
+want scale && for s in "2m 1920 1080 2000000" "3m 1920 1080 3000000" "4m 1920 1080 4000000" \
+  "2m_small 544 112 2000000" "4m_small 544 112 4000000"; do
+  read -r name w h n <<<"$s"
+  run "scale_$name" 90 $bin bench render --no-cpu --runs 20 --warmup 3 --width "$w" \
+    --height "$h" --scene random --gaussians "$n"
+done
 # The training drive (also the source of `paper` weights for the node, below).
 { want node || want train; } && log synth && timeout 60 $bin synth --out /tmp/train_data \
   --seed 0 --frames 160 --width 272 --height 72 >"$out/synth.log" 2>&1
@@ -138,4 +157,33 @@ want train && for preset in tiny small paper; do
     --out "/tmp/run_$preset" --steps 20 --checkpoint-every 1000
   cp "/tmp/run_$preset/log.csv" "$out/train_$preset.csv" 2>/dev/null
 done
+# 6. A training run of `small` on the GPU: scripts/train_small.sh's three phases (1,600 steps
+# with view subsampling, to 3,000 on the first pair, to 8,000 at lr 5e-4 with the relative
+# depth losses) on the 8 plain streets of scripts/transfer_data.sh, the recipe
+# results/stereosplat_small/README.md chose, for at most GPU_TRAIN_S seconds in all. It
+# resumes from gpu_carry/small_run (a run folder carried from the last session) and leaves
+# the run folder in $out/small_run.tgz, whatever step it reached (SIGTERM checkpoints).
+want gputrain && {
+  wait "${synth_plain[@]}"
+  log synth_plain_done
+  resume=()
+  [ -f gpu_carry/small_run/checkpoint/state.json ] && cp -r gpu_carry/small_run /tmp/small_run \
+    && resume=(--resume)
+  deadline=$((SECONDS + ${GPU_TRAIN_S:-300}))
+  step() { sed -n 's/.*"step": *\([0-9]*\).*/\1/p' /tmp/small_run/checkpoint/state.json \
+    2>/dev/null || echo 0; }
+  phase() {
+    local left=$((deadline - SECONDS))
+    [ "$left" -gt 10 ] || return 0
+    log "train_small $*"
+    timeout "$left" $bin train --data /tmp/plain --preset small --set device=cuda \
+      --out /tmp/small_run --checkpoint-every 100 "$@" >>"$out/train_small_run.log" 2>&1
+    echo "rc=$?" >>"$out/train_small_run.log"
+  }
+  [ "$(step)" -lt 1600 ] && phase --steps 1600 "${resume[@]}"
+  [ "$(step)" -lt 3000 ] && phase --steps 3000 --resume --no-subsample
+  phase --steps 8000 --resume --no-subsample --lr 5e-4 --depth-loss relative \
+    --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
+  tar czf "$out/small_run.tgz" -C /tmp small_run
+}
 log done

@@ -105,14 +105,7 @@ mod tests {
     }
 
     fn max_abs(t: &Tensor) -> f64 {
-        t.abs()
-            .unwrap()
-            .flatten_all()
-            .unwrap()
-            .max(0)
-            .unwrap()
-            .to_scalar::<f64>()
-            .unwrap()
+        t.abs().and_then(|a| a.max_all()?.to_scalar()).unwrap()
     }
 
     #[test]
@@ -123,20 +116,12 @@ mod tests {
         let depths = [0.3, 1.0, 6.25, 7.3, 100.0, 1e12];
         let (left, right) = (test_camera(0.0), test_camera(0.5));
         let device = Device::Cpu;
-        let reference = Var::from_tensor(
-            &Tensor::randn(0.0, 1.0, (c, h, w), &device)
+        let features = || {
+            Tensor::randn(0.0, 1.0, (c, h, w), &device)
+                .and_then(|t| Var::from_tensor(&t.to_dtype(DType::F64)?))
                 .unwrap()
-                .to_dtype(DType::F64)
-                .unwrap(),
-        )
-        .unwrap();
-        let source = Var::from_tensor(
-            &Tensor::randn(0.0, 1.0, (c, h, w), &device)
-                .unwrap()
-                .to_dtype(DType::F64)
-                .unwrap(),
-        )
-        .unwrap();
+        };
+        let (reference, source) = (features(), features());
         let points = sweep_points(&left, &right, &depths, 4, (h, w));
         let taps = RowTaps::new(&points, depths.len(), h, w).expect("a rectified pair");
         let rows = row_correlation(&reference, &source, &taps).unwrap();

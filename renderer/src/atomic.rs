@@ -1,20 +1,27 @@
 //! Replacing a file so that a crash (a kill, a power cut) at any moment leaves either the
 //! old file or the complete new one, never a part of the new one.
 //!
-//! The content goes to a temporary sibling `<name>.tmp` (same folder, so the same file
-//! system), which is flushed and synced to disk, then renamed over the target (atomic on
-//! POSIX file systems), and the folder is synced so the rename itself is durable. Every
-//! exporter of the workspace (PLY, PNG, the node's map files) writes through here.
+//! The content goes to a temporary sibling `<name>.<process>-<write>.tmp` (same folder, so
+//! the same file system), which is flushed and synced to disk, then renamed over the target
+//! (atomic on POSIX file systems), and the folder is synced so the rename itself is durable.
+//! The sibling is unique to the write, so writers of one file at once (threads, or parallel
+//! `synth` runs sharing a KITTI-360 root's calibration) never write into the same temporary
+//! file, and a reader sees one whole version. Every exporter of the workspace (PLY, PNG, the
+//! node's map files, the KITTI-360 text files) writes through here.
 
 use std::ffi::OsString;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
-/// The temporary sibling a write to `path` goes through: `path` with `.tmp` appended.
-pub fn temp_path(path: &Path) -> PathBuf {
+/// The temporary sibling one write to `path` goes through: `path` with
+/// `.<process id>-<write number>.tmp` appended.
+fn temp_path(path: &Path) -> PathBuf {
+    static WRITES: AtomicU64 = AtomicU64::new(0);
+    let write = WRITES.fetch_add(1, Ordering::Relaxed);
     let mut name = OsString::from(path.as_os_str());
-    name.push(".tmp");
+    name.push(format!(".{}-{write}.tmp", std::process::id()));
     PathBuf::from(name)
 }
 
@@ -64,6 +71,15 @@ fn sync_folder(path: &Path) -> io::Result<()> {
 mod tests {
     use super::*;
 
+    /// Whether a temporary sibling of `path` (of any write) is left in its folder.
+    fn temporary_left(path: &Path) -> bool {
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        std::fs::read_dir(path.parent().unwrap()).unwrap().any(|e| {
+            let other = e.unwrap().file_name().to_string_lossy().into_owned();
+            other.starts_with(&format!("{name}.")) && other.ends_with(".tmp")
+        })
+    }
+
     fn scratch(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("renderer-atomic-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
@@ -80,10 +96,10 @@ mod tests {
         });
         assert_eq!(failed.unwrap_err().to_string(), "killed mid-write");
         assert_eq!(std::fs::read(&path).unwrap(), b"old content");
-        assert!(!temp_path(&path).exists());
+        assert!(!temporary_left(&path));
         write_bytes_atomic(&path, b"new").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
-        assert!(!temp_path(&path).exists());
+        assert!(!temporary_left(&path));
     }
 
     #[test]

@@ -3,7 +3,6 @@
 //! the writer uses so its output is byte-deterministic.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::{DAffine3, DMat3, DVec3};
 
@@ -14,25 +13,15 @@ pub fn read_text(path: &Path) -> Result<String, Kitti360Error> {
     std::fs::read_to_string(path).map_err(|e| Kitti360Error::io(path, e))
 }
 
-/// Writes `text` to `path`, creating the parent directories. The text goes to a file beside
-/// it first and is renamed into place, so a reader sees the old file or the whole new one,
-/// never part of it: sequences written into one root by parallel processes each check the
-/// shared calibration files against their own (`SequenceWriter::create`), and a half-written
-/// file read that way used to fail one of them.
+/// Writes `text` to `path`, creating the parent directories, atomically
+/// ([`renderer::atomic`]): a reader sees the old file or the whole new one, never part of it.
+/// Sequences written into one root by parallel processes each check the shared calibration
+/// files against their own (`SequenceWriter::create`), and a half-written file read that way
+/// used to fail one of them.
 pub fn write_text(path: &Path, text: &str) -> Result<(), Kitti360Error> {
-    static WRITES: AtomicU64 = AtomicU64::new(0);
     create_parent(path)?;
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    let count = WRITES.fetch_add(1, Ordering::Relaxed);
-    name.push(format!(".{}-{count}.part", std::process::id()));
-    let part = path.with_file_name(name);
-    let written = std::fs::write(&part, text)
-        .map_err(|e| Kitti360Error::io(&part, e))
-        .and_then(|()| std::fs::rename(&part, path).map_err(|e| Kitti360Error::io(path, e)));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&part);
-    }
-    written
+    renderer::atomic::write_bytes_atomic(path, text.as_bytes())
+        .map_err(|e| Kitti360Error::io(path, e))
 }
 
 /// Creates the directory that will hold `path`.

@@ -18,10 +18,11 @@ pub const ROW_TOLERANCE: f32 = 1e-3;
 
 /// Where each candidate of each reference pixel reads the row correlations: two taps into
 /// the flattened `(h, w, w)` correlations and their bilinear weights (zero for a tap outside
-/// the image, as in `ops::grid_sample`'s zero padding).
+/// the image, as in `ops::grid_sample`'s zero padding), the left taps of every point, then
+/// the right ones.
 pub struct RowTaps {
-    index: [Vec<u32>; 2],
-    weight: [Vec<f32>; 2],
+    index: Vec<u32>,
+    weight: Vec<f32>,
     shape: (usize, usize, usize),
 }
 
@@ -34,8 +35,7 @@ impl RowTaps {
         if points.len() != 2 * n || h * w * w > u32::MAX as usize {
             return None;
         }
-        let mut index = [Vec::with_capacity(n), Vec::with_capacity(n)];
-        let mut weight = [Vec::with_capacity(n), Vec::with_capacity(n)];
+        let (mut index, mut weight) = (vec![0; 2 * n], vec![0.0; 2 * n]);
         for (k, point) in points.chunks_exact(2).enumerate() {
             let (x, y) = (k % w, (k / w) % h);
             let (gx, gy) = (point[0], point[1]);
@@ -46,13 +46,10 @@ impl RowTaps {
             let reaches = gx > -1.0 && gx < w as f32;
             let x0 = gx.floor();
             let base = ((y * w + x) * w) as u32;
-            for (t, (xi, wt)) in [(x0, 1.0 - (gx - x0)), (x0 + 1.0, gx - x0)]
-                .into_iter()
-                .enumerate()
-            {
-                let inside = reaches && xi >= 0.0 && xi <= (w - 1) as f32;
-                index[t].push(if inside { base + xi as u32 } else { base });
-                weight[t].push(if inside { wt } else { 0.0 });
+            for (tap, (xi, wt)) in [(k, (x0, 1.0 - (gx - x0))), (n + k, (x0 + 1.0, gx - x0))] {
+                if reaches && xi >= 0.0 && xi <= (w - 1) as f32 {
+                    (index[tap], weight[tap]) = (base + xi as u32, wt);
+                }
             }
         }
         Some(Self {
@@ -72,13 +69,13 @@ pub fn row_correlation(reference: &Tensor, source: &Tensor, taps: &RowTaps) -> R
     let rows = reference.permute((1, 2, 0))?.contiguous()?; // (h, w, C)
     let columns = source.permute((1, 0, 2))?.contiguous()?; // (h, C, w)
     let all = rows.matmul(&columns)?.flatten_all()?; // (h w w)
-    let tap = |t: usize| -> Result<Tensor> {
-        let index = Tensor::from_slice(&taps.index[t], d * h * w, device)?;
-        let weight =
-            Tensor::from_slice(&taps.weight[t], d * h * w, device)?.to_dtype(all.dtype())?;
-        all.index_select(&index, 0)?.mul(&weight)
-    };
-    (tap(0)? + tap(1)?)?.reshape((d, h, w))
+    let n = 2 * d * h * w;
+    let index = Tensor::from_slice(&taps.index, n, device)?;
+    let weight = Tensor::from_slice(&taps.weight, n, device)?.to_dtype(all.dtype())?;
+    all.index_select(&index, 0)?
+        .mul(&weight)?
+        .reshape((2, d, h, w))?
+        .sum(0)
 }
 
 #[cfg(test)]

@@ -237,7 +237,7 @@ fn sequences_started_in_parallel_in_one_root_share_its_calibration() {
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         assert_eq!(names.len(), 3, "{names:?}");
-        assert!(names.iter().all(|n| !n.ends_with(".part")), "{names:?}");
+        assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
         std::fs::remove_dir_all(&root).unwrap();
     }
 }

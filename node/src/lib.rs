@@ -14,14 +14,21 @@
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
 
 pub mod bag;
+#[cfg(feature = "runtime")]
 pub mod cli;
 pub mod fusion;
 pub mod launch;
+#[cfg(feature = "runtime")]
 pub mod map_eval;
 pub mod msg;
+#[cfg(feature = "runtime")]
 pub mod pair;
+#[cfg(feature = "runtime")]
 pub mod pareto;
+#[cfg(feature = "runtime")]
 pub mod pipeline;
+#[cfg(feature = "runtime")]
 pub mod service;
 pub mod transport;
+#[cfg(feature = "runtime")]
 pub mod view;

@@ -3,11 +3,17 @@
 //! rmw_zenoh's conventions for the ROS 2 key mode ([`ros2`]), and the publishing side that
 //! uses them ([`outlet`]).
 
+#[cfg(feature = "runtime")]
 pub mod outlet;
 pub mod ros2;
+#[cfg(feature = "runtime")]
 pub mod security;
+#[cfg(feature = "runtime")]
 pub mod session;
 
+#[cfg(feature = "runtime")]
 pub use outlet::{Outlet, OutletError};
+#[cfg(feature = "runtime")]
 pub use security::{Reach, TlsFiles};
+#[cfg(feature = "runtime")]
 pub use session::{open, TransportConfig, TransportError};

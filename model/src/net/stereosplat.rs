@@ -160,7 +160,8 @@ impl StereoSplat {
     /// range with `auto_depth_range`, SGM's matches as hints with `sgm_guidance`, both from
     /// one SGM run ([`fit_scene`]) and both only on scenes whose fitted range passes
     /// `auto_depth_range_max_far` (near scenes, where SGM's disparities are large and its
-    /// matches precise; on the streets the hints cost 0.5 dB). `None` when neither is on
+    /// matches precise; on the streets the hints cost 0.5 dB); on near scenes without the
+    /// volume branch with `volume_branch_far_only`. `None` when neither is on
     /// or SGM could not match the pair; the range is `None` where the preset's stays.
     pub fn fitted_to_scene(
         &self,
@@ -180,6 +181,9 @@ impl StereoSplat {
         };
         if cfg.sgm_guidance.is_some() && near_scene {
             net.guidance = Some(Arc::new(fit.hints));
+        }
+        if cfg.volume_branch_far_only && near_scene {
+            net.volume = None;
         }
         Some((net, range))
     }

@@ -181,6 +181,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         joint_pairs: false,
         view_subsampling: true,
         volume_fusion_margin: None,
+        volume_branch_far_only: false,
         progressive: false,
         progressive_every: 1,
         enhancer: true,

@@ -1,7 +1,8 @@
 //! SGM's hints (`sgm_guidance`) with the shipped `tiny` weights on a near textured plane:
 //! they pull the first pair towards the plane and leave a later pair exactly as the network
 //! alone predicts it (the hints were matched on the first pair only); with `sgm_snap` the
-//! first pair's Gaussians SGM matched sit at SGM's depth.
+//! first pair's Gaussians SGM matched sit at SGM's depth. `tiny-3d` on the same plane runs
+//! without its street-sized volume branch (`volume_branch_far_only`).
 
 use candle_core::{Device, Tensor};
 use model::net::{default_weights, Config, LearnedReconstructor, Prediction};
@@ -157,4 +158,27 @@ fn snapped_gaussians_take_sgms_depth_on_the_first_pair_only_and_stay_finite_far_
         assert_eq!(snapped_depths[2], alone[2]);
         assert_eq!(snapped_depths[3], alone[3]);
     }
+}
+
+#[test]
+fn tiny_3d_leaves_its_volume_branch_out_of_a_near_scene_only_when_told() {
+    let pair = plane_pair();
+    let cameras = rig();
+    let volume_gaussians = |settings: &[&str]| {
+        let cfg = Config::tiny_3d().with_settings(settings).unwrap();
+        let mut net = LearnedReconstructor::load(&cfg, &default_weights("tiny-3d")).unwrap();
+        let out = net.reconstruct_tensors(&pair, &cameras).unwrap();
+        let report = net.last_report().unwrap();
+        let range = report
+            .depth_range
+            .expect("a plane at 1.25 m is a near scene");
+        assert!(range.near < PLANE_M && range.far > PLANE_M, "{range:?}");
+        assert!(out.set.means.iter().all(|m| m.is_finite()), "{settings:?}");
+        eprintln!("{settings:?}: {report:?}");
+        assert!(report.cost_volume_gaussians > 100, "{report:?}");
+        report.volume_gaussians
+    };
+    assert!(Config::tiny_3d().volume_branch_far_only);
+    assert_eq!(volume_gaussians(&[]), 0);
+    assert!(volume_gaussians(&["volume_branch_far_only=false"]) > 0);
 }

@@ -141,8 +141,9 @@ pub struct Config {
     /// only: training renders every Gaussian.
     #[serde(default)]
     pub volume_fusion_margin: Option<f32>,
-    /// With `volume_branch`: skip the branch on scenes fitted as near (`auto_depth_range`'s
-    /// fit under `auto_depth_range_max_far`). Its grid is street-sized (`volume`'s extent),
+    /// With `volume_branch`: skip the branch on scenes SGM's fit finds nearer than
+    /// `auto_depth_range_max_far` ([`super::StereoSplat::fitted_to_scene`]; the fit runs with
+    /// `auto_depth_range` or `sgm_guidance`). Its grid is street-sized (`volume`'s extent),
     /// and on a room it draws Gaussians behind the surfaces (`results/tiny_3d/README.md`).
     /// Inference only.
     #[serde(default)]

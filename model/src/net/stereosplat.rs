@@ -310,6 +310,7 @@ impl StereoSplat {
             cameras,
             net: &self.cfg,
             snap: snap.as_ref(),
+            edge_shrink: hints.and(self.cfg.edge_shrink),
         })?;
         Ok(Prediction {
             splats: heads.splats,

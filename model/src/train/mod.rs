@@ -178,6 +178,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         min_view_weight: None,
         depth_window: None,
         sgm_snap: false,
+        edge_shrink: None,
         joint_pairs: false,
         view_subsampling: true,
         volume_fusion_margin: None,
@@ -224,11 +225,12 @@ impl Trainer {
         out: &Path,
         resume: bool,
     ) -> Result<Self, TrainError> {
-        // `depth_window` and `sgm_snap` are inference settings: training takes the full
-        // expectation and the network's own depth everywhere.
+        // `depth_window`, `sgm_snap` and `edge_shrink` are inference settings: training
+        // takes the full expectation, the network's own depth and its own scales everywhere.
         let net_cfg = &Config {
             depth_window: None,
             sgm_snap: false,
+            edge_shrink: None,
             ..net_cfg.clone()
         };
         cfg.sample.volume = net_cfg.volume_branch.then(|| net_cfg.volume.clone());

@@ -5,10 +5,26 @@
 # mix, 1,500 steps at lr 5e-4, relative depth losses, one input pair), in its own run folder
 # runs/tiny_3d/cv3d, then copied to model/weights/stereosplat_tiny-3d.safetensors. Longer is
 # not better: run on to 4,000 steps the same row loses 0.2 dB and its AbsRel edge
-# (results/tiny_3d/README.md). Resumable: run it again after any interruption.
+# (results/tiny_3d/README.md).
+# Then (stop 41, issue 14) a second phase in runs/tiny_3d/near: 1,800 steps at lr 2e-4 from
+# those weights with the `tiny-3d` preset's own settings on every sample, so near samples of
+# the mix are fitted, hinted and run without the volume branch as real rooms are at inference
+# (the first phase's cost-volume Gaussians, trained beside the branch, left a quarter of a
+# room uncovered). 70 min on the 2-core machine, shared with builds and evaluations
+# (results/tiny_3d/near_finetune/).
+# Resumable: run it again after any interruption.
 #   bash scripts/train_tiny_3d.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ABLATION_RUNS=runs/tiny_3d bash scripts/ablation_tiny.sh train cv3d 1500
-cp runs/tiny_3d/cv3d/stereosplat_tiny.safetensors model/weights/stereosplat_tiny-3d.safetensors
+bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
+near=(--data data/transfer --preset tiny-3d --out runs/tiny_3d/near --steps 1800 --lr 2e-4
+  --warmup 50 --seed 0 --depth-loss relative --rendered-depth-weight 0.5
+  --estimated-depth-weight 0.5)
+if [ -f runs/tiny_3d/near/checkpoint/state.json ]; then
+  "$bin" train "${near[@]}" --resume
+else
+  "$bin" train "${near[@]}" --init runs/tiny_3d/cv3d/stereosplat_tiny.safetensors
+fi
+cp runs/tiny_3d/near/stereosplat_tiny-3d.safetensors model/weights/stereosplat_tiny-3d.safetensors
 echo "weights: model/weights/stereosplat_tiny-3d.safetensors"

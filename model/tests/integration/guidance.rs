@@ -17,14 +17,29 @@ const PLANE_M: f32 = 1.25;
 
 /// A textured left image and its right image for the plane, `(2, 3, H, W)`.
 fn plane_pair() -> Tensor {
+    scene_pair(false).0
+}
+
+/// A textured left image and its right image for the plane (disparity 8 px), with `square`
+/// a square twice as near in front of it (disparity 16 px, 0.625 m), `(2, 3, H, W)`, and
+/// whether each left pixel is on the square.
+fn scene_pair(square: bool) -> (Tensor, Vec<bool>) {
     let left: Vec<f32> = (0..HEIGHT * WIDTH)
         .map(|p| (((p * 2654435761usize) >> 9) % 251) as f32 / 251.0)
         .collect();
-    let right: Vec<f32> = (0..HEIGHT * WIDTH)
+    let on_square: Vec<bool> = (0..HEIGHT * WIDTH)
+        .map(|p| square && (16..48).contains(&(p / WIDTH)) && (48..80).contains(&(p % WIDTH)))
+        .collect();
+    // A point at left column x shows at right column x - disparity; the square over the plane.
+    let mut right: Vec<f32> = (0..HEIGHT * WIDTH)
         .map(|p| left[p - p % WIDTH + (p % WIDTH + 8).min(WIDTH - 1)])
         .collect();
+    for p in (0..HEIGHT * WIDTH).filter(|&p| on_square[p]) {
+        right[p - 16] = left[p];
+    }
     let planes = |v: &[f32]| Tensor::from_vec(v.repeat(3), (1, 3, HEIGHT, WIDTH), &Device::Cpu);
-    Tensor::cat(&[planes(&left).unwrap(), planes(&right).unwrap()], 0).unwrap()
+    let pair = Tensor::cat(&[planes(&left).unwrap(), planes(&right).unwrap()], 0).unwrap();
+    (pair, on_square)
 }
 
 fn rig() -> [Camera; 2] {
@@ -185,38 +200,20 @@ fn tiny_3d_leaves_its_volume_branch_out_of_a_near_scene_only_when_told() {
     assert!(volume_gaussians(&["volume_branch_far_only=false"]) > 0);
 }
 
-/// The plane's pair with a square `SQUARE` twice as near (disparity 16 px, 0.625 m) in
-/// front of it, `(2, 3, H, W)`, and whether each left pixel is on the square.
-fn step_pair() -> (Tensor, Vec<bool>) {
-    let left: Vec<f32> = (0..HEIGHT * WIDTH)
-        .map(|p| (((p * 2654435761usize) >> 9) % 251) as f32 / 251.0)
-        .collect();
-    let on_square: Vec<bool> = (0..HEIGHT * WIDTH)
-        .map(|p| (16..48).contains(&(p / WIDTH)) && (48..80).contains(&(p % WIDTH)))
-        .collect();
-    // A point at left column x shows at right column x - disparity; the square over the plane.
-    let mut right: Vec<f32> = (0..HEIGHT * WIDTH)
-        .map(|p| left[p - p % WIDTH + (p % WIDTH + 8).min(WIDTH - 1)])
-        .collect();
-    for p in (0..HEIGHT * WIDTH).filter(|&p| on_square[p]) {
-        right[p - 16] = left[p];
-    }
-    let planes = |v: &[f32]| Tensor::from_vec(v.repeat(3), (1, 3, HEIGHT, WIDTH), &Device::Cpu);
-    let pair = Tensor::cat(&[planes(&left).unwrap(), planes(&right).unwrap()], 0).unwrap();
-    (pair, on_square)
-}
-
 #[test]
 fn edge_shrink_only_shrinks_scales_of_the_first_pair_the_near_edge_among_them() {
-    let (pair, on_square) = step_pair();
+    let (pair, on_square) = scene_pair(true);
     let images = Tensor::cat(&[&pair, &pair], 0).unwrap();
     assert_eq!(Config::tiny().edge_shrink, Some(0.1));
+    let load = |settings: &[&str]| {
+        let cfg = Config::tiny().with_settings(settings).unwrap();
+        LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap()
+    };
+    let (with_shrink, without) = (load(&[]), load(&["edge_shrink=null"]));
     // The rig at the origin and 100 km out: the test is on depths in the camera's frame.
     for offset in [glam::Vec3::ZERO, glam::Vec3::new(1.0e5, -1.0e5, 50.0)] {
         let cameras = [rig_at(offset), rig_at(offset)].concat();
-        let predict = |settings: &[&str]| {
-            let cfg = Config::tiny().with_settings(settings).unwrap();
-            let shipped = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+        let predict = |shipped: &LearnedReconstructor| {
             let (fitted, _) = shipped
                 .net()
                 .fitted_to_scene(&images, &cameras)
@@ -226,7 +223,7 @@ fn edge_shrink_only_shrinks_scales_of_the_first_pair_the_near_edge_among_them() 
                 .unwrap()
         };
         let rows = |t: &Tensor| -> Vec<Vec<f32>> { t.to_vec2().unwrap() };
-        let (shrunk, plain) = (predict(&[]), predict(&["edge_shrink=null"]));
+        let (shrunk, plain) = (predict(&with_shrink), predict(&without));
         assert_eq!(
             rows(&shrunk.splats.means),
             rows(&plain.splats.means),
@@ -256,15 +253,15 @@ fn edge_shrink_only_shrinks_scales_of_the_first_pair_the_near_edge_among_them() 
         // own depth on this flat-shaded toy also jumps elsewhere: measured 438 shrunk, 110
         // on the square near its border).
         let left: Vec<usize> = edge_cells.iter().copied().filter(|&i| i < cells).collect();
-        let on = |i: usize| {
-            let (y, x) = (2 * (i / (WIDTH / 2)), 2 * (i % (WIDTH / 2)));
+        // A left-view Gaussian's pixel (row, column) on the stride-2 grid.
+        let pixel = |i: usize| (2 * (i / (WIDTH / 2)), 2 * (i % (WIDTH / 2)));
+        let on_border = |&&i: &&usize| {
+            let (y, x) = pixel(i);
             on_square[y * WIDTH + x]
+                && (y.abs_diff(16).min(y.abs_diff(46)) <= 6
+                    || x.abs_diff(48).min(x.abs_diff(78)) <= 6)
         };
-        let near_border = |i: usize| {
-            let (y, x) = (2 * (i / (WIDTH / 2)), 2 * (i % (WIDTH / 2)));
-            y.abs_diff(16).min(y.abs_diff(46)) <= 6 || x.abs_diff(48).min(x.abs_diff(78)) <= 6
-        };
-        let good = left.iter().filter(|&&i| on(i) && near_border(i)).count();
+        let good = left.iter().filter(on_border).count();
         eprintln!(
             "{offset}: {} shrunk on the left view, {good} of them on the square near its border",
             left.len()

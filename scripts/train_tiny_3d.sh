@@ -12,6 +12,10 @@
 # (the first phase's cost-volume Gaussians, trained beside the branch, left a quarter of a
 # room uncovered). 70 min on the 2-core machine, shared with builds and evaluations
 # (results/tiny_3d/near_finetune/).
+# Then (stop 42) the shipped file is the point 0.85 of the way from the first phase's weights
+# to the second's, tensor by tensor (`stereosplat interpolate-weights`; WiSE-FT): better on the
+# streets than either end and nearly all of the second phase's gain on real rooms
+# (results/tiny_3d/README.md, "Stop 42").
 # Resumable: run it again after any interruption.
 #   bash scripts/train_tiny_3d.sh
 set -euo pipefail
@@ -26,5 +30,7 @@ if [ -f runs/tiny_3d/near/checkpoint/state.json ]; then
 else
   "$bin" train "${near[@]}" --init runs/tiny_3d/cv3d/stereosplat_tiny.safetensors
 fi
-cp runs/tiny_3d/near/stereosplat_tiny-3d.safetensors model/weights/stereosplat_tiny-3d.safetensors
+"$bin" interpolate-weights --from runs/tiny_3d/cv3d/stereosplat_tiny.safetensors \
+  --to runs/tiny_3d/near/stereosplat_tiny-3d.safetensors --t 0.85 \
+  --out model/weights/stereosplat_tiny-3d.safetensors
 echo "weights: model/weights/stereosplat_tiny-3d.safetensors"

@@ -5,8 +5,8 @@ use clap::{Parser, Subcommand};
 
 use node::cli::{
     bench, bench_check, bench_model, bench_node, bench_pareto, demo, enhancer_data, eval,
-    eval_enhancer, eval_map, launch, logs, reconstruct, render, stream, synth, train,
-    train_enhancer, view,
+    eval_enhancer, eval_map, interpolate_weights, launch, logs, reconstruct, render, stream, synth,
+    train, train_enhancer, view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -36,6 +36,8 @@ enum Command {
     Reconstruct(reconstruct::ReconstructArgs),
     /// Train a network preset: checkpoints, resume, CSV log, loss curve, safetensors.
     Train(train::TrainArgs),
+    /// Blend two trained weight files of one network: `(1 - t) * from + t * to` per tensor.
+    InterpolateWeights(interpolate_weights::InterpolateWeightsArgs),
     /// Training pairs for the one-step enhancer: StereoSplat's renders of the bins' other
     /// frames, with alpha and confidence, against the true images.
     EnhancerData(enhancer_data::EnhancerDataArgs),
@@ -93,6 +95,7 @@ fn main() -> Result<()> {
         Command::EvalMap(args) => eval_map::run(&args),
         Command::Reconstruct(args) => reconstruct::run(&args),
         Command::Train(args) => train::run(&args),
+        Command::InterpolateWeights(args) => interpolate_weights::run(&args),
         Command::EnhancerData(args) => enhancer_data::run(&args),
         Command::TrainEnhancer(args) => train_enhancer::run(&args),
         Command::EvalEnhancer(args) => eval_enhancer::run(&args),

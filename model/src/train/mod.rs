@@ -6,11 +6,13 @@
 //! branch on, samples carry the bin's occupied voxels and each target's in-volume pixels,
 //! and the branch's two losses join the objective (see `loss`); a run can start from a
 //! weight file that holds only part of the network (`load_weights`: the shipped cost-volume
-//! weights, the volume branch fresh).
+//! weights, the volume branch fresh); `interpolate` blends two trained end points in weight
+//! space.
 
 mod adamw;
 pub(crate) mod checkpoint;
 mod data;
+mod interpolate;
 mod log;
 mod loss;
 mod matching;
@@ -29,6 +31,7 @@ pub use adamw::{AdamW, AdamWConfig};
 pub use checkpoint::checkpoint_dir;
 pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
 pub(crate) use data::{draw_targets, BinInputs};
+pub use interpolate::{interpolate, interpolate_files, InterpolateError};
 pub use log::{TrainLog, LOG_COLUMNS};
 pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, UnknownDepthError};
 pub use matching::matching_loss;

@@ -10,6 +10,7 @@ pub mod enhancer_data;
 pub mod eval;
 pub mod eval_enhancer;
 pub mod eval_map;
+pub mod interpolate_weights;
 pub mod launch;
 pub mod logs;
 pub mod method_args;

@@ -87,14 +87,13 @@ pub fn interpolate(
     if !(0.0..=1.0).contains(&t) {
         return Err(InterpolateError::Factor(t));
     }
-    if let Some(name) = to.keys().find(|k| !from.contains_key(*k)) {
+    let in_both = |k: &&String| from.contains_key(*k) && to.contains_key(*k);
+    if let Some(name) = from.keys().chain(to.keys()).find(|k| !in_both(k)) {
         return Err(InterpolateError::Missing { name: name.clone() });
     }
     from.iter()
         .map(|(name, a)| {
-            let b = to
-                .get(name)
-                .ok_or_else(|| InterpolateError::Missing { name: name.clone() })?;
+            let b = &to[name];
             if a.dims() != b.dims() {
                 return Err(InterpolateError::Shape {
                     name: name.clone(),
@@ -124,6 +123,7 @@ fn mix(name: &str, a: &Tensor, b: &Tensor, t: f64) -> Result<Tensor, Interpolate
     let mixed = ((a64 * (1.0 - t)).map_err(compute)? + (b64 * t).map_err(compute)?)
         .and_then(|m| m.to_dtype(a.dtype()))
         .map_err(compute)?;
+    // Checked as stored: `to` may be a wider type whose values overflow `from`'s.
     let finite = mixed
         .to_dtype(DType::F64)
         .and_then(|m| m.flatten_all())

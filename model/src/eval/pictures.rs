@@ -5,14 +5,24 @@
 use std::path::Path;
 
 use renderer::picture::{depth_to_rgb8, viridis, DepthScale};
+use renderer::RenderOutput;
 
-use super::report::BinReport;
-use super::run::ScoredRender;
+use super::report::{BinReport, FrameScore};
 use crate::frame::{RgbImage, Side};
 use crate::metrics::error_map;
 
 /// Mean absolute RGB error drawn at the top of the error colour map.
 pub const ERROR_MAP_MAX: f32 = 0.25;
+
+/// A rendered frame of a bin beside what it is scored against, kept for pictures.
+pub struct ScoredRender {
+    /// The score.
+    pub score: FrameScore,
+    /// The recorded image.
+    pub truth: RgbImage,
+    /// The render.
+    pub render: RenderOutput,
+}
 
 /// Writes `<dir>/<sequence>_bin<first>_<role>.png` for the bin's named frames (left camera).
 pub fn write_bin(

@@ -6,7 +6,7 @@ use std::time::Instant;
 use candle_core::Tensor;
 use renderer::{Camera, RenderOutput, RenderSettings};
 
-use super::pictures;
+use super::pictures::{self, ScoredRender};
 use super::report::{BinReport, FrameScore, SkippedBin};
 use super::unseen::{unseen_mask, unseen_psnr, InputView};
 use crate::bins::{make_bins, Bin, BinConfig};
@@ -139,16 +139,6 @@ pub fn evaluate(
         progress(k + 1, bins.len());
     }
     Ok((reports, skipped))
-}
-
-/// A rendered frame of a bin beside what it is scored against, kept for pictures.
-pub struct ScoredRender {
-    /// The score.
-    pub score: FrameScore,
-    /// The recorded image.
-    pub truth: RgbImage,
-    /// The render.
-    pub render: RenderOutput,
 }
 
 fn evaluate_bin(

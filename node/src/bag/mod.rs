@@ -19,6 +19,7 @@ mod error;
 mod pacing;
 mod qos;
 mod reader;
+mod records;
 mod recover;
 mod summary;
 mod writer;
@@ -26,8 +27,9 @@ mod writer;
 pub use error::BagError;
 pub use pacing::{Pacer, Rate};
 pub use qos::offered_qos_profiles;
-pub use reader::{BagReader, ChannelSummary, Messages};
+pub use reader::{BagReader, Messages};
 pub use recover::Recovery;
+pub use summary::ChannelSummary;
 pub use writer::BagWriter;
 
 use std::sync::Arc;

@@ -7,24 +7,11 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use mcap::records::{op, ChunkIndex, Record};
-use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
+use super::records::{compression_name_fits, for_each_record, le_u64, read_at, MAX_CHUNK_BYTES};
 use super::recover::{recover_index, Recovery};
-use super::summary::{le_u64, read_at, read_index, Index};
-use super::{BagError, ChannelInfo, Message};
-
-/// Largest chunk, compressed or not, the reader loads (a guard against absurd sizes in a
-/// damaged index; the writer's chunks are about 1 MiB plus at most one message).
-pub(super) const MAX_CHUNK_BYTES: u64 = 4 << 30;
-
-/// One channel of a bag and how many messages it holds.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ChannelSummary {
-    /// The channel.
-    pub info: Arc<ChannelInfo>,
-    /// Its number of messages, per the bag's statistics.
-    pub message_count: u64,
-}
+use super::summary::{read_index, ChannelSummary, Index};
+use super::{BagError, Message};
 
 /// An open bag: its summary is read and checked, messages are read on demand.
 ///
@@ -191,51 +178,6 @@ impl BagReader {
             None => Ok(()),
         }
     }
-}
-
-/// Whether the chunk record `record`'s compression name (a length-prefixed string after the
-/// opcode, the record length, two times, the uncompressed size and CRC) lies inside it. The
-/// `mcap` crate reserves a string's claimed length before reading it, so a damaged length
-/// must be refused first (found by the `mcap` fuzz target: 2.4 GB asked for by a 2.7 kB file).
-pub(super) fn compression_name_fits(record: &[u8]) -> bool {
-    const NAME_LEN_AT: usize = 1 + 8 + 8 + 8 + 8 + 4;
-    let len = record
-        .get(NAME_LEN_AT..NAME_LEN_AT + 4)
-        .and_then(|b| <[u8; 4]>::try_from(b).ok())
-        .map(u32::from_le_bytes);
-    len.is_some_and(|len| len as usize <= record.len() - NAME_LEN_AT - 4)
-}
-
-/// Decodes the chunk record `record` (opcode and length included) and calls `on_record` with
-/// each record in it, in file order. The chunk's CRC is checked before any record inside is
-/// parsed, and no record may claim more than `limit` bytes, so damaged data can neither reach
-/// `on_record` nor make the decoder allocate absurd amounts.
-pub(super) fn for_each_record(
-    record: &[u8],
-    limit: usize,
-    mut on_record: impl FnMut(Record<'_>),
-) -> mcap::McapResult<()> {
-    let options = LinearReaderOptions::default()
-        .with_skip_start_magic(true)
-        .with_skip_end_magic(true)
-        .with_prevalidate_chunk_crcs(true)
-        .with_record_length_limit(limit);
-    let mut reader = LinearReader::new_with_options(options);
-    let mut input = record;
-    while let Some(event) = reader.next_event() {
-        match event? {
-            LinearReadEvent::ReadRequest(need) => {
-                let n = need.min(input.len());
-                reader.insert(n).copy_from_slice(&input[..n]);
-                reader.notify_read(n);
-                input = &input[n..];
-            }
-            LinearReadEvent::Record { opcode, data } => {
-                on_record(mcap::parse_record(opcode, data)?);
-            }
-        }
-    }
-    Ok(())
 }
 
 /// Opens `path` for reading and learns its length.

@@ -14,8 +14,8 @@ use std::sync::Arc;
 use mcap::records::{op, ChunkIndex, Record};
 use mcap::MAGIC;
 
-use super::reader::{compression_name_fits, for_each_record, MAX_CHUNK_BYTES};
-use super::summary::{le_u64, read_at, Index};
+use super::records::{compression_name_fits, for_each_record, le_u64, read_at, MAX_CHUNK_BYTES};
+use super::summary::Index;
 use super::BagError;
 
 /// What [`super::BagReader::recover`] found in a cut-off recording.

@@ -4,7 +4,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
+use std::io::{Read, Seek};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -12,8 +12,17 @@ use mcap::records::{op, ChunkIndex};
 use mcap::sans_io::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 use mcap::MAGIC;
 
-use super::reader::ChannelSummary;
+use super::records::{le_u64, read_at};
 use super::{BagError, ChannelInfo, SCHEMA_ENCODING};
+
+/// One channel of a bag and how many messages it holds.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ChannelSummary {
+    /// The channel.
+    pub info: Arc<ChannelInfo>,
+    /// Its number of messages, per the bag's statistics.
+    pub message_count: u64,
+}
 
 /// Footer record (opcode, length, summary start, summary offset start, CRC) and end magic.
 const FOOTER_AND_MAGIC: u64 = 1 + 8 + 8 + 8 + 4 + 8;
@@ -150,31 +159,6 @@ impl Index {
             time_range,
         })
     }
-}
-
-/// Reads `len` bytes at `offset` of `file`.
-pub(super) fn read_at(
-    path: &Path,
-    mut file: &File,
-    offset: u64,
-    len: usize,
-) -> Result<Vec<u8>, BagError> {
-    let mut buf = vec![0; len];
-    file.seek(SeekFrom::Start(offset))
-        .and_then(|_| file.read_exact(&mut buf))
-        .map_err(|source| BagError::Io {
-            path: path.to_path_buf(),
-            action: format!("read {len} bytes at byte {offset}"),
-            source,
-        })?;
-    Ok(buf)
-}
-
-/// A little-endian u64 from the first 8 bytes of `bytes`.
-pub(super) fn le_u64(bytes: &[u8]) -> u64 {
-    let mut le = [0; 8];
-    le.copy_from_slice(&bytes[..8]);
-    u64::from_le_bytes(le)
 }
 
 /// Runs the library's summary reader over `file`.

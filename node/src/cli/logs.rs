@@ -9,7 +9,7 @@ use clap::Args;
 
 use super::progress;
 use super::shutdown::shutdown_signal;
-use super::stream::ZenohArgs;
+use super::zenoh_args::ZenohArgs;
 use crate::bag::{BagReader, Rate};
 use crate::msg::latency::BinLatency;
 use crate::service::latency_stats::bin_stages_ms;

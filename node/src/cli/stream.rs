@@ -9,9 +9,8 @@ use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
-use crate::service::keys::KeyMode;
-use crate::service::{self, InputLimits, Keys, NodeConfig, StartMap};
-use crate::transport::{open, TlsFiles, TransportConfig};
+use crate::service::{self, InputLimits, NodeConfig, StartMap};
+use crate::transport::open;
 use anyhow::{Context, Result};
 use clap::Args;
 use model::kitti360::Sequence;
@@ -21,59 +20,7 @@ use super::method_args::MethodArgs;
 use super::progress;
 use super::shutdown::shutdown_signal;
 use super::view::{self, ViewFlags};
-
-/// zenoh flags shared by the node's commands. Default: peer mode, loopback only.
-#[derive(Args, Clone, Debug)]
-pub struct ZenohArgs {
-    /// A zenoh JSON5 config file to start from (the flags below override it).
-    #[arg(long, env = "STEREOSPLAT_ZENOH_CONFIG")]
-    zenoh_config: Option<PathBuf>,
-    /// Endpoints to listen on (repeatable), e.g. tcp/127.0.0.1:7447. None: loopback on a
-    /// random port. A non-loopback address (0.0.0.0, ::, a LAN address) prints a warning.
-    #[arg(long)]
-    listen: Vec<String>,
-    /// Endpoints to connect to (repeatable).
-    #[arg(long)]
-    connect: Vec<String>,
-    /// `peer` or `client` (through a zenoh router).
-    #[arg(long, default_value = "peer")]
-    mode: String,
-    /// Namespace of every key.
-    #[arg(long, default_value = "stereosplat")]
-    namespace: String,
-    /// Key mode: `plain` (`<ns>/<topic>`) or `ros2` (rmw_zenoh's keys, attachments and
-    /// liveliness tokens, so ROS 2 nodes on rmw_zenoh see the topics).
-    #[arg(long, value_enum, default_value_t = KeyModeArg::Plain)]
-    key_mode: KeyModeArg,
-    /// ROS domain id of the ros2 key mode.
-    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
-    domain_id: u32,
-    /// Secure profile: the certificate authority (PEM) every peer's certificate must be
-    /// signed by; with --tls-cert and --tls-key, every link is TLS with mutual
-    /// authentication and every endpoint must be tls/.
-    #[arg(long, requires_all = ["tls_cert", "tls_key"])]
-    tls_ca: Option<PathBuf>,
-    /// Secure profile: this process's certificate (PEM), signed by --tls-ca.
-    #[arg(long, requires = "tls_ca")]
-    tls_cert: Option<PathBuf>,
-    /// Secure profile: this process's private key (PEM).
-    #[arg(long, requires = "tls_ca")]
-    tls_key: Option<PathBuf>,
-    /// Secure profile: zenoh access control rules (JSON5, zenoh's `access_control` object;
-    /// see launch/zenoh_acl.json5): which certificate names may publish or subscribe to
-    /// which keys.
-    #[arg(long)]
-    acl: Option<PathBuf>,
-}
-
-/// `--key-mode` values.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum KeyModeArg {
-    /// `<ns>/<topic>`.
-    Plain,
-    /// rmw_zenoh-compatible.
-    Ros2,
-}
+use super::zenoh_args::ZenohArgs;
 
 /// `--renders` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -128,39 +75,6 @@ pub fn rate_of(rate: f64) -> Result<Rate> {
         r if r.is_finite() && r > 0.0 => Rate::Factor(r),
         r => anyhow::bail!("--rate must be 0 (as fast as possible) or positive, not {r}"),
     })
-}
-
-impl ZenohArgs {
-    /// The transport these flags describe.
-    pub(crate) fn transport(&self) -> TransportConfig {
-        TransportConfig {
-            config_file: self.zenoh_config.clone(),
-            mode: self.mode.clone(),
-            listen: self.listen.clone(),
-            connect: self.connect.clone(),
-            multicast_scouting: false,
-            tls: match (&self.tls_ca, &self.tls_cert, &self.tls_key) {
-                (Some(ca), Some(cert), Some(key)) => Some(TlsFiles {
-                    ca: ca.clone(),
-                    cert: cert.clone(),
-                    key: key.clone(),
-                }),
-                _ => None,
-            },
-            access_control: self.acl.clone(),
-        }
-    }
-
-    /// The keys these flags name.
-    pub fn keys(&self) -> Keys {
-        let mode = match self.key_mode {
-            KeyModeArg::Plain => KeyMode::Plain,
-            KeyModeArg::Ros2 => KeyMode::Ros2 {
-                domain_id: self.domain_id,
-            },
-        };
-        Keys::with_mode(&self.namespace, mode)
-    }
 }
 
 /// Flags of `run`.
@@ -220,6 +134,13 @@ pub struct RunArgs {
     limits: LimitsArgs,
     #[command(flatten)]
     view: ViewFlags,
+}
+
+impl RunArgs {
+    /// The node's out folder (`--out`).
+    pub fn out_dir(&self) -> &Path {
+        &self.out
+    }
 }
 
 /// The input limits a user may change (`node::service::InputLimits`; the rest keep their

@@ -9,7 +9,7 @@ use anyhow::Result;
 use clap::Args;
 
 use super::shutdown::shutdown_signal;
-use super::stream::ZenohArgs;
+use super::zenoh_args::ZenohArgs;
 use zenoh::Session;
 
 use crate::service::Keys;

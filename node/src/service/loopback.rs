@@ -12,8 +12,10 @@ use model::frame::RgbImage;
 use model::kitti360::Sequence;
 use renderer::GaussianSet;
 
+use super::error::ServiceError;
 use super::keys::Keys;
-use super::node::{run_with, NodeConfig, NodeSummary, ServiceError};
+use super::node::{run_with, NodeConfig};
+use super::outputs::NodeSummary;
 use super::replay::replay;
 use crate::bag::Rate;
 use crate::msg::gaussians::gaussians_from_cloud;

@@ -16,10 +16,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use glam::{DAffine3, DVec2};
 
-use super::node::ServiceError;
-use crate::fusion::{
-    bev_image, local_set, save_bev_png, BevView, FusionConfig, GlobalMap, StoreError,
-};
+use crate::fusion::{bev_image, local_set, save_bev_png, BevView, GlobalMap, StoreError};
 
 /// The checkpoint's file name in the out folder.
 pub const CHECKPOINT: &str = "global_map.ssgmap";
@@ -57,6 +54,12 @@ pub enum RestoreError {
     },
 }
 
+/// Why the global map's files could not be written when the node stopped (the message
+/// names the file and the cause).
+#[derive(Debug, thiserror::Error)]
+#[error("exporting the global map: {0}")]
+pub struct ExportError(String);
+
 /// The map a node starts with, and where it came from.
 #[derive(Debug)]
 pub struct Start {
@@ -68,15 +71,15 @@ pub struct Start {
     pub moved_aside: Option<PathBuf>,
 }
 
-/// The map to start with under `out_dir` (`None`: no files, an empty map), by the rule in
-/// the module doc.
+/// The map to start with under `out_dir` (`None`: no files, `empty`), by the rule in the
+/// module doc; `empty` is the new map with the node's fusion settings.
 pub fn start_map(
     out_dir: Option<&Path>,
-    fusion: FusionConfig,
+    empty: GlobalMap,
     how: StartMap,
-) -> Result<Start, ServiceError> {
+) -> Result<Start, RestoreError> {
     let mut start = Start {
-        map: GlobalMap::new(fusion)?,
+        map: empty,
         resumed_from: None,
         moved_aside: None,
     };
@@ -121,8 +124,8 @@ pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
 
 /// Writes the checkpoint, the global map as 3DGS PLY (positions relative to the latest bin's
 /// origin, which `global_map_origin.json` records) and a bird's-eye PNG, each atomically.
-pub fn export(map: &GlobalMap, dir: &Path) -> Result<(), ServiceError> {
-    let err = |e: &dyn std::fmt::Display| ServiceError::Export(e.to_string());
+pub fn export(map: &GlobalMap, dir: &Path) -> Result<(), ExportError> {
+    let err = |e: &dyn std::fmt::Display| ExportError(e.to_string());
     checkpoint(map, dir).map_err(|e| err(&e))?;
     let Some(origin) = map.latest_origin() else {
         return Ok(());

@@ -10,6 +10,7 @@
 //! [`LatencyStats`].
 
 pub mod counters;
+pub mod error;
 mod inputs;
 pub mod keys;
 pub mod latency_stats;
@@ -25,12 +26,14 @@ pub mod replay_bag;
 pub mod snapshot_gate;
 
 pub use counters::Counters;
+pub use error::ServiceError;
 pub use keys::Keys;
 pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
 pub use limits::{InputLimits, Refusal};
-pub use map_files::{RestoreError, StartMap};
+pub use map_files::{ExportError, RestoreError, StartMap};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
-pub use node::{run, run_announced, run_with, NodeConfig, NodeSummary, ServiceError};
+pub use node::{run, run_announced, run_with, NodeConfig};
+pub use outputs::NodeSummary;
 pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};
 pub use replay::{replay, ReplaySummary, UnreadFrame};
 pub use replay_bag::{replay_bag, BagReplayOptions, BagReplaySummary};

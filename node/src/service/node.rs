@@ -8,12 +8,12 @@ use std::time::Instant;
 use tokio::sync::mpsc;
 use zenoh::sample::Locality;
 
-use super::counters::Counters;
+use super::error::ServiceError;
 use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
-use super::map_files::{export, start_map, RestoreError, StartMap};
-use super::outputs::{Checkpoints, Outputs};
+use super::map_files::{export, start_map, StartMap};
+use super::outputs::{Checkpoints, NodeSummary, Outputs};
 use super::snapshot_gate::SnapshotGate;
 use crate::fusion::FusionConfig;
 use crate::msg::Message;
@@ -118,40 +118,6 @@ impl Default for NodeConfig {
     }
 }
 
-/// What a run of the node did.
-#[derive(Clone, Debug, Default)]
-pub struct NodeSummary {
-    /// Bins whose maps were published.
-    pub bins_published: u64,
-    /// Gaussians in the global map at the end.
-    pub global_gaussians: usize,
-    /// The counters at the end.
-    pub counters: Counters,
-}
-
-/// Why the node stopped with an error (bad input never stops it).
-#[derive(Debug, thiserror::Error)]
-pub enum ServiceError {
-    /// The zenoh session.
-    #[error(transparent)]
-    Transport(#[from] TransportError),
-    /// The method name.
-    #[error(transparent)]
-    Method(#[from] model::methods::MethodError),
-    /// The fusion settings.
-    #[error(transparent)]
-    Fusion(#[from] crate::fusion::FusionError),
-    /// Declaring the publishers (a bad node name) or publishing.
-    #[error(transparent)]
-    Outlet(#[from] crate::transport::OutletError),
-    /// Writing the exports.
-    #[error("exporting the global map: {0}")]
-    Export(String),
-    /// The out folder's checkpoint cannot be resumed.
-    #[error(transparent)]
-    Restore(#[from] RestoreError),
-}
-
 fn zenoh_err(e: zenoh::Error) -> TransportError {
     TransportError::Zenoh(e.to_string())
 }
@@ -187,7 +153,8 @@ pub async fn run_with(
     stop: impl Future<Output = ()>,
     ready: impl FnOnce(&zenoh::Session),
 ) -> Result<NodeSummary, ServiceError> {
-    let start = start_map(config.out_dir.as_deref(), config.fusion, config.start_map)?;
+    let empty = crate::fusion::GlobalMap::new(config.fusion)?;
+    let start = start_map(config.out_dir.as_deref(), empty, config.start_map)?;
     if let Some(path) = &start.resumed_from {
         let m = &start.map;
         eprintln!(
@@ -316,8 +283,11 @@ pub async fn run_with(
     while let Ok(event) = out_rx.try_recv() {
         outputs.worker_event(event, drops).await?;
     }
+    outputs.finish(drops).await?;
     outputs.counters.set("dropped/worker_queue", drops);
-    if let Some(dir) = &config.out_dir {
+    // A map that never held a bin (nothing arrived, nothing was resumed) leaves no files:
+    // an empty checkpoint would only shadow a later run's start.
+    if let (Some(dir), Some(_)) = (&config.out_dir, outputs.map.last_bin_id()) {
         export(&outputs.map, dir)?;
     }
     let mut summary = std::mem::take(&mut outputs.summary);

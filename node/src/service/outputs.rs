@@ -27,10 +27,10 @@ use std::path::PathBuf;
 use glam::DVec2;
 
 use super::counters::Counters;
+use super::error::ServiceError;
 use super::inputs::CameraPose;
 use super::keys::{self, Topic};
 use super::map_files::checkpoint;
-use super::node::{NodeSummary, ServiceError};
 use crate::fusion::{bev_image, increment_message, snapshot_message, BevView, GlobalMap};
 use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::geometry_msgs::TransformStamped;
@@ -45,6 +45,17 @@ use crate::msg::Message;
 use crate::pipeline::self_check::{verdict_code, CheckAction, CheckOutcome};
 use crate::pipeline::worker::{now_ns, Output, Rendered, Stamps, WorkerEvent};
 use crate::transport::Outlet;
+
+/// What a run of the node did.
+#[derive(Clone, Debug, Default)]
+pub struct NodeSummary {
+    /// Bins whose maps were published.
+    pub bins_published: u64,
+    /// Gaussians in the global map at the end.
+    pub global_gaussians: usize,
+    /// The counters at the end.
+    pub counters: Counters,
+}
 
 /// The bird's-eye view published per bin: 256 x 256 pixels at 0.25 m, 64 m square around
 /// the latest bin's origin.
@@ -235,6 +246,18 @@ impl<'a> Outputs<'a> {
     /// Notes that `bin_id` closed (its last frame arrived) and publishes what is ready.
     pub async fn bin_closed(&mut self, bin_id: u64, drops: u64) -> Result<(), ServiceError> {
         self.closed_ns.insert(bin_id, now_ns());
+        self.flush_latency(drops).await
+    }
+
+    /// At the end of a run: publishes the latency of every published bin still waiting for
+    /// its close or its render. The drive's last bin never closes (no frame after it), so
+    /// its message has no close stamp (`bin_close_ns` 0) and no before-close margin.
+    pub async fn finish(&mut self, drops: u64) -> Result<(), ServiceError> {
+        self.awaiting_render.clear();
+        let open: Vec<u64> = self.published.keys().copied().collect();
+        for id in open {
+            self.closed_ns.entry(id).or_insert(0);
+        }
         self.flush_latency(drops).await
     }
 

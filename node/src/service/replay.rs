@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 use model::kitti360::{Kitti360Error, Sequence};
 use zenoh::Session;
 
+use super::error::ServiceError;
 use super::keys::{self, Direction, Keys, Topic, TOPICS};
-use super::node::ServiceError;
 use crate::bag::Rate;
 use crate::msg::image::{camera_info, image_from_rgb};
 use crate::msg::pose::pose_from_affine;

@@ -1,8 +1,10 @@
 //! zenoh for the node's inputs and outputs: sessions that stay on loopback unless told
-//! otherwise ([`session`]), what an endpoint exposes and the secure profile ([`security`]),
+//! otherwise ([`session`]), why that can fail ([`error`]), what an endpoint exposes and the secure profile ([`security`]),
 //! rmw_zenoh's conventions for the ROS 2 key mode ([`ros2`]), and the publishing side that
 //! uses them ([`outlet`]).
 
+#[cfg(feature = "runtime")]
+pub mod error;
 #[cfg(feature = "runtime")]
 pub mod outlet;
 pub mod ros2;
@@ -12,8 +14,10 @@ pub mod security;
 pub mod session;
 
 #[cfg(feature = "runtime")]
+pub use error::TransportError;
+#[cfg(feature = "runtime")]
 pub use outlet::{Outlet, OutletError};
 #[cfg(feature = "runtime")]
 pub use security::{Reach, TlsFiles};
 #[cfg(feature = "runtime")]
-pub use session::{open, TransportConfig, TransportError};
+pub use session::{open, TransportConfig};

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use zenoh::Config;
 
-use super::session::TransportError;
+use super::error::TransportError;
 
 /// Who can reach a listen endpoint.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 use zenoh::{Config, Session};
 
+use super::error::TransportError;
 use super::security::{self, TlsFiles};
 
 /// How to reach the other processes.
@@ -45,42 +46,6 @@ impl Default for TransportConfig {
             access_control: None,
         }
     }
-}
-
-/// Why a session could not be opened.
-#[derive(Debug, thiserror::Error)]
-pub enum TransportError {
-    /// The config file or a flag was rejected by zenoh.
-    #[error("zenoh configuration: {0}")]
-    Config(String),
-    /// A file the configuration names could not be read.
-    #[error("zenoh configuration: reading {}", path.display())]
-    File {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        #[source]
-        source: std::io::Error,
-    },
-    /// A plain endpoint while the secure profile is on: its traffic would be neither
-    /// encrypted nor authenticated.
-    #[error("{endpoint} is not encrypted but TLS is on: use tls/ (or quic/) endpoints")]
-    Unencrypted {
-        /// The endpoint.
-        endpoint: String,
-    },
-    /// zenoh failed to open the session (an endpoint in use, a bad certificate).
-    #[error("opening the zenoh session (listening on {listen})")]
-    Open {
-        /// The listen endpoints asked for.
-        listen: String,
-        /// zenoh's reason.
-        #[source]
-        source: zenoh::Error,
-    },
-    /// Publishing or subscribing failed.
-    #[error("zenoh: {0}")]
-    Zenoh(String),
 }
 
 impl TransportConfig {

@@ -7,7 +7,8 @@
 use rayon::prelude::*;
 
 use super::project::{project, Projected};
-use super::tiles::{bin, TileBins, TILE_SIZE};
+use super::tiles::{bin, TileBins};
+use super::TILE_SIZE;
 use super::{MAX_ALPHA, MIN_ALPHA, MIN_TRANSMITTANCE};
 use crate::camera::CameraParams;
 use crate::gaussians::SplatsView;

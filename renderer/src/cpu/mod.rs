@@ -20,9 +20,12 @@ pub mod visibility;
 pub use backward::{backward, OutputGrads, SplatGrads};
 pub use composite::{render, ForwardPass};
 pub use project::{project, Projected};
-pub use tiles::{TileBins, TILE_SIZE};
+pub use tiles::TileBins;
 pub use visibility::blend_weights;
 
+/// Tile edge in pixels: the screen is cut into square tiles of this size, each composited
+/// from its own depth-sorted list of Gaussians.
+pub const TILE_SIZE: u32 = 16;
 /// Alpha is clamped to this from above so transmittance never reaches zero in one step.
 pub const MAX_ALPHA: f64 = 0.99;
 /// Contributions with alpha below this are skipped (1/255, invisible in 8-bit output).

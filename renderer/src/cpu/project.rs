@@ -12,8 +12,8 @@
 //! the identity rotation; opacity is clamped to [0, 1].
 
 use super::math::{self, M3};
-use super::tiles::TILE_SIZE;
 use super::COV2D_DILATION;
+use super::TILE_SIZE;
 use crate::camera::CameraParams;
 use crate::gaussians::SplatsView;
 use crate::output::RenderSettings;

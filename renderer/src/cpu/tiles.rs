@@ -7,10 +7,8 @@
 use rayon::prelude::*;
 
 use super::project::Projected;
+use super::TILE_SIZE;
 use crate::real::Real;
-
-/// Tile edge in pixels.
-pub const TILE_SIZE: u32 = 16;
 
 /// Per-tile lists of Gaussian indices, concatenated: tile `t` owns
 /// `ids[offsets[t]..offsets[t + 1]]`, sorted front to back.

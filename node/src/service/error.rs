@@ -1,0 +1,28 @@
+//! Why the node stopped with an error. Bad input never stops it: a malformed message is
+//! counted and reported on the diagnostics topic instead.
+
+use super::map_files::{ExportError, RestoreError};
+use crate::transport::TransportError;
+
+/// Why the node stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ServiceError {
+    /// The zenoh session.
+    #[error(transparent)]
+    Transport(#[from] TransportError),
+    /// The method name.
+    #[error(transparent)]
+    Method(#[from] model::methods::MethodError),
+    /// The fusion settings.
+    #[error(transparent)]
+    Fusion(#[from] crate::fusion::FusionError),
+    /// Declaring the publishers (a bad node name) or publishing.
+    #[error(transparent)]
+    Outlet(#[from] crate::transport::OutletError),
+    /// Writing the exports.
+    #[error(transparent)]
+    Export(#[from] ExportError),
+    /// The out folder's checkpoint cannot be resumed.
+    #[error(transparent)]
+    Restore(#[from] RestoreError),
+}

@@ -86,7 +86,15 @@ fn main() -> Result<()> {
     // has none, so Mesa does not print its XDG_RUNTIME_DIR error lines.
     #[cfg(unix)]
     node::cli::runtime_dir::ensure_runtime_dir();
-    match Cli::parse().command {
+    let cli = Cli::parse();
+    // Mesa's shader cache inside the out folder of the commands that have one, else off.
+    let out = match &cli.command {
+        Command::Run(args) => Some(args.out_dir()),
+        Command::Demo(args) => Some(args.out_dir()),
+        _ => None,
+    };
+    node::cli::shader_cache::place_shader_cache(out);
+    match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Synth(args) => synth::run(&args),

@@ -60,6 +60,13 @@ pub struct DemoArgs {
     view: ViewFlags,
 }
 
+impl DemoArgs {
+    /// The demo's out folder (`--out`).
+    pub fn out_dir(&self) -> &std::path::Path {
+        &self.out
+    }
+}
+
 /// Runs the demo and prints where its outputs are.
 pub fn run(args: &DemoArgs) -> Result<()> {
     let (root, name) = match &args.data {

@@ -20,9 +20,11 @@ pub mod render;
 #[cfg(unix)]
 pub mod runtime_dir;
 pub mod scene_source;
+pub mod shader_cache;
 pub mod shutdown;
 pub mod stream;
 pub mod synth;
 pub mod train;
 pub mod train_enhancer;
 pub mod view;
+pub mod zenoh_args;

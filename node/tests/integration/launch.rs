@@ -450,6 +450,9 @@ fn example_files_check() {
     assert_eq!(node.args[..3], ["run", "--listen", "tcp/127.0.0.1:7447"]);
 }
 
+/// The node demo through the launcher, with renders on wgpu (lavapipe here) and a home
+/// folder of its own, so the test also sees where Mesa's shader cache goes: inside the
+/// node's out folder, never under the home folder.
 #[test]
 fn the_node_demo_replays_a_drive_into_the_node_and_exports_the_map() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -468,17 +471,40 @@ fn the_node_demo_replays_a_drive_into_the_node_and_exports_the_map() {
         ("width", "136".into()),
         ("height", "40".into()),
         ("rate", "4".into()),
+        ("renders", "gpu".into()),
     ] {
         args.extend(set(k, v));
     }
     let refs: Vec<&str> = args.iter().map(String::as_str).collect();
-    let (code, stdout, stderr) = launch(&refs);
+    let home = tmp.join("home");
+    std::fs::create_dir_all(&home).unwrap();
+    let run = finish(
+        launcher(&refs)
+            .env("HOME", &home)
+            .env_remove("XDG_CACHE_HOME")
+            .env_remove("MESA_SHADER_CACHE_DIR")
+            .env_remove("MESA_SHADER_CACHE_DISABLE")
+            .spawn()
+            .unwrap(),
+    );
+    let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+    let (code, stdout, stderr) = (
+        run.status.code().unwrap_or(-1),
+        text(&run.stdout),
+        text(&run.stderr),
+    );
     assert_eq!(code, 0, "{stdout}\n{stderr}");
     assert!(stdout.contains("[replay] replayed 40 frames"), "{stdout}");
     assert!(stdout.contains("\"bins_published\":"), "{stdout}");
     for f in ["global_map.ply", "global_map_bev.png", "global_map.ssgmap"] {
         assert!(tmp.join("out").join(f).exists(), "{f}");
     }
+    assert!(
+        !home.join(".cache").exists(),
+        "nothing written under the home folder: {:?}",
+        std::fs::read_dir(home.join(".cache")).map(|d| d.count())
+    );
+    assert!(tmp.join("out/shader_cache").is_dir());
     // The recorder heard the inputs and the outputs; the monitor summarised the latency.
     let bag = node::bag::BagReader::open(tmp.join("out/drive.mcap")).unwrap();
     let topics: Vec<&str> = bag

@@ -178,7 +178,7 @@ function drawChart(canvas, values, colour) {
   g.fillStyle = '#121417';
   g.fillRect(0, 0, w, h);
   const finite = values.filter(Number.isFinite);
-  // The range holds 0 and every value (a stage such as close_to_publish is negative).
+  // The range holds 0 and every value (the before-close margin may be negative).
   const lo = Math.min(0, ...finite);
   const hi = Math.max(lo + 1, ...finite);
   const span = (hi - lo) * 1.1;

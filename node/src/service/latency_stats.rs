@@ -9,7 +9,7 @@
 //! | `wait` | first frame arrival | model start (sync, binning and the worker queue) |
 //! | `model` | model start | model end |
 //! | `render` | model end | render end |
-//! | `close_to_publish` | bin close | map published |
+//! | `before_close_margin` | map published | bin close |
 //! | `base` | model start | G_base done (progressive pass only, as the next four) |
 //! | `pseudo_render` | G_base done | pseudo views rendered |
 //! | `enhance` | pseudo views rendered | pseudo views enhanced |
@@ -17,9 +17,11 @@
 //! | `fuse` | pseudo pairs done | G_base and G_plus fused |
 //!
 //! A stage is left out for a bin when either of its stamps is 0 (the bin never reached it).
-//! `close_to_publish` is usually **negative**: the bin's first stereo pair goes to the worker
-//! as soon as the bin opens, so its map is normally published before the frame that closes
-//! the bin (8 m later) arrives; a positive value means the worker was slower than the drive.
+//! `before_close_margin` is not a latency but a margin: the bin's first stereo pair goes to
+//! the worker as soon as the bin opens, so its map is normally published before the frame
+//! that closes the bin (8 m later) arrives, and the margin says how long before. A negative
+//! margin means the map came out after its bin closed: the worker was slower than the drive.
+//! Its summary ([`MarginSummary`]) reports the low tail (p10, p1, min), where trouble shows.
 //!
 //! Beside the stages it counts the bins' self-check verdicts and what the node did about
 //! failures ([`CheckCounts`]), so `monitor` shows how many maps were flagged or replaced.
@@ -99,13 +101,16 @@ const STAGES: [(&str, Stamps); 10] = [
     ("wait", |l| (l.first_frame_arrival_ns, l.model_start_ns)),
     ("model", |l| (l.model_start_ns, l.model_end_ns)),
     ("render", |l| (l.model_end_ns, l.render_end_ns)),
-    ("close_to_publish", |l| (l.bin_close_ns, l.publish_ns)),
+    ("before_close_margin", |l| (l.publish_ns, l.bin_close_ns)),
     ("base", |l| (l.model_start_ns, l.base_end_ns)),
     ("pseudo_render", |l| (l.base_end_ns, l.pseudo_render_end_ns)),
     ("enhance", |l| (l.pseudo_render_end_ns, l.enhance_end_ns)),
     ("plus", |l| (l.enhance_end_ns, l.plus_end_ns)),
     ("fuse", |l| (l.plus_end_ns, l.fuse_end_ns)),
 ];
+
+/// The index of the before-close margin in [`STAGES`]: a margin, summarised by its low tail.
+const MARGIN: usize = 4;
 
 /// The stages after this index split the model's time; they are shown only when some bin
 /// had the progressive pass.
@@ -163,7 +168,7 @@ impl LatencyStats {
             wait: stage(1),
             model: stage(2),
             render: stage(3),
-            close_to_publish: stage(4),
+            before_close_margin: MarginSummary::of(&self.durations[MARGIN]),
             base: stage(5),
             pseudo_render: stage(6),
             enhance: stage(7),
@@ -229,8 +234,8 @@ pub struct LatencySummary {
     pub model: Option<StageSummary>,
     /// Renders of the bin's map after the model.
     pub render: Option<StageSummary>,
-    /// Bin close to map published; negative when the map was out before the bin closed.
-    pub close_to_publish: Option<StageSummary>,
+    /// How long before its bin closed each map was published (negative: after).
+    pub before_close_margin: Option<MarginSummary>,
     /// The progressive pass's G_base (`null` without the pass, as the next four).
     pub base: Option<StageSummary>,
     /// Rendering the pseudo views.
@@ -252,15 +257,55 @@ pub struct LatencySummary {
     pub checks: CheckCounts,
 }
 
+/// The before-close margins over the bins that have both stamps, in milliseconds: the
+/// median and the low tail (nearest rank from the small end), since a small or negative
+/// margin is what says the worker is falling behind.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct MarginSummary {
+    /// Bins with both stamps.
+    pub count: usize,
+    /// Median (nearest rank).
+    pub p50_ms: f64,
+    /// 10th percentile (nearest rank): nine bins in ten had at least this margin.
+    pub p10_ms: f64,
+    /// 1st percentile (nearest rank).
+    pub p1_ms: f64,
+    /// Smallest.
+    pub min_ms: f64,
+    /// Arithmetic mean.
+    pub mean_ms: f64,
+}
+
+impl MarginSummary {
+    /// The summary of `margins_ns`, `None` when it is empty.
+    fn of(margins_ns: &[i64]) -> Option<Self> {
+        let mut sorted = margins_ns.to_vec();
+        sorted.sort_unstable();
+        let n = sorted.len();
+        let min = *sorted.first()?;
+        let ms = |ns: i64| ns as f64 / 1e6;
+        let percentile = |p: usize| sorted[(p * n).div_ceil(100).max(1) - 1];
+        let sum: i128 = sorted.iter().map(|&d| i128::from(d)).sum();
+        Some(Self {
+            count: n,
+            p50_ms: ms(percentile(50)),
+            p10_ms: ms(percentile(10)),
+            p1_ms: ms(percentile(1)),
+            min_ms: ms(min),
+            mean_ms: sum as f64 / n as f64 / 1e6,
+        })
+    }
+}
+
 impl LatencySummary {
-    /// Every stage with its name, in the order of the module's table.
-    pub fn stages(&self) -> [(&'static str, Option<StageSummary>); STAGES.len()] {
+    /// Every latency stage with its name, in the order of the module's table (the
+    /// before-close margin, not a latency, is [`LatencySummary::before_close_margin`]).
+    pub fn stages(&self) -> [(&'static str, Option<StageSummary>); STAGES.len() - 1] {
         [
             (STAGES[0].0, self.arrival_to_publish),
             (STAGES[1].0, self.wait),
             (STAGES[2].0, self.model),
             (STAGES[3].0, self.render),
-            (STAGES[4].0, self.close_to_publish),
             (STAGES[5].0, self.base),
             (STAGES[6].0, self.pseudo_render),
             (STAGES[7].0, self.enhance),
@@ -281,7 +326,7 @@ impl fmt::Display for LatencySummary {
         )?;
         let progressive = self.base.is_some();
         for (i, (name, stage)) in self.stages().into_iter().enumerate() {
-            if i >= SPLIT_FROM && !progressive {
+            if i + 1 >= SPLIT_FROM && !progressive {
                 continue;
             }
             match stage {
@@ -292,6 +337,15 @@ impl fmt::Display for LatencySummary {
                 )?,
                 None => writeln!(f, "{name:<20} {:>6}", 0)?,
             }
+        }
+        match self.before_close_margin {
+            Some(m) => writeln!(
+                f,
+                "map out before its bin closed (ms): p50 {:.1}, p10 {:.1}, p1 {:.1}, min {:.1} \
+                 over {} bins (negative: after)",
+                m.p50_ms, m.p10_ms, m.p1_ms, m.min_ms, m.count
+            )?,
+            None => writeln!(f, "map out before its bin closed: no bin closed yet")?,
         }
         writeln!(
             f,
@@ -368,8 +422,11 @@ mod tests {
             (12.0, 17.0, 12.5)
         );
         // The map is out 7 + model ms after arrival, the bin closes 500 ms after it.
-        let close = s.close_to_publish.unwrap();
-        assert_eq!((close.p50_ms, close.p90_ms), (-488.0, -484.0));
+        let margin = s.before_close_margin.unwrap();
+        assert_eq!(
+            (margin.p50_ms, margin.p10_ms, margin.min_ms),
+            (487.0, 483.0, 483.0)
+        );
         assert_eq!(s.max_queue_depth, 2);
         // The last bin pushed was bin 9.
         assert_eq!((s.drops, s.bad_messages), (9, 18));
@@ -391,7 +448,7 @@ mod tests {
         let s = stats.summary();
         assert_eq!(s.bins, 2);
         assert_eq!(s.arrival_to_publish, None);
-        assert_eq!(s.close_to_publish, None);
+        assert_eq!(s.before_close_margin, None);
         assert_eq!(s.wait.unwrap().count, 1);
         assert_eq!(s.model.unwrap().p50_ms, 20.0);
         // render_end == model_end: a zero-length render stage is still a stage.
@@ -421,7 +478,7 @@ mod tests {
                 ("wait", Some(3.0)),
                 ("model", Some(40.0)),
                 ("render", Some(0.0)),
-                ("close_to_publish", None),
+                ("before_close_margin", None),
             ]
         );
     }

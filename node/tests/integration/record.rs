@@ -443,8 +443,8 @@ async fn monitor_summarises_known_latencies() {
     assert_eq!(s.wait.unwrap().p99_ms, 2.0);
     assert_eq!(s.render.unwrap().max_ms, 0.0);
     // Published 397, 387, ..., 357 ms before the bin closed.
-    let close = s.close_to_publish.unwrap();
-    assert_eq!((close.p50_ms, close.max_ms), (-377.0, -357.0));
+    let margin = s.before_close_margin.unwrap();
+    assert_eq!((margin.p50_ms, margin.min_ms), (377.0, 357.0));
     assert_eq!((s.max_queue_depth, s.drops, s.bad_messages), (4, 3, 4));
     let json = serde_json::to_value(s).unwrap();
     assert_eq!(json["model"]["p90_ms"], 140.0);

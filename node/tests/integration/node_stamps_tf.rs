@@ -139,10 +139,11 @@ async fn outputs_carry_their_source_stamp_and_tf_places_every_bin() {
         .collect();
     assert_eq!(bev, bin_stamps);
 
-    // The node's own times stay in the latency message (one per closed bin: all but the
-    // last), on its wall clock.
+    // The node's own times stay in the latency message (one per bin: the last, which never
+    // closes, when the node stops), on its wall clock.
+    assert!(collector.wait_count(&keys.latency(), bins).await);
     let latency: Vec<BinLatency> = collector.decoded(&keys.latency());
-    assert_eq!(latency.len(), bins - 1);
+    assert_eq!(latency.len(), bins);
     for l in &latency {
         let source = stamp_of_bin[&l.bin_id];
         assert!(l.first_frame_arrival_ns - source > -OFFSET_NS / 2, "{l:?}");

@@ -3,7 +3,7 @@
 //! weights away from what the old domain (the streets) wants; a point on the straight line
 //! between the two runs often keeps most of both, and sometimes beats both (WiSE-FT,
 //! Wortsman et al., "Robust fine-tuning of zero-shot models", CVPR 2022). Used to ship
-//! `tiny-3d` (scripts/train_tiny_3d.sh, results/tiny_3d/README.md).
+//! `tiny-3d` (`scripts/train_tiny_3d.sh`, `results/tiny_3d/`).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

@@ -8,11 +8,12 @@
 //! stamps), with 0.25 m bins so every frame opens a bin, and a queue of 2 bins. Bins open
 //! faster than the SGM worker finishes them (the ratio is printed, not asserted: about 3x on
 //! the shared 2-core machine, where the worker, the node's loop and the player share the
-//! cores, so short of a 20x burst; most bins are dropped all the same). Checked, with numbers only:
-//! every latency message reports a queue depth within the capacity and a drop count that never
-//! decreases; bins published + bins dropped = bins opened, and every frame that opened no bin
-//! is counted by the synchroniser; the node still answers a frame after the burst; and the
-//! process's resident memory (the node runs in the test process) grows by less than a stated
+//! cores, so short of a 20x burst; most bins are dropped all the same). Checked, with numbers
+//! only: every latency message reports a queue depth within the capacity and a drop count that
+//! never decreases; bins published + bins dropped = bins opened, and every frame that opened
+//! no bin is counted by the synchroniser; the node still answers a frame after the burst; and
+//! the process's resident memory (the node runs in the test process) grows by less than a
+//! stated
 //! bound that a queue without a bound would exceed.
 
 mod drive_support;

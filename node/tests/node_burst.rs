@@ -13,8 +13,7 @@
 //! never decreases; bins published + bins dropped = bins opened, and every frame that opened
 //! no bin is counted by the synchroniser; the node still answers a frame after the burst; and
 //! the process's resident memory (the node runs in the test process) grows by less than a
-//! stated
-//! bound that a queue without a bound would exceed.
+//! stated bound that a queue without a bound would exceed.
 
 mod drive_support;
 

@@ -28,7 +28,8 @@ use node::pipeline::worker::RenderWith;
 use node::service::{InputLimits, Keys, NodeConfig, NodeSummary};
 
 /// Resident memory of this test process (node, model, zenoh and test) after any probe and
-/// its drive. A 2000x2000 frame used to take the worker to 5.7 GB.
+/// its drive. A 2000x2000 frame worked at full size rather than the working size would take
+/// the worker to about 5.7 GB.
 const RSS_BOUND: u64 = 1536 << 20;
 
 /// One test at a time: memory and the worker's time are each test's own.

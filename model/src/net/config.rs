@@ -303,23 +303,23 @@ impl Config {
     }
 
     /// Real time on a 2-core CPU: small channels, 32 candidates, Gaussians at 1/2 resolution.
-    /// The matching term adds the census correlation, which a real camera's gain and
-    /// texture cannot move. Scenes whose SGM-fitted far end lies under 50 m (rooms,
-    /// objects) get aids on top: the candidates span the fitted range, SGM's confident
-    /// matches guide the depth head (`sgm_guidance` 10, width 2 candidates, the best of `bash
+    /// The matching term adds the census correlation, which a real camera's gain and texture
+    /// cannot move. Scenes whose SGM-fitted far end lies under 50 m (rooms, objects) get aids
+    /// on top: the candidates span the fitted range, SGM's confident matches guide the depth
+    /// head (`sgm_guidance` 10, width 2 candidates, the best of `bash
     /// scripts/guidance_sweep.sh`'s grid on both real pairs with ground truth), the first
     /// pair's Gaussians take SGM's depth where SGM matched consistently (`sgm_snap`), and
     /// Gaussians on foreground edges shrink to a tenth (`edge_shrink`). Streets reach beyond
-    /// 50 m, are never fitted and run exactly as the weights learned them. The depth is the
-    /// softmax's expectation within 2 candidates of its peak (`depth_window`), so a cell
-    /// split between a near and a far surface takes one of them. The shipped weights
-    /// learned the census on the generated transfer mix (plain streets, domain-randomised
-    /// drives, near objects: `scripts/transfer_data.sh`), first alone
-    /// (`scripts/train_tiny_census.sh`), then with the fitted range and SGM's hints on every
-    /// sample (`scripts/train_tiny_guided.sh`; `results/stereosplat_tiny/`). On real pairs
-    /// (`bash scripts/real_pairs.sh`, `results/real_pairs/`): Aloe 27.2% and Motorcycle
-    /// 20.4% bad-3 pixels against SGM's 17.0% and 12.6%, the OAK-D rooms' photometric error
-    /// 0.0327 against SGM's 0.0363.
+    /// 50 m, so they keep the full range and none of these aids, and run exactly as the
+    /// weights learned them. The depth is the softmax's expectation within 2 candidates of its
+    /// peak (`depth_window`), so a cell split between a near and a far surface takes one of
+    /// them. The shipped weights learned the census on the generated transfer mix (plain
+    /// streets, domain-randomised drives, near objects: `scripts/transfer_data.sh`), first
+    /// without the near-scene aids (`scripts/train_tiny_census.sh`), then with the fitted
+    /// range and SGM's hints on every sample (`scripts/train_tiny_guided.sh`;
+    /// `results/stereosplat_tiny/`). On real pairs (`bash scripts/real_pairs.sh`,
+    /// `results/real_pairs/`): Aloe 27.2% and Motorcycle 20.4% bad-3 pixels against SGM's
+    /// 17.0% and 12.6%, the OAK-D rooms' photometric error 0.0327 against SGM's 0.0363.
     pub fn tiny() -> Self {
         Self {
             name: "tiny".into(),

@@ -24,7 +24,8 @@ pub const NAMES: &[&str] = &["sgm", "stereosplat"];
 
 /// The reconstructor every command (the node, `demo`, `eval`, `bench node`) uses when none is
 /// named: the learned network with the shipped `tiny` weights, which beats `sgm` on held-out
-/// PSNR and AbsRel (`results/stereosplat_tiny/README.md`); `sgm` stays the faster choice.
+/// PSNR and AbsRel (`bash scripts/eval_tiny.sh`, `results/stereosplat_tiny/`); `sgm` stays
+/// the faster choice.
 pub const DEFAULT: &str = "stereosplat";
 
 /// The preset of `stereosplat` when none is given.

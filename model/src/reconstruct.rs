@@ -1,6 +1,6 @@
 //! The reconstructor interface: stereo views with their cameras in, a Gaussian set out.
-//! The classical baseline implements it now and the learned StereoSplat model later, so
-//! evaluation and the streaming node never change when the model does.
+//! The classical baseline and the learned StereoSplat network both implement it, so
+//! evaluation and the streaming node do not change with the method.
 
 use renderer::{Camera, GaussianSet};
 

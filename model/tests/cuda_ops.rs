@@ -1,6 +1,6 @@
 //! Every custom op, LPIPS, the enhancer and the network on the GPU against the same
-//! computation on the CPU (issue 19). Built only with the `cuda` feature and run on a
-//! machine with an NVIDIA GPU (`results/gpu/README.md`): CI has neither, so this file
+//! computation on the CPU. Built only with the `cuda` feature and run on a machine with an
+//! NVIDIA GPU (`results/gpu/`): CI has neither, so this file
 //! compiles to nothing there.
 #![cfg(feature = "cuda")]
 

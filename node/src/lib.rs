@@ -1,10 +1,14 @@
 //! The StereoSplat node: transport, pipeline and the `stereosplat` command line. It sits at
-//! the top of the dependency chain (`renderer` <- `model` <- `node`).
+//! the top of the dependency chain (`renderer` <- `model` <- `node`) and is the one crate
+//! that knows about zenoh, ROS 2 messages and the command line; the crates below it know
+//! nothing of it.
 //!
 //! - [`cli`]: the subcommands.
 //! - [`transport`]: zenoh sessions (loopback peers by default); [`msg`]: the ROS 2 CDR wire
 //!   messages and their rmw_zenoh type hashes.
 //! - [`pipeline`]: time sync, binning and the worker thread that owns the reconstructor.
+//! - [`service`]: the running node around the pipeline, and the replay, recording and
+//!   monitoring of its topics.
 //! - [`fusion`]: the fused global map in the f64 world frame; [`map_eval`]: its own quality
 //!   on a drive (`stereosplat eval-map`).
 //! - [`pair`]: one stereo pair from files reconstructed, checked and scored

@@ -1,19 +1,19 @@
 //! A burst far faster than the worker: the node's stated policy when the worker falls behind
 //! is a bounded queue that drops the oldest waiting bin and counts it (README, "Streaming
-//! node"; issue 4: "a burst at 20x the processing rate keeps memory bounded and drops by the
-//! stated policy").
+//! node"), so a burst far above the processing rate keeps memory bounded and drops by that
+//! policy.
 //!
 //! A generated drive is replayed into an in-process node as fast as possible (first through
-//! `replay` with `Rate::AsFastAsPossible`, then looped many more times from memory with
-//! later stamps), with 0.25 m bins so every frame opens a bin, and a queue of 2 bins. Bins
-//! open faster than the SGM worker finishes them (the ratio is printed, not asserted: about
-//! 3x on the shared 2-core machine, where the worker, the node's loop and the player share
-//! the cores, so short of the issue's 20x; most bins are dropped all the same). Checked, with numbers only: every latency message reports a queue depth within
-//! the capacity and a drop count that never decreases; bins published + bins dropped = bins
-//! opened, and every frame that opened no bin is counted by the synchroniser; the node
-//! still answers a frame after the burst; and the process's resident memory (the node runs in
-//! the test process) grows by less than a stated bound that a queue without a bound would
-//! exceed.
+//! `replay` with `Rate::AsFastAsPossible`, then looped many more times from memory with later
+//! stamps), with 0.25 m bins so every frame opens a bin, and a queue of 2 bins. Bins open
+//! faster than the SGM worker finishes them (the ratio is printed, not asserted: about 3x on
+//! the shared 2-core machine, where the worker, the node's loop and the player share the
+//! cores, so short of a 20x burst; most bins are dropped all the same). Checked, with numbers
+//! only: every latency message reports a queue depth within the capacity and a drop count that
+//! never decreases; bins published + bins dropped = bins opened, and every frame that opened
+//! no bin is counted by the synchroniser; the node still answers a frame after the burst; and
+//! the process's resident memory (the node runs in the test process) grows by less than a
+//! stated bound that a queue without a bound would exceed.
 
 mod drive_support;
 

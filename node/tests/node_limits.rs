@@ -1,8 +1,8 @@
-//! The node bounded by its input limits (issue 13, "Bounded by input size"): each probe of
-//! the issue goes to a node running in this process on loopback, then a small generated
-//! drive follows. Checked for each: the probe is counted under its reason, the process's
-//! resident memory after probe and drive stays under [`RSS_BOUND`], and every bin the drive
-//! opens is published with a non-empty map.
+//! The node bounded by its input limits, whatever the input's size: each probe below goes to a
+//! node running in this process on loopback, then a small generated drive follows. Checked for
+//! each: the probe is counted under its reason, the process's resident memory after probe and
+//! drive stays under [`RSS_BOUND`], and every bin the drive opens is published with a
+//! non-empty map.
 //!
 //! Probes: one 2000x2000 frame (worked at the working size, not refused), 16 left images of
 //! 8000x8000 `rgb8` (192 MB each), an 8000x8000 header with no pixels, a `0 x 4e9` image, a
@@ -28,7 +28,8 @@ use node::pipeline::worker::RenderWith;
 use node::service::{InputLimits, Keys, NodeConfig, NodeSummary};
 
 /// Resident memory of this test process (node, model, zenoh and test) after any probe and
-/// its drive. A 2000x2000 frame used to take the worker to 5.7 GB.
+/// its drive. A 2000x2000 frame worked at full size rather than the working size would take
+/// the worker to about 5.7 GB.
 const RSS_BOUND: u64 = 1536 << 20;
 
 /// One test at a time: memory and the worker's time are each test's own.

@@ -1,6 +1,6 @@
-//! Overload (issue 13): generated frames at 20 times the recorded frame rate for 60 s into a
-//! node running as its own process (`stereosplat run --method sgm`, so its memory is its own),
-//! then a drive at the recorded rate.
+//! Overload: generated frames at 20 times the recorded frame rate for 60 s into a node running
+//! as its own process (`stereosplat run --method sgm`, so its memory is its own), then a drive
+//! at the recorded rate.
 //!
 //! The frames are a generated drive (272 x 72) looped with stamps going on at 10 Hz, put
 //! every 5 ms of wall clock with zenoh's `Drop` congestion control (the test never waits for

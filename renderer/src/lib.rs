@@ -3,8 +3,8 @@
 //! It owns the types every other crate speaks (a [`GaussianSet`], a pinhole [`Camera`],
 //! [`RenderOutput`]), the CPU reference rasterizer ([`cpu`], forward and backward, the oracle
 //! that training differentiates through), the wgpu rasterizer ([`gpu`], forward, what the node
-//! draws with), the one entry point that picks between them ([`raster`]), and file formats ([`ply`] for maps, [`picture`] for PNG), written crash-safely
-//! through [`atomic`]. The wgpu half (`gpu`, `raster`) is the default feature `gpu`; without
+//! draws with), the one entry point that picks between them ([`raster`]), and file formats
+//! ([`ply`] for maps, [`picture`] for PNG), written crash-safely through [`atomic`]. The wgpu half (`gpu`, `raster`) is the default feature `gpu`; without
 //! it the crate builds without wgpu (the fuzz targets' build).
 //!
 //! It must not know about networks, data sets or transport: those live in `model` and `node`,

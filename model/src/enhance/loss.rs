@@ -18,11 +18,9 @@ pub struct LossWeights {
 
 impl Default for LossWeights {
     /// L2 20, LPIPS 1, Gram 1e4. Difix weighs L2 and LPIPS 1 / 1, but here L2 is about 1/20
-    /// of LPIPS on raw renders, and at 1 / 1 the network traded PSNR for LPIPS (smoke run,
-    /// `results/enhancer_tiny_smoke/README.md`: -1.0 dB at step 379); at 20 / 1 the two pull
-    /// about equally (PSNR -0.02 dB, unseen region +1.0 dB, LPIPS -0.020 at step 137). The
-    /// Gram term on LPIPS's unit-normalised AlexNet features is about 5e-6 against LPIPS's
-    /// 0.2, so its weight 1e4 makes it about a fifth of LPIPS.
+    /// of LPIPS on raw renders, and at 1 / 1 the network trades PSNR for LPIPS; at 20 / 1
+    /// the two pull about equally. The Gram term on LPIPS's unit-normalised AlexNet features
+    /// is about 5e-6 against LPIPS's 0.2, so its weight 1e4 makes it about a fifth of LPIPS.
     fn default() -> Self {
         Self {
             l2: 20.0,

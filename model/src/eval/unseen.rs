@@ -1,10 +1,10 @@
 //! Where a method must pay for what the input did not show: the target pixels whose true
-//! surface point no input view saw, and the PSNR on those pixels alone (issue 15's
-//! "unseen-region PSNR"). A point counts as seen by an input view when it lies in front of
-//! it, projects inside its image, and is not hidden there: its depth in that view is at most
-//! [`OCCLUSION_TOLERANCE`] beyond the view's own exact depth at that pixel. Needs exact
-//! depth for the targets and the inputs, which generated drives have
-//! ([`crate::kitti360::exact_depth`]); real data has none and gets no score.
+//! surface point no input view saw, and the PSNR on those pixels alone ("unseen-region PSNR").
+//! A point counts as seen by an input view when it lies in front of it, projects inside its
+//! image, and is not hidden there: its depth in that view is at most [`OCCLUSION_TOLERANCE`]
+//! beyond the view's own exact depth at that pixel. Needs exact depth for the targets and the
+//! inputs, which generated drives have ([`crate::kitti360::exact_depth`]); real data has none
+//! and gets no score.
 
 use glam::Vec3;
 use renderer::Camera;

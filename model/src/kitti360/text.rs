@@ -17,7 +17,7 @@ pub fn read_text(path: &Path) -> Result<String, Kitti360Error> {
 /// ([`renderer::atomic`]): a reader sees the old file or the whole new one, never part of it.
 /// Sequences written into one root by parallel processes each check the shared calibration
 /// files against their own (`SequenceWriter::create`), and a half-written file read that way
-/// used to fail one of them.
+/// would fail one of them.
 pub fn write_text(path: &Path, text: &str) -> Result<(), Kitti360Error> {
     create_parent(path)?;
     renderer::atomic::write_bytes_atomic(path, text.as_bytes())

@@ -1,13 +1,14 @@
-//! A fixed matching cost beside the learned one (`census_matching`, issue 14's real-photo
-//! transfer): soft census descriptors of the grey images at the cost volume's resolution,
-//! correlated by the same plane sweep as the features, then averaged over a 3x3 window of
-//! cells, as local stereo matchers aggregate. At full resolution a census decorrelates
-//! within a pixel or two while the candidates lie about 4 pixels apart on a near scene
-//! (Aloe: 87.6% bad-3 with this cost alone, against 78.5% at 1/4). A census compares each pixel only with its
-//! neighbours, so it is blind to the gain, offset and texture statistics that differ between
-//! the generated streets and real cameras; the learned features are not, and matched poorly
-//! on real pairs (`results/transfer_diagnosis/`). Flat regions give descriptors near zero and
-//! so no matching evidence, where the depth head's priors decide.
+//! A fixed matching cost beside the learned one (`census_matching`), for matching that
+//! transfers from generated streets to real photographs: soft census descriptors of the grey
+//! images at the cost volume's resolution, correlated by the same plane sweep as the
+//! features, then averaged over a 3x3 window of cells, as local stereo matchers aggregate.
+//! At full resolution a census decorrelates within a pixel or two while the candidates lie
+//! about 4 pixels apart on a near scene, so it scores worse there than at 1/4. A census
+//! compares each pixel only with its neighbours, so it is blind to the gain, offset and
+//! texture statistics that differ between the generated streets and real cameras; the
+//! learned features are not, and matched poorly on real pairs (`bash
+//! scripts/matching_alone.sh` scores a network's matching alone). Flat regions give
+//! descriptors near zero and so no matching evidence, where the depth head's priors decide.
 
 use candle_core::{Result, Tensor};
 use renderer::Camera;

@@ -51,22 +51,23 @@ pub struct Config {
     /// Channels of the U-Net depth head.
     pub unet_channels: usize,
     /// Bound on the U-Net's own depth logits (`b tanh(x / b)`), so that the correlation
-    /// term, not a monocular guess, decides where matching is clear. `None`: unbounded; the
-    /// weights trained so (stop 10's, `results/stereosplat_tiny_unbounded/`) let the U-Net's
-    /// logits span about 500 across the candidates against the correlation's 6, and ignored
-    /// the cost volume.
+    /// term, not a monocular guess, decides where matching is clear. `None`: unbounded;
+    /// weights trained so let the U-Net's logits span about 500 across the candidates
+    /// against the correlation's 6, and ignored the cost volume (`results/stereosplat_tiny/`).
     #[serde(default)]
     pub depth_logit_bound: Option<f32>,
     /// Add a second correlation to the depth head's matching term: the backbone's own 1/4
     /// features (before the mono encoder's and the transformer's mixing), which a CNN keeps
     /// local, as stereo matchers do; its weight is learned and starts at zero, so weights
-    /// trained without it load and start unchanged (issue 14's real-photo transfer).
+    /// trained without it load and start unchanged. A candidate for matching that transfers
+    /// from generated streets to real photographs; the shipped weights use
+    /// `census_matching` instead.
     #[serde(default)]
     pub backbone_matching: bool,
     /// Add the soft census correlation of the grey images ([`super::census_volume`]) to the
     /// depth head's matching term at a learned weight from zero: a cost that a camera's gain,
     /// offset and texture statistics cannot move, so matching that transfers from the
-    /// generated streets to real photographs (issue 14).
+    /// generated streets to real photographs.
     #[serde(default)]
     pub census_matching: bool,
     /// Spend the depth candidates on the depths the pair shows: SGM on the first pair (its
@@ -88,8 +89,8 @@ pub struct Config {
     /// Guided stereo matching with SGM's own matches as hints ([`super::guidance`]): the
     /// depth head's logits gain a bump of this height about the candidate SGM matched, on
     /// the cells of the first pair where SGM matched consistently, on scenes whose fitted far
-    /// end passes `auto_depth_range_max_far` (near scenes: on the held-out streets the hints
-    /// cost 0.5 dB and raised AbsRel from 0.139 to 0.175). The same SGM run as
+    /// end passes `auto_depth_range_max_far` (near scenes only: on the streets SGM is the
+    /// weaker matcher, and its hints pull the network off). The same SGM run as
     /// `auto_depth_range`'s fit, run for this even when the range is not used. `None`: off.
     /// Training with it set adds each sample's hints, as inference does.
     #[serde(default)]
@@ -117,8 +118,8 @@ pub struct Config {
     /// times farther get their scales multiplied by it, so a near surface's footprints do
     /// not spill over the background beside it (a thin leaf drawn fat). As `sgm_snap`,
     /// only where SGM's hints are (the first pair of a near scene): on the streets the
-    /// ground's depth grows over 10% per two cells near the horizon, and shrinking those
-    /// Gaussians opened holes (22.9 to 17.9 dB). Inference only; `None`: every Gaussian
+    /// ground's depth grows over 10% per two cells near the horizon, so most of the road
+    /// would count as an edge and open holes. Inference only; `None`: every Gaussian
     /// keeps its predicted scale.
     #[serde(default)]
     pub edge_shrink: Option<f32>,
@@ -154,7 +155,7 @@ pub struct Config {
     /// With `volume_branch`: skip the branch on scenes SGM's fit finds nearer than
     /// `auto_depth_range_max_far` ([`super::StereoSplat::fitted_to_scene`]; the fit runs with
     /// `auto_depth_range` or `sgm_guidance`). Its grid is street-sized (`volume`'s extent),
-    /// and on a room it draws Gaussians behind the surfaces (`results/tiny_3d/README.md`).
+    /// and on a room it draws Gaussians behind the surfaces (`results/tiny_3d/`).
     /// Inference only.
     #[serde(default)]
     pub volume_branch_far_only: bool,
@@ -195,7 +196,8 @@ pub struct Config {
     /// (or outside it): the disoccluded space the pass exists to fill. 1 (the real pairs'
     /// own margin) adds about 3% to G_base and wins PSNR, LPIPS and unseen-region PSNR
     /// together; 0.1 adds about 30%, fills more of the unseen regions and gains more PSNR, but
-    /// the extra layers blur (LPIPS worse): `results/progressive/README.md`.
+    /// the extra layers blur (LPIPS worse): `bash scripts/eval_progressive.sh`,
+    /// `results/progressive/`.
     #[serde(default = "pseudo_fusion_margin")]
     pub pseudo_fusion_margin: f32,
     /// With `progressive`: an added pseudo Gaussian's opacity is multiplied by its
@@ -301,23 +303,23 @@ impl Config {
     }
 
     /// Real time on a 2-core CPU: small channels, 32 candidates, Gaussians at 1/2 resolution.
-    /// Since stop 34 (issue 14) with the census correlation in the matching term, and the
-    /// depth range fitted to scenes nearer than 50 m (rooms, objects), which leaves every
-    /// street at 1-100 m: the shipped weights learned the census
-    /// (`scripts/train_tiny_census.sh`), and moved the real pairs from 95% to 60% (Aloe) bad
-    /// pixels at the streets' quality (`results/stereosplat_tiny_census_gate/`). Since stop 35,
-    /// on those near scenes only, SGM's confident matches guide the depth head
-    /// (`sgm_guidance` 10, width 2 candidates): Aloe 60% to 49% bad pixels, Motorcycle 48% to
-    /// 35%, the OAK-D rooms' photometric error below SGM's (`results/real_pairs/`); streets
-    /// unchanged, since none is fitted. Since stop 37 its depth is the softmax's expectation
-    /// within 2 candidates of the peak (`depth_window`): Aloe 41.7% to 40.4%, OAK-D
-    /// 0.0380 to 0.0373, streets 22.86 to 22.82 dB at the same AbsRel
-    /// (`results/refinement_experiments/`). Since stop 38, on near scenes, the first pair's
-    /// Gaussians where SGM matched consistently take SGM's depth (`sgm_snap`, a hybrid):
-    /// Aloe 40.4% to 32.7%, Motorcycle 22.9% to 20.3%, OAK-D 0.0373 to 0.0362; streets
-    /// identical (`results/refinement_experiments/sgm_snap/`). Since stop 41 the Gaussians
-    /// on those scenes' foreground edges shrink to a tenth (`edge_shrink`): Aloe 32.7% to
-    /// 27.2%, OAK-D 0.0362 to 0.0327; streets identical (`results/edge_shrink/`).
+    /// The matching term adds the census correlation, which a real camera's gain and texture
+    /// cannot move. Scenes whose SGM-fitted far end lies under 50 m (rooms, objects) get aids
+    /// on top: the candidates span the fitted range, SGM's confident matches guide the depth
+    /// head (`sgm_guidance` 10, width 2 candidates, the best of `bash
+    /// scripts/guidance_sweep.sh`'s grid on both real pairs with ground truth), the first
+    /// pair's Gaussians take SGM's depth where SGM matched consistently (`sgm_snap`), and
+    /// Gaussians on foreground edges shrink to a tenth (`edge_shrink`). Streets reach beyond
+    /// 50 m, so they keep the full range and none of these aids, and run exactly as the
+    /// weights learned them. The depth is the softmax's expectation within 2 candidates of its
+    /// peak (`depth_window`), so a cell split between a near and a far surface takes one of
+    /// them. The shipped weights learned the census on the generated transfer mix (plain
+    /// streets, domain-randomised drives, near objects: `scripts/transfer_data.sh`), first
+    /// without the near-scene aids (`scripts/train_tiny_census.sh`), then with the fitted
+    /// range and SGM's hints on every sample (`scripts/train_tiny_guided.sh`;
+    /// `results/stereosplat_tiny/`). On real pairs (`bash scripts/real_pairs.sh`,
+    /// `results/real_pairs/`): Aloe 27.2% and Motorcycle 20.4% bad-3 pixels against SGM's
+    /// 17.0% and 12.6%, the OAK-D rooms' photometric error 0.0327 against SGM's 0.0363.
     pub fn tiny() -> Self {
         Self {
             name: "tiny".into(),
@@ -372,8 +374,8 @@ impl Config {
 
     /// Twice the channels and candidates of `tiny`, two transformer layers. One residual block
     /// per encoder, as `tiny`: with two (no normalisation in the blocks) training stalled at
-    /// LPIPS 0.68 where one block reaches 0.47 in the same 400 steps
-    /// (`results/stereosplat_small/README.md`). Without `tiny`'s census correlation and fitted
+    /// LPIPS 0.68 where one block reaches 0.47 in the same 400 steps (`stereosplat train
+    /// --preset small --steps 400` on the plain street drives, `results/stereosplat_small/`). Without `tiny`'s census correlation and fitted
     /// range: no `small` weights were trained with them.
     pub fn small() -> Self {
         Self {
@@ -423,7 +425,7 @@ impl Config {
     /// `tiny` weights and `model/weights/enhancer_tiny.safetensors`), with one pseudo pair at
     /// the end of the bin: two pairs cost the 2-core CPU about 1 s per bin at 544x112, over
     /// the 0.8 s a bin lasts at 10 m/s, and one keeps most of the gain
-    /// (`results/progressive/README.md`).
+    /// (`bash scripts/eval_progressive.sh`, `results/progressive/`).
     pub fn tiny_plus() -> Self {
         Self {
             name: "tiny-plus".into(),
@@ -436,26 +438,24 @@ impl Config {
         }
     }
 
-    /// `tiny` with the 3D-volume branch beside the cost volume (the paper's CV + 3D row), its
-    /// own weights (`model/weights/stereosplat_tiny-3d.safetensors`, `bash
-    /// scripts/train_tiny_3d.sh`): better depth and LPIPS than `tiny` and Gaussians where the
-    /// input pair saw nothing, at about 1.8 times its latency at 272x72 (`results/pareto/`). The
+    /// `tiny` with the 3D-volume branch beside the cost volume (the paper's CV + 3D row) and
+    /// its own weights (`model/weights/stereosplat_tiny-3d.safetensors`, `bash
+    /// scripts/train_tiny_3d.sh`), for a mapping stack that wants the depth first. On the
+    /// speed/accuracy chart's held-out bins at 272x72 (`stereosplat bench pareto`,
+    /// `results/tiny_3d/`): AbsRel 0.1036 and LPIPS 0.163 against `tiny`'s 0.1180 and 0.169,
+    /// Gaussians where the input pair saw nothing, at 2.2 to 2.9 times `tiny`'s latency. The
     /// volume's Gaussians that an input view already explains are dropped
-    /// (`volume_fusion_margin` 0.5). Its weights were trained from the `tiny` weights shipped
-    /// until stop 34, without the census correlation, so it runs without, and without the
-    /// depth window. Since stop 40 it takes `tiny`'s aids for near scenes, which need no
-    /// training (the fitted range under 50 m, SGM's hints, `sgm_snap`), and leaves its
-    /// street-sized volume branch out of those scenes (`volume_branch_far_only`). Real
-    /// pairs: Aloe 92.8% to 49.0% bad pixels, Motorcycle 82.5% to 45.9%, the OAK-D rooms
-    /// 0.0603 to 0.0375 photometric error (SGM 0.0399); streets identical, as none is
-    /// fitted, for SGM on each bin's first pair (`results/tiny_3d/README.md`, "Stop 40").
-    /// Since stop 41 its weights had 1,800 more steps with those settings on every sample
-    /// and it shrinks foreground edges' Gaussians as `tiny` does (`edge_shrink`): Aloe
-    /// 33.2%, Motorcycle 29.6%, OAK-D 0.0342 (SGM 0.0362); streets 22.96 dB (was 22.71),
-    /// LPIPS 0.173 (0.181), AbsRel 0.1236 (0.1234) ("Stop 41"). Since stop 42 the weights
-    /// are the blend 0.15 x stop 40's + 0.85 x stop 41's (`interpolate-weights`): streets
-    /// 22.99 dB, AbsRel 0.1215 (both better than either end); Aloe 33.6%, Motorcycle 31.8%,
-    /// OAK-D 0.0341 ("Stop 42").
+    /// (`volume_fusion_margin` 0.5). Its weights start from `tiny` weights trained without
+    /// the census correlation, so it runs without it and without the depth window. On near
+    /// scenes it takes `tiny`'s aids that need no census (the depth range fitted under 50 m,
+    /// SGM's hints, `sgm_snap`, `edge_shrink`) and leaves its street-sized volume branch out
+    /// (`volume_branch_far_only`). The script trains in two phases, the second with these
+    /// near-scene settings, and ships the blend 0.15 x first + 0.85 x second
+    /// (`interpolate-weights`): on the held-out streets (`stereosplat eval --data
+    /// data/heldout272 --method stereosplat --preset tiny-3d --stride 5`) the blend beats
+    /// both phases' PSNR and AbsRel; on real pairs (`bash scripts/real_pairs.sh --preset
+    /// tiny-3d`) it scores Aloe 33.6% bad-3 pixels (SGM 17.0%), Motorcycle 31.8% (SGM
+    /// 12.6%), the OAK-D rooms 0.0341 photometric error (SGM 0.0362).
     pub fn tiny_3d() -> Self {
         Self {
             name: "tiny-3d".into(),

@@ -3,16 +3,18 @@
 //!
 //! Every view predicts one Gaussian per pixel, so two pairs that see the same surface put two
 //! layers of Gaussians on it, each placed by its own depth estimate. The network's opacity is
-//! trained for one layer per surface; a second, slightly misplaced layer in front of the
-//! first darkens and blurs the render and pulls its depth (measured: with the bin's first
-//! three pairs as input, first-frame PSNR fell by 1.1 dB and bin-average AbsRel rose from
-//! 0.179 to 0.190, `results/stereosplat_tiny_unbounded/README.md`). A Gaussian of a later pair is
-//! dropped when it lies inside the image of an earlier view and not clearly behind that
-//! view's estimated surface: the earlier view already has a Gaussian there, or has seen free
-//! space there. What only the later pairs see (regions outside the earlier views, surfaces
-//! hidden behind the earlier views' foreground) is kept. The left and right view of one pair
-//! are never tested against each other: the network was trained on both layers together.
-//! Pairs come in input order, so the real first pair outranks later real or pseudo pairs.
+//! trained for one layer per surface; a second, slightly misplaced layer in front of the first
+//! darkens and blurs the render and pulls its depth (with the bin's first three pairs as
+//! input, unfused, the first frame loses PSNR and bin-average AbsRel rises:
+//! `model/tests/integration/pair_fusion.rs` prints both on a generated drive, `bash
+//! scripts/eval_tiny.sh` on the held-out drives, `results/stereosplat_tiny/`). A Gaussian of a
+//! later pair is dropped when it lies inside the image of an earlier view and not clearly
+//! behind that view's estimated surface: the earlier view already has a Gaussian there, or has
+//! seen free space there. What only the later pairs see (regions outside the earlier views,
+//! surfaces hidden behind the earlier views' foreground) is kept. The left and right view of
+//! one pair are never tested against each other: the network was trained on both layers
+//! together. Pairs come in input order, so the real first pair outranks later real or pseudo
+//! pairs.
 
 use glam::DVec3;
 use renderer::Camera;

@@ -6,7 +6,7 @@
 //! `(h, w, C) x (h, C, w)`, is computed once and each candidate blends two of its entries.
 //! Warping instead builds the `(C, D, h, w)` source features for the `D` candidates and
 //! multiplies them with the reference: for the `paper` preset (128 channels, 192 candidates)
-//! that product was the largest GPU cost of the network (`results/gpu/README.md`). Same
+//! that product was the largest GPU cost of the network (`results/gpu/`). Same
 //! values up to rounding; [`super::cost_volume`] falls back to warping for any other pose.
 
 use candle_core::{Result, Tensor};

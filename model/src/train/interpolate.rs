@@ -2,8 +2,8 @@
 //! becomes `(1 - t) * from + t * to`. Fine-tuning for a new domain (real rooms) moves the
 //! weights away from what the old domain (the streets) wants; a point on the straight line
 //! between the two runs often keeps most of both, and sometimes beats both (WiSE-FT,
-//! Wortsman et al., "Robust fine-tuning of zero-shot models", CVPR 2022). Used to ship
-//! `tiny-3d` (scripts/train_tiny_3d.sh, results/tiny_3d/README.md).
+//! Wortsman et al., "Robust fine-tuning of zero-shot models", CVPR 2022). The shipped
+//! `tiny-3d` weights are such a blend (`scripts/train_tiny_3d.sh`, `results/tiny_3d/`).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

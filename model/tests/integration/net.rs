@@ -1,5 +1,5 @@
 //! The StereoSplat network (untrained weights): shapes for 1 to 3 pairs, pruning to the
-//! opacity floor and budget, and numerical stability at the extremes the issue names:
+//! opacity floor and budget, and numerical stability at the extremes of its input:
 //! uniform grey, black and saturated images, identical left and right images (zero
 //! disparity), a scene at 1 m and at 80 m, cameras far from the origin, with the census
 //! correlation on, and a narrowed depth range (`auto_depth_range`). Every output and

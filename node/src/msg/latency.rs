@@ -11,10 +11,10 @@
 //! `int64 model_start_ns`, `int64 model_end_ns`, `int64 render_end_ns`, `int64 publish_ns`,
 //! `uint32 queue_depth`, `uint64 drops`, `uint64 bad_messages`, `uint8 check_verdict`,
 //! `uint8 check_action`, `uint8 fallback_verdict`, `uint32 check_samples`,
-//! `float64 check_score`, `float64 fallback_score`, and since version 2 (stop 25) the
-//! progressive pass's stage stamps `int64 base_end_ns`, `int64 pseudo_render_end_ns`,
+//! `float64 check_score`, `float64 fallback_score`, and from version 2 on the progressive
+//! pass's stage stamps `int64 base_end_ns`, `int64 pseudo_render_end_ns`,
 //! `int64 enhance_end_ns`, `int64 plus_end_ns`, `int64 fuse_end_ns`. Version 2 only appends,
-//! so a version-1 payload (recordings from before) is a version-2 payload cut short: the
+//! so a version-1 payload (an older recording) is a version-2 payload cut short: the
 //! reader takes a payload that ends right after `fallback_score` as version 1, its stage
 //! stamps 0; one that ends inside the stamps is a truncation error.
 //!

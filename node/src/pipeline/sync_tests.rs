@@ -134,7 +134,7 @@ fn buffers_stay_within_their_byte_budget() {
 
 #[test]
 fn far_stamped_left_images_do_not_push_the_live_stream_out() {
-    // The attack of issue 13: a full buffer of tiny left images stamped in the future; a
+    // The timestamp-flood attack: a full buffer of tiny left images stamped in the future; a
     // buffer that dropped its oldest *stamp* would drop every live left image from then on.
     let mut s = sync();
     assert_eq!(drive(&mut s, 0, 0..5), (0..5).collect::<Vec<_>>());

@@ -1,10 +1,10 @@
-//! Malformed input on every input key: issue 4 asks that "a malformed message on each input
-//! key is counted and does not stop the node"; `node_replay.rs` sends one only on the left
-//! image. Here one bad message goes to each of the five input keys (left and right image,
-//! left and right camera info, pose) of an in-process node, then a generated drive follows.
-//! Checked: each key's `bad_message/<key>` counter is exactly 1 in the node's summary and in
-//! the last Diagnostics message, every latency message's `bad_messages` ends at 5, and every
-//! bin the drive opens is still published.
+//! Malformed input on every input key: a malformed message on each input key must be counted
+//! and must not stop the node; `node_replay.rs` sends one only on the left image. Here one bad
+//! message goes to each of the five input keys (left and right image, left and right camera
+//! info, pose) of an in-process node, then a generated drive follows. Checked: each key's
+//! `bad_message/<key>` counter is exactly 1 in the node's summary and in the last Diagnostics
+//! message, every latency message's `bad_messages` ends at 5, and every bin the drive opens is
+//! still published.
 //!
 //! Two kinds of bad message: payloads that are not CDR of the type at all (truncated,
 //! garbage), and well-formed CDR whose content the node cannot use (an image whose data does

@@ -1,11 +1,11 @@
-//! Far from the world origin: issue 4 asks that global-map positions "stay exact far from the
-//! origin (test at 1e5 m)". The same generated drive is sent twice into a fresh in-process
-//! node, once as generated and once with every pose translated by (1e5, -1e5, 50) m. The bin
-//! maps live in bin frames, so they must not change (f32, to float noise); everything in the
-//! world frame must move by exactly the offset: the published bin poses (f64, to 1e-6 m), the
-//! exported global map (`global_map.ssgmap`, f64 positions, Gaussian by Gaussian) and its
-//! origin (`global_map_origin.json`), while the exported PLY (positions relative to that
-//! origin, f32) stays the same.
+//! Far from the world origin: global-map positions must stay exact at 1e5 m from the origin.
+//! The same generated drive is sent twice into a fresh in-process node, once as generated and
+//! once with every pose translated by (1e5, -1e5, 50) m. The bin maps live in bin frames, so
+//! they must not change (f32, to float noise); everything in the world frame must move by
+//! exactly the offset: the published bin poses (f64, to 1e-6 m), the exported global map
+//! (`global_map.ssgmap`, f64 positions, Gaussian by Gaussian) and its origin
+//! (`global_map_origin.json`), while the exported PLY (positions relative to that origin, f32)
+//! stays the same.
 
 use crate::drive_support;
 

@@ -1,10 +1,10 @@
-//! The per-bin self-check in a real node on loopback (issue 14, "Never publish confident
-//! garbage"): a generated drive passes it on every bin with the default method (the learned
-//! network, shipped `tiny` weights); a drive whose right images are of another scene, or
-//! whose left and right images are swapped, fails it on every bin, and the node does what
+//! The per-bin self-check in a real node on loopback, which keeps the node from publishing
+//! confident garbage: a generated drive passes it on every bin with the default method (the
+//! learned network, shipped `tiny` weights); a drive whose right images are of another scene,
+//! or whose left and right images are swapped, fails it on every bin, and the node does what
 //! `--on-check-fail` says: replaces the map by SGM's (the default; SGM's map is checked too
-//! and, on such a pair, flagged) or publishes it with opacity and confidence lowered.
-//! Checked on the latency messages' check fields, the counters, and the published maps.
+//! and, on such a pair, flagged) or publishes it with opacity and confidence lowered. Checked
+//! on the latency messages' check fields, the counters, and the published maps.
 
 use crate::drive_support;
 

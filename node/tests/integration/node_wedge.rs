@@ -1,5 +1,4 @@
-//! No input wedges the node (issue 13, "Never wedged"), on an in-process node (SGM) over
-//! loopback zenoh:
+//! No input wedges the node, on an in-process node (SGM) over loopback zenoh:
 //!
 //! - the same drive replayed twice: every bin of both replays comes out (the synchroniser
 //!   confirms the jump back in time and resets, `sync/reset` = 1);
@@ -123,7 +122,7 @@ async fn the_same_drive_replayed_twice_comes_out_twice() {
     assert_eq!(s.bins_published, want.len() as u64);
 }
 
-/// A tiny 4 x 4 image (the stray frames of issue 13 were a few hundred bytes).
+/// A tiny 4 x 4 image (stray frames of a timestamp flood are a few hundred bytes each).
 fn tiny(stamp_ns: i64, frame_id: &str) -> Vec<u8> {
     image_from_rgb(&RgbImage::new(4, 4), Header::new(stamp_ns, frame_id)).encode()
 }

@@ -19,7 +19,7 @@ pub(crate) const VALUE_BYTES: u64 = 4;
 
 /// Keys per block (256 invocations, four keys each).
 const BLOCK: u32 = 1024;
-/// Bits sorted per pass. On an H200 (results/gpu/side_by_side): 8-bit passes sort the
+/// Bits sorted per pass. On an H200 (`results/gpu/`): 8-bit passes sort the
 /// 121,856-Gaussian scene's keys in 0.27 ms against 0.43 ms with 4-bit passes of the same
 /// design, and 1M-4M Gaussians' in 10-20% less time; 2048-key blocks gained nothing.
 const DIGIT_BITS: u32 = 8;

@@ -63,8 +63,8 @@ fn rel_err(gpu: f32, cpu: f32, scale: f32) -> f32 {
 /// Projection: same visibility; conic and depth within 1e-5 relative (conic relative to its
 /// largest entry), mean2d within 5e-5 (lavapipe matches it exactly; NVIDIA's Vulkan
 /// compiler fuses multiply-adds, and with the camera 1,200 m from the origin that moved
-/// mean2d by 1.6e-5 on an H200, `results/gpu/renderer_tests.txt`); radius and tile rectangle equal except where `3 sqrt(lambda)` lands
-/// within rounding of an integer (counted, bounded to 0.1% of the Gaussians, radius off by
+/// mean2d by 1.6e-5 on an H200, `results/gpu/`); radius and tile rectangle equal except
+/// where `3 sqrt(lambda)` lands within rounding of an integer (counted, bounded to 0.1% of the Gaussians, radius off by
 /// at most 1).
 #[test]
 fn projection_matches_the_cpu() {

@@ -1,6 +1,7 @@
 //! The volume branch's Gaussian side in one block: occupancy of the whole grid, the voxels
 //! some input camera sees, the top-k of those decoded into Gaussians, and how many
-//! Gaussians each branch contributes (the "Gaussians per bin from each branch").
+//! Gaussians each branch contributes, so reports can give the Gaussians per bin from each
+//! branch.
 
 use candle_core::{Result, Tensor};
 use candle_nn::VarBuilder;

@@ -1,33 +1,20 @@
 #!/usr/bin/env bash
-# The paper's branch ablation (issue 15) at the `tiny` preset: four rows trained with the same
-# data (the transfer mix of scripts/transfer_data.sh), seed, schedule and warm start (the
-# cost-volume weights shipped until stop 34, below; the volume branch starts from its seeded
-# initialisation), then
-# evaluated on the same held-out drives as results/unseen_psnr (seeds 1000000 and 1000001,
-# 272x72, a bin every 5th frame, one input pair, LPIPS on):
+# The paper's branch ablation at the `tiny` preset (results/ablation_tiny/README.md): four rows
+# trained with the same data (the transfer mix of scripts/transfer_data.sh), seed, schedule
+# and warm start (the transfer stage's weights, runs/tiny_transfer/stereosplat_tiny.safetensors
+# from scripts/train_tiny_transfer.sh; the volume branch starts from its seeded
+# initialisation), then evaluated on the same held-out drives as results/unseen_psnr (seeds
+# 1000000 and 1000001, 272x72, a bin every 5th frame, one input pair, LPIPS on):
 #   cv          Branch_CV: the cost-volume branch alone, no view subsampling
 #   3d          Branch_3D: the volume branch's Gaussians alone, no view subsampling
-#   cv3d        CV + 3D, no view subsampling
+#   cv3d        CV + 3D, no view subsampling (the first phase of `tiny-3d`,
+#               scripts/train_tiny_3d.sh)
 #   stereosplat CV + 3D + stochastic view subsampling (1..3 input pairs per sample)
-# and, for issue 16's pseudo-view mixed training (not rows of the paper's table), two
-# cost-volume-only rows with view subsampling, without and with pseudo_mix=0.5 (each input
-# pair after the first replaced by renders of the network's own prediction half the time):
-#   cv_subsample   Branch_CV + view subsampling
-#   cv_mix         Branch_CV + view subsampling + pseudo_mix=0.5
-# and, for issue 14 (why the learned model fails on real pairs; results/transfer_diagnosis/),
-# cost-volume-only rows that differ from Branch_CV by one change each:
-#   cv_bound1      the U-Net's depth logits bounded at 1 instead of 4, so matching, not the
-#                  street-trained priors, has to decide the depth
-#   cv_match       the matching loss at weight 0.05 (the cost volume's own cross-entropy)
-#   cv_match05     the matching loss at weight 0.5
-#   cv_bbmatch     the matching loss at 0.05 with `backbone_matching` (a second correlation
-#                  of the backbone's own features in the matching term)
-#   cv_bbmatch05   the matching loss at 0.5 with `backbone_matching`
-#   cv_census05    the matching loss at 0.5 with `census_matching` (a soft census correlation
-#                  of the grey images in the matching term, blind to the cameras' gain)
-#   cv_census05_auto  cv_census05 with `auto_depth_range` in training and evaluation (each
-#                  sample's candidates span the depths SGM finds in its first pair)
-# (cv_local, a local matching stage, was measured at commit 42939e2 and removed.)
+# and one cost-volume-only row that is a stage of the shipped `tiny` chain, not a row of
+# the paper's table (scripts/train_tiny_census.sh runs it):
+#   cv_census05    the matching loss at weight 0.5 with `census_matching` (a soft census
+#                  correlation of the grey images in the matching term, blind to the
+#                  cameras' gain)
 # Every row is resumable: run the same command again after an interruption.
 #   bash scripts/ablation_tiny.sh train ROW [STEPS]   one row (rows may run side by side)
 #   bash scripts/ablation_tiny.sh eval [ROW ...]      evaluate trained rows (default: all)
@@ -39,11 +26,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 data=data/transfer
 heldout=data/heldout272
-# Every row starts from the `tiny` weights shipped until stop 34 (the transfer recipe,
-# scripts/train_tiny_transfer.sh), with the settings they were trained with: no census
-# correlation, the preset's fixed depth range, no SGM hints (the shipped `tiny` turns all on).
-base=results/stereosplat_tiny_transfer/train/checkpoint/weights.safetensors
-before_census="--set census_matching=false --set auto_depth_range=false --set sgm_guidance=null"
+# Every row starts from the transfer stage's weights (scripts/train_tiny_transfer.sh), with
+# the settings they were trained with: no census correlation, the preset's fixed depth range,
+# no SGM hints (the shipped `tiny` turns all on), and the full depth expectation at inference
+# (`depth_window=null`; training ignores it).
+base=runs/tiny_transfer/stereosplat_tiny.safetensors
+before_census="--set census_matching=false --set auto_depth_range=false --set sgm_guidance=null --set depth_window=null"
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build), e.g. a copy that edits of
 # the tree cannot break while rows train.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
@@ -59,15 +47,9 @@ settings() {
     3d) echo "--set volume_branch=true --set cost_volume_branch=false --set view_subsampling=false" ;;
     cv3d) echo "--set volume_branch=true --set view_subsampling=false" ;;
     stereosplat) echo "--set volume_branch=true --set view_subsampling=true" ;;
-    cv_subsample) echo "--set volume_branch=false --set view_subsampling=true" ;;
-    cv_mix) echo "--set volume_branch=false --set view_subsampling=true --set pseudo_mix=0.5" ;;
-    cv_bound1) echo "--set volume_branch=false --set view_subsampling=false --set depth_logit_bound=1.0" ;;
-    cv_match | cv_match05) echo "--set volume_branch=false --set view_subsampling=false" ;;
-    cv_bbmatch | cv_bbmatch05) echo "--set volume_branch=false --set view_subsampling=false --set backbone_matching=true" ;;
     cv_census05) echo "--set volume_branch=false --set view_subsampling=false --set census_matching=true" ;;
-    cv_census05_auto) echo "--set volume_branch=false --set view_subsampling=false --set census_matching=true --set auto_depth_range=true" ;;
     *)
-      echo "unknown row '$1' (rows: ${rows[*]} cv_subsample cv_mix cv_bound1 cv_match cv_match05 cv_bbmatch cv_bbmatch05 cv_census05 cv_census05_auto)" >&2
+      echo "unknown row '$1' (rows: ${rows[*]} cv_census05)" >&2
       exit 2
       ;;
   esac
@@ -76,8 +58,7 @@ settings() {
 # The training-only flags of a row (loss weights; the network's settings are `settings`).
 train_flags() {
   case "$1" in
-    cv_match | cv_bbmatch) echo "--matching-weight 0.05" ;;
-    cv_match05 | cv_bbmatch05 | cv_census05 | cv_census05_auto) echo "--matching-weight 0.5" ;;
+    cv_census05) echo "--matching-weight 0.5" ;;
     *) echo "" ;;
   esac
 }
@@ -92,6 +73,10 @@ train_row() {
   if [ -f "$run/checkpoint/state.json" ]; then
     "$bin" train "${flags[@]}" --resume
   else
+    if [ ! -f "$base" ]; then
+      echo "missing $base: run bash scripts/train_tiny.sh, then bash scripts/train_tiny_transfer.sh" >&2
+      exit 1
+    fi
     "$bin" train "${flags[@]}" --init "$base"
   fi
 }

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds, on a machine WITHOUT a GPU, what a GPU machine without a Rust toolchain runs
-# (issue 19): `stereosplat` and the GPU-against-CPU op tests with the `cuda` feature, and the
+# (results/gpu/): `stereosplat` and the GPU-against-CPU op tests with the `cuda` feature, and the
 # renderer's wgpu-against-CPU stage tests, stripped and xz-compressed into gpu_carry/
 # (git-ignored; 16 MB instead of 90 for the node). What it needs, all from the registries:
 # - nvcc 13.0 and its headers (pip `nvidia-cuda-nvcc`, `-nvvm`, `-crt`, `-runtime`, `-cccl`,

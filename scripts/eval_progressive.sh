@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The paper's last two rows (issue 16) beside the current default, on the same held-out
+# The paper's last two rows (results/progressive/) beside the current default, on the same held-out
 # drives as every other table (seeds 1000000 and 1000001, 272x72, a bin every 5th frame, one
 # input pair, LPIPS on; `eval` knows each bin's poses, so the pseudo pairs go to the bin's
 # own later poses):

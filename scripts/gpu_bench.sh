@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
-# Issue 19's measurements on a GPU machine (NVIDIA, Vulkan driver, CUDA 13 driver, no Rust):
+# The GPU measurements of results/gpu/ on a GPU machine (NVIDIA, Vulkan driver, CUDA 13 driver, no Rust):
 # run from the repository root there with gpu_carry/ from `bash scripts/build_cuda.sh` and
 # the Vulkan loader packages in .gl/ (see /work/.library/device/README.md). Writes JSON and
-# logs to $GPU_RESULTS (default results/gpu/raw). Each step has its own time limit so one failure
+# logs to $GPU_RESULTS (default out/gpu; results/gpu/ keeps the runs cited). Each step has its own time limit so one failure
 # does not cost the rest. Name parts to run only those (render rtests ops model ab profile
 # scale node train gputrain gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);
 # it needs the gsplat wheel in .whl/ (pip download --no-deps gsplat==1.5.3 -d .whl) and
 # compiles gsplat's CUDA code first (minutes), in the background while the other parts run.
 #   bash scripts/gpu_bench.sh [PART...]
 set -uo pipefail
-out="${GPU_RESULTS:-results/gpu/raw}"
+out="${GPU_RESULTS:-out/gpu}"
 mkdir -p "$out"
 parts=" ${*:-render rtests ops model profile node train gsplat} "
 want() { [[ $parts == *" $1 "* ]]; }
@@ -161,7 +161,7 @@ done
 # with view subsampling, to 3,000 on the first pair, to 8,000 at lr 5e-4 with the relative
 # depth losses) on the 8 plain streets of scripts/transfer_data.sh, the recipe
 # results/stereosplat_small/README.md chose, for at most GPU_TRAIN_S seconds in all. It
-# resumes from gpu_carry/small_run (a run folder carried from the last session) and leaves
+# resumes from gpu_carry/small_run (a run folder carried from an earlier run) and leaves
 # the run folder in $out/small_run.tgz, whatever step it reached (SIGTERM checkpoints).
 want gputrain && {
   wait "${synth_plain[@]}"

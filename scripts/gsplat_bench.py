@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""gsplat's forward pass timed on the scenes `stereosplat bench render` times (issue 19).
+"""gsplat's forward pass timed on the scenes `stereosplat bench render` times (results/gpu/).
 
 Run on a GPU machine with PyTorch and gsplat (its CUDA code is compiled on first use), on a
 PLY written by `stereosplat render` from the same seeded generator and camera flags:

@@ -1,36 +1,47 @@
 #!/usr/bin/env bash
-# Trains the `tiny-3d` preset's weights (issue 17's second operating point, issue 15's CV + 3D
-# row): exactly the ablation's CV + 3D row (scripts/ablation_tiny.sh: warm start from the
-# shipped cost-volume weights, the volume branch from its seeded initialisation, the transfer
-# mix, 1,500 steps at lr 5e-4, relative depth losses, one input pair), in its own run folder
-# runs/tiny_3d/cv3d, then copied to model/weights/stereosplat_tiny-3d.safetensors. Longer is
-# not better: run on to 4,000 steps the same row loses 0.2 dB and its AbsRel edge
-# (results/tiny_3d/README.md).
-# Then (stop 41, issue 14) a second phase in runs/tiny_3d/near: 1,800 steps at lr 2e-4 from
-# those weights with the `tiny-3d` preset's own settings on every sample, so near samples of
-# the mix are fitted, hinted and run without the volume branch as real rooms are at inference
-# (the first phase's cost-volume Gaussians, trained beside the branch, left a quarter of a
-# room uncovered). 70 min on the 2-core machine, shared with builds and evaluations
-# (results/tiny_3d/near_finetune/).
-# Then (stop 42) the shipped file is the point 0.85 of the way from the first phase's weights
-# to the second's, tensor by tensor (`stereosplat interpolate-weights`; WiSE-FT): better on the
-# streets than either end and nearly all of the second phase's gain on real rooms
-# (results/tiny_3d/README.md, "Stop 42").
-# Resumable: run it again after any interruption.
+# The `tiny-3d` preset's weights (model/weights/stereosplat_tiny-3d.safetensors;
+# results/tiny_3d/README.md), from the transfer stage of the `tiny` chain
+# (runs/tiny_transfer/stereosplat_tiny.safetensors: scripts/train_tiny.sh, then
+# scripts/train_tiny_transfer.sh), in three steps:
+# 1. The first phase, runs/tiny_3d/cv3d: exactly the ablation's CV + 3D row
+#    (scripts/ablation_tiny.sh: warm start from the transfer stage's weights, the volume
+#    branch from its seeded initialisation, the transfer mix, 1,500 steps at lr 5e-4,
+#    relative depth losses, one input pair, seed 0). Longer is not better: run on to 4,000
+#    steps the same row loses 0.2 dB and its AbsRel edge (results/ablation_tiny/README.md).
+# 2. The near-scene phase, runs/tiny_3d/near: 1,800 steps at lr 2e-4 from the first phase's
+#    weights with the `tiny-3d` preset's own settings on every sample, so near samples of the
+#    mix are fitted, hinted and run without the volume branch as real rooms are at inference
+#    (the first phase's cost-volume Gaussians, trained beside the branch, left a quarter of a
+#    room uncovered). About 70 min on a 2-core machine shared with other work.
+# 3. The shipped file: the point 0.85 of the way from the first phase's weights to the
+#    second's, tensor by tensor (`stereosplat interpolate-weights`), written to model/weights/.
+# Resumable: run it again after any interruption; a finished phase is skipped.
 #   bash scripts/train_tiny_3d.sh
+# STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-ABLATION_RUNS=runs/tiny_3d bash scripts/ablation_tiny.sh train cv3d 1500
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
-near=(--data data/transfer --preset tiny-3d --out runs/tiny_3d/near --steps 1800 --lr 2e-4
+[ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
+export STEREOSPLAT_BIN="$bin"
+# The step a run folder's checkpoint has reached (0 without one).
+step() {
+  local s
+  s=$(sed -n 's/.*"step": *\([0-9]*\).*/\1/p' "$1/checkpoint/state.json" 2>/dev/null | head -n 1 || true)
+  echo "${s:-0}"
+}
+first=runs/tiny_3d/cv3d near_run=runs/tiny_3d/near
+if [ "$(step "$first")" -lt 1500 ]; then
+  ABLATION_RUNS=runs/tiny_3d bash scripts/ablation_tiny.sh train cv3d 1500
+fi
+near=(--data data/transfer --preset tiny-3d --out "$near_run" --steps 1800 --lr 2e-4
   --warmup 50 --seed 0 --depth-loss relative --rendered-depth-weight 0.5
   --estimated-depth-weight 0.5)
-if [ -f runs/tiny_3d/near/checkpoint/state.json ]; then
-  "$bin" train "${near[@]}" --resume
+if [ -f "$near_run/checkpoint/state.json" ]; then
+  [ "$(step "$near_run")" -ge 1800 ] || "$bin" train "${near[@]}" --resume
 else
-  "$bin" train "${near[@]}" --init runs/tiny_3d/cv3d/stereosplat_tiny.safetensors
+  "$bin" train "${near[@]}" --init "$first/stereosplat_tiny.safetensors"
 fi
-"$bin" interpolate-weights --from runs/tiny_3d/cv3d/stereosplat_tiny.safetensors \
-  --to runs/tiny_3d/near/stereosplat_tiny-3d.safetensors --t 0.85 \
+"$bin" interpolate-weights --from "$first/stereosplat_tiny.safetensors" \
+  --to "$near_run/stereosplat_tiny-3d.safetensors" --t 0.85 \
   --out model/weights/stereosplat_tiny-3d.safetensors
 echo "weights: model/weights/stereosplat_tiny-3d.safetensors"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Trains the `tiny` preset with both branches (cost volume + 3D volume, issue 15), warm-started
-# from the cost-volume weights shipped until stop 34 (results/stereosplat_tiny_transfer/train/
-# checkpoint/weights.safetensors, with their settings: no census correlation, the fixed depth
+# Trains the `tiny` preset with both branches (cost volume + 3D volume), warm-started from the
+# transfer stage's cost-volume weights (runs/tiny_transfer/stereosplat_tiny.safetensors from
+# scripts/train_tiny_transfer.sh, with their settings: no census correlation, the fixed depth
 # range): every tensor of that file is loaded, the volume branch (`volume.*`) starts from the
 # seeded initialisation (the run prints which tensors were fresh). Data: the transfer mix of
 # `scripts/transfer_data.sh` (those weights' own data). Schedule: the transfer
@@ -19,8 +19,12 @@ data="${1:-data/transfer}"
 run="${2:-runs/tiny_volume}"
 steps="${3:-3000}"
 extra=("${@:4}")
-base=results/stereosplat_tiny_transfer/train/checkpoint/weights.safetensors
+base=runs/tiny_transfer/stereosplat_tiny.safetensors
 bin=target/release/stereosplat
+if [ ! -f "$run/checkpoint/state.json" ] && [ ! -f "$base" ]; then
+  echo "missing $base: run bash scripts/train_tiny.sh, then bash scripts/train_tiny_transfer.sh" >&2
+  exit 1
+fi
 if [ ! -f "$data/rand_115/data_poses/synth_drive_0000115_sync/poses.txt" ]; then
   bash scripts/transfer_data.sh "$data"
 fi

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Writes the training mix every transfer-trained preset learns from (issue 14): the 8 plain
-# generated streets of stop 11 (seeds 0-7, 300 frames, 272x72) under DATA/plain, and 16
+# Writes the training mix every transfer-trained preset learns from: the 8 plain generated
+# streets of scripts/train_tiny.sh (seeds 0-7, 300 frames, 272x72) under DATA/plain, and 16
 # domain-randomised drives (seeds 100-115, 250 frames, `synth --randomise`: photo textures,
 # random light and colours, rigs of 45-100 degrees and 5-60 cm baselines at six image sizes,
 # camera effects, floating textured objects), each in its own KITTI-360 root DATA/rand_SEED

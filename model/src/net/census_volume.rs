@@ -6,8 +6,7 @@
 //! about 4 pixels apart on a near scene, so it scores worse there than at 1/4. A census
 //! compares each pixel only with its neighbours, so it is blind to the gain, offset and
 //! texture statistics that differ between the generated streets and real cameras; the
-//! learned features are not, and matched poorly on real pairs (`bash
-//! scripts/matching_alone.sh` scores a network's matching alone). Flat regions give
+//! learned features are not, and matched poorly on real pairs. Flat regions give
 //! descriptors near zero and so no matching evidence, where the depth head's priors decide.
 
 use candle_core::{Result, Tensor};

@@ -3,7 +3,7 @@
 //! the render and depth losses alone the network let the U-Net's street-trained priors
 //! decide: its correlation alone (winner-take-all) has an AbsRel of 0.40 on held-out
 //! generated streets where SGM has 0.21, and on a real photograph shifted against itself it
-//! is no better (`bash scripts/matching_alone.sh`), so such a network fails on real pairs,
+//! is no better, so such a network fails on real pairs,
 //! where the street-trained priors are wrong. This loss
 //! asks the matching term alone to put its mass on the LiDAR depth, so the features must
 //! match and the temperature must be sharp enough for matching to count.

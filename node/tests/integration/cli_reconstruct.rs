@@ -483,8 +483,7 @@ fn real_aloe_pair_sgm_keeps_its_score_and_the_learned_one_is_finite() {
 fn sgm_guidance_brings_the_learned_model_closer_to_the_aloe_truth() {
     // The shipped tiny guides its depth head with SGM's matches on near scenes: on Aloe the
     // hints must take several points of bad-3 and over a pixel and a half of EPE off the run
-    // without them (both runs print their scores; SGM scores 17.0% bad-3;
-    // `bash scripts/guidance_sweep.sh` sweeps the hints' height and width).
+    // without them (both runs print their scores; SGM scores 17.0% bad-3).
     let data = aloe();
     let mut scores = Vec::new();
     for guidance in ["10", "null"] {

@@ -181,7 +181,7 @@ pub fn run_render(args: &BenchRenderArgs) -> Result<()> {
         None
     } else {
         let mut gpu = GpuRasterizer::new()
-            .context("no wgpu adapter (install Mesa's lavapipe, see README)")?;
+            .context("no wgpu adapter (install Mesa's lavapipe: docs/ci.md, \"Steps\")")?;
         let info = gpu.adapter_info().clone();
         let forward = time(args.warmup, args.runs, || {
             std::hint::black_box(gpu.render(&set, &cam, &settings)?);

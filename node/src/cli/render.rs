@@ -48,7 +48,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         )
     } else {
         let mut gpu = GpuRasterizer::new()
-            .context("no wgpu adapter (install Mesa's lavapipe, see README)")?;
+            .context("no wgpu adapter (install Mesa's lavapipe: docs/ci.md, \"Steps\")")?;
         let info = gpu.adapter_info();
         let device = format!("wgpu {} ({:?})", info.name, info.backend);
         (gpu.render(&set, &cam, &settings)?, device)

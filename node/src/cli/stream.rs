@@ -86,7 +86,7 @@ pub struct RunArgs {
     #[command(flatten)]
     method: MethodArgs,
     /// What to do with a bin whose map fails the self-check (its own stereo pair does not
-    /// agree with the map's geometry; README, "Self-check").
+    /// agree with the map's geometry; docs/crashes-and-limits.md, "Self-check").
     #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
     on_check_fail: OnCheckFailArg,
     /// Bin length in metres.
@@ -127,7 +127,7 @@ pub struct RunArgs {
     sync_mib_per_stream: usize,
     /// Gaussians of a bin map farther than this from the bin's camera, metres, are
     /// published with the bin but not fused into the global map (sky and far, weakly
-    /// supported depth; `inf` fuses everything). README, "The fused map's own quality".
+    /// supported depth; `inf` fuses everything); docs/evaluation.md, "The fused map's own quality".
     #[arg(long, default_value_t = DEFAULT_MAX_RANGE_M)]
     map_keep_range: f32,
     #[command(flatten)]

@@ -30,7 +30,7 @@ pub struct DriveArgs {
     /// Samples per pixel along each axis (anti-aliasing).
     #[arg(long, default_value_t = SynthConfig::default().supersample)]
     supersample: u32,
-    /// Domain randomisation (README, "Training data"): photo textures, lighting, a rig and
+    /// Domain randomisation (docs/evaluation.md, "Synthetic drives"): photo textures, lighting, a rig and
     /// image size of its own (so `--width`/`--height` are unused), camera effects and
     /// floating objects, all drawn from the seed.
     #[arg(long)]

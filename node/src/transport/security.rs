@@ -73,7 +73,7 @@ pub fn exposure_warning(endpoint: &str, tls: bool) -> Option<String> {
         }
     };
     Some(format!(
-        "warning: listening on {endpoint}, {whom}: {guard}; see README \"Network exposure\""
+        "warning: listening on {endpoint}, {whom}: {guard}; see docs/security.md, \"Defaults: loopback only\""
     ))
 }
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # How fast two builds of the fuzz targets fuzz: each target of each build runs SECONDS from a
 # fresh copy of the same corpus, one after the other, and the executed inputs are tabulated
-# with their ratio (B / A). For comparing fuzz profiles (README "Fuzzing"); build each into
+# with their ratio (B / A). For comparing fuzz profiles (docs/fuzzing.md); build each into
 # its own target directory first (`cargo fuzz build ... --target-dir DIR` from `fuzz/`'s
 # parent, with the flags of scripts/fuzz.sh).
 #   bash scripts/fuzz_speed.sh TARGET_DIR_A TARGET_DIR_B [SECONDS] [CORPUS_DIR]

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The GPU measurements of results/gpu/ on a GPU machine (NVIDIA, Vulkan driver, CUDA 13 driver, no Rust):
 # run from the repository root there with gpu_carry/ from `bash scripts/build_cuda.sh` and
-# the Vulkan loader packages in .gl/ (see /work/.library/device/README.md). Writes JSON and
+# the Vulkan loader packages in .gl/ (.deb files the script unpacks into /). Writes JSON and
 # logs to $GPU_RESULTS (default out/gpu; results/gpu/ keeps the runs cited). Each step has its own time limit so one failure
 # does not cost the rest. Name parts to run only those (render rtests ops model ab profile
 # scale node train gputrain gsplat). `gsplat` times gsplat's CUDA rasterizer on the same scenes (scripts/gsplat_bench.py);

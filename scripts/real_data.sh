@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs the real stereo pairs the "Your own stereo pair" README section and
+# Installs the real stereo pairs docs/real-pairs.md ("On real photographs") and
 # scripts/real_pairs.sh measure on, into DIR (default data/real, gitignored). Safe to run
 # again: what is already there is kept. Nothing is fetched at run time by the tests; this is
 # setup (.ci/setup calls it).

@@ -28,8 +28,8 @@ size, k. Aggregates per key: bin_ids (BinLatency), positions (PoseStamped), widt
 (PointCloud2), sequences (MapUpdate).
 
 A key's type comes from its name: rmw_zenoh keys carry it (`pkg::msg::dds_::Name_`), plain
-keys end in one of the node's topic names (`bin/map`, `latency`, ...; see README). Install
-the packages with `pip install -r scripts/requirements.txt`.
+keys end in one of the node's topic names (`bin/map`, `latency`, ...; see docs/node.md,
+"Topics"). Install the packages with `pip install -r scripts/requirements.txt`.
 """
 
 import argparse
@@ -46,7 +46,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 MSG_DIR = pathlib.Path(__file__).resolve().parent.parent / 'node' / 'src' / 'msg'
 PACKAGE = 'stereosplat_msgs'
 
-# Plain-mode topic names (README, "Streaming node") -> message type.
+# Plain-mode topic names (docs/node.md, "Topics") -> message type.
 TOPIC_TYPES = {
     'left/image': 'sensor_msgs/msg/Image',
     'right/image': 'sensor_msgs/msg/Image',

@@ -1,7 +1,7 @@
 //! A burst far faster than the worker: the node's stated policy when the worker falls behind
-//! is a bounded queue that drops the oldest waiting bin and counts it (README, "Streaming
-//! node"), so a burst far above the processing rate keeps memory bounded and drops by that
-//! policy.
+//! is a bounded queue that drops the oldest waiting bin and counts it (docs/node.md, "The
+//! pipeline's policies"), so a burst far above the processing rate keeps memory bounded and
+//! drops by that policy.
 //!
 //! A generated drive is replayed into an in-process node as fast as possible (first through
 //! `replay` with `Rate::AsFastAsPossible`, then looped many more times from memory with later
@@ -285,8 +285,8 @@ async fn a_burst_drops_the_oldest_waiting_bins_counts_them_and_keeps_memory_boun
 }
 
 /// The worker-queue drops should also be on the diagnostics topic while the node runs: the
-/// README lists Diagnostics as the node's counters, and `dropped/worker_queue` is one of
-/// them in the summary.
+/// node's topic table (docs/node.md, "Topics") lists Diagnostics as the node's counters, and
+/// `dropped/worker_queue` is one of them in the summary.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn diagnostics_carry_the_worker_queue_drops() {
     let b = burst("burstdiag").await;

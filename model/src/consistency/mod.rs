@@ -25,9 +25,9 @@
 //! strided) and one pair of 7x7 patches per cell, so it is bounded for any set and image.
 //!
 //! The thresholds come from score distributions measured with `stereosplat bench check`
-//! (README, "Self-check"): generated drives with SGM and the shipped `tiny` weights against
-//! bad pairs (the right image of another drive, left and right swapped, the right image
-//! shifted down).
+//! (docs/crashes-and-limits.md, "Self-check"): generated drives with SGM and the shipped `tiny`
+//! weights against bad pairs (the right image of another drive, left and right swapped, the
+//! right image shifted down).
 
 mod patch;
 
@@ -66,7 +66,7 @@ pub struct CheckSettings {
 impl Default for CheckSettings {
     /// 7x7 patches, at most 4096 cells of 4 px or more, 2^20 Gaussians, opacity 0.05,
     /// texture 0.02, ZNCC 0.7; at least 32 samples, coverage 0.2 and score 0.6 to pass
-    /// (chosen from the distributions in the README's "Self-check").
+    /// (chosen from the distributions in docs/crashes-and-limits.md, "Self-check").
     fn default() -> Self {
         Self {
             patch_radius: 3,

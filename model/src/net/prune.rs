@@ -3,7 +3,8 @@
 //! outside every image, or too faint to draw. Each Gaussian's blend weight is summed over
 //! the input views ([`renderer::cpu::blend_weights`], in pixels); below the threshold it
 //! goes. Views the bin never had (later frames, novel views) are not consulted, so pruning
-//! trades their quality for count: measured in the README's pareto table.
+//! trades their quality for count: measured by `stereosplat bench pareto`'s `min_view_weight`
+//! point (docs/evaluation.md, "Speed against accuracy: `bench pareto`").
 
 use renderer::cpu::blend_weights;
 use renderer::{Camera, GaussianSet, RenderSettings};

@@ -13,7 +13,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 /// The ranges the randomisation draws from. `Default` holds the documented ranges
-/// (README, "Training data"); every drive draws its own values.
+/// (docs/evaluation.md, "Synthetic drives"); every drive draws its own values.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Randomisation {
     /// Image sizes (width, height) a drive picks from (all multiples of 8, about 20-28k

@@ -28,7 +28,7 @@ use crate::pipeline::self_check::{CheckOutcome, OnCheckFail, SelfCheck};
 use crate::service::InputLimits;
 
 /// The working pixel budget by default: a third of a KITTI-360 frame's 1408 x 376 (the
-/// node's own budget). Measured on Aloe (1282x1110, README "Your own stereo pair"): SGM's
+/// node's own budget). Measured on Aloe (1282x1110, docs/real-pairs.md, "One pair"): SGM's
 /// bad-3 is 18.4% at 100k px, 17.0% here, 36.5% at the node's 529k px and 56.0% at full size,
 /// where both methods' 200,000-Gaussian budget leaves a third of the pixels uncovered; the
 /// `tiny` network takes 0.7, 1.5, 4.5 and 13.4 s on 2 CPU cores at those sizes.

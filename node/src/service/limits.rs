@@ -10,7 +10,8 @@
 //! - the reconstructor works at most at 1408 columns and 1408 x 376 pixels (KITTI-360's
 //!   rectified size): a larger image is area-averaged down, aspect kept, and the camera's
 //!   intrinsics are scaled the same way, so the worker's time and memory per bin are those of
-//!   a KITTI-360 frame at most (measured in the README);
+//!   a KITTI-360 frame at most (`stereosplat bench model --width 1408 --height 376` measures
+//!   that cost; docs/crashes-and-limits.md, "Input limits");
 //! - a pose's position is within 1e7 m of the world origin (poses are f64; bin-local f32
 //!   coordinates then keep millimetres);
 //! - a camera's focal lengths lie between 0.05 and 100 times the image width, its principal

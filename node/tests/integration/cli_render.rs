@@ -1,5 +1,6 @@
-//! The `stereosplat` binary end to end: the README's main job (render the generated scene)
-//! and the render benchmark's JSON, run as a user runs them.
+//! The `stereosplat` binary end to end: `render` on the generated scene and the render
+//! benchmark's JSON (docs/evaluation.md, "The renderer: `render` and `bench render`"), run as
+//! a user runs them.
 
 use std::process::Command;
 

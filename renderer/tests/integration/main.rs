@@ -1,7 +1,7 @@
 //! The renderer's integration tests, one module per former test file, built as one test
 //! binary: each binary linked its own copy of wgpu and compiled its own instances of the
-//! generic code, a cost node's and model's tests dropped the same way (README, the CI
-//! paragraph under "Two commands").
+//! generic code, a cost node's and model's tests dropped the same way (docs/ci.md,
+//! "Keeping it short").
 //! One module alone: `cargo test --release -p renderer --test integration MODULE::`.
 
 mod cpu_extremes;

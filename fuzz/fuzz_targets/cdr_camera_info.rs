@@ -1,13 +1,7 @@
 //! `sensor_msgs/CameraInfo` payloads as the node's inputs take them: CDR, then the intrinsics
 //! and baseline.
+//! The body is `node::untrusted_input::cdr_camera_info`, which the test suite's seeded mutations
+//! call too.
 #![no_main]
 
-use node::msg::image::intrinsics_from_camera_info;
-use node::msg::sensor_msgs::CameraInfo;
-use node::msg::Message;
-
-libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    if let Ok(msg) = CameraInfo::decode(data) {
-        let _ = intrinsics_from_camera_info(&msg);
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| node::untrusted_input::cdr_camera_info(data));

@@ -1,13 +1,7 @@
 //! `stereosplat_msgs/MapUpdate` payloads as a map subscriber takes them: CDR, then the
 //! increment or snapshot they carry.
+//! The body is `node::untrusted_input::cdr_map_update`, which the test suite's seeded mutations
+//! call too.
 #![no_main]
 
-use node::fusion::decode_update;
-use node::msg::map_update::MapUpdate;
-use node::msg::Message;
-
-libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    if let Ok(msg) = MapUpdate::decode(data) {
-        let _ = decode_update(&msg);
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| node::untrusted_input::cdr_map_update(data));

@@ -1,9 +1,6 @@
 //! KITTI-360 `timestamps.txt` files as `read_timestamps` reads them.
+//! The body is `node::untrusted_input::kitti_timestamps`, which the test suite's seeded mutations
+//! call too.
 #![no_main]
 
-use model::kitti360::timestamps::read_timestamps;
-use stereosplat_fuzz::scratch_file;
-
-libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    let _ = read_timestamps(&scratch_file("timestamps.txt", data));
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| node::untrusted_input::kitti_timestamps(data));

@@ -1,13 +1,7 @@
 //! Launch files as `stereosplat launch` reads them: the TOML schema, then the checks of the
 //! plan (vars, names, `after` references and their regular expressions, cycles).
+//! The body is `node::untrusted_input::launch`, which the test suite's seeded mutations
+//! call too.
 #![no_main]
 
-use std::path::Path;
-
-use node::launch::Plan;
-
-libfuzzer_sys::fuzz_target!(|data: &[u8]| {
-    if let Ok(text) = std::str::from_utf8(data) {
-        let _ = Plan::parse(text, Path::new("fuzz.toml"), &[], Path::new("stereosplat"));
-    }
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| node::untrusted_input::launch(data));

@@ -16,6 +16,8 @@
 //! - [`view`]: the live page on loopback (splats, renders, latency charts).
 //! - [`pareto`]: operating points measured side by side (`stereosplat bench pareto`).
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
+//! - [`untrusted_input`]: every decoder of outside input as one entry point on raw bytes
+//!   (what the fuzz targets and the decoders' mutation test call).
 
 pub mod bag;
 #[cfg(feature = "runtime")]
@@ -34,5 +36,6 @@ pub mod pipeline;
 #[cfg(feature = "runtime")]
 pub mod service;
 pub mod transport;
+pub mod untrusted_input;
 #[cfg(feature = "runtime")]
 pub mod view;

@@ -12,6 +12,8 @@
 mod cli_support;
 #[path = "../drive_support/mod.rs"]
 mod drive_support;
+#[path = "../../examples/fuzz_seeds/seeds.rs"]
+mod fuzz_seeds;
 #[path = "../msg_support/mod.rs"]
 mod msg_support;
 #[path = "../python_support/mod.rs"]
@@ -26,6 +28,9 @@ mod cli_pareto;
 mod cli_reconstruct;
 mod cli_render;
 mod cli_replay;
+mod decoders_mutated;
+#[cfg(unix)]
+mod doc_blocks;
 mod fusion;
 mod fusion_keep;
 #[cfg(unix)]

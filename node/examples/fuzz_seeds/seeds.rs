@@ -1,8 +1,7 @@
-//! Writes the seed corpus of the fuzz targets (`fuzz/`, run by `scripts/fuzz.sh`): for each
-//! target, a few valid inputs made by the project's own encoders, so the fuzzer starts from
-//! what the decoders really see and mutates outward.
-//!
-//! `cargo run --release --example fuzz_seeds -- DIR` writes `DIR/<target>/<seed>`.
+//! The seed inputs of the decoders' entry points (`node::untrusted_input`): for each entry, a
+//! few valid inputs made by the project's own encoders, so fuzzing and the mutation test
+//! start from what the decoders really see and mutate outward. Shared by the `fuzz_seeds`
+//! example (the fuzz corpus) and the test suite (`decoders_mutated`).
 
 use std::path::{Path, PathBuf};
 
@@ -27,10 +26,10 @@ use renderer::{scene, GaussianSet, Intrinsics};
 /// A stamp in 2023, nanoseconds.
 const STAMP: i64 = 1_700_000_000_250_000_000;
 
-fn main() -> anyhow::Result<()> {
-    let Some(out) = std::env::args_os().nth(1).map(PathBuf::from) else {
-        anyhow::bail!("usage: fuzz_seeds DIR");
-    };
+/// Writes every seed as `out/<entry>/<seed>` (a scratch folder `out/scratch` is made and
+/// removed on the way).
+pub fn write_all(out: &Path) -> anyhow::Result<()> {
+    let out = out.to_path_buf();
     let k = Intrinsics {
         fx: 552.5,
         fy: 551.25,

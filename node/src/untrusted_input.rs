@@ -1,0 +1,254 @@
+//! Every decoder of outside input as one entry point taking raw bytes: the CDR messages the
+//! node subscribes to, MCAP logs, the fused map's checkpoint, PLY files, the KITTI-360 text
+//! files and launch files. Each entry decodes as the product does and then walks what it
+//! decoded (conversions, iterations), so a malformed input reaches the code a real one would.
+//!
+//! None may panic, hang or allocate far beyond its input, whatever the bytes: the fuzz
+//! targets (`fuzz/`, coverage-guided, `scripts/fuzz.sh`) and the test suite's seeded
+//! mutations of valid inputs (`node/tests/integration/decoders_mutated.rs`) both call these
+//! entries, by the names in [`ENTRIES`], so the two exercise the same code.
+//!
+//! Decoders that read files (KITTI-360 text, MCAP) get the bytes written to a scratch folder
+//! of this process first ([`scratch_dir`]).
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use glam::{DAffine3, DQuat, DVec3};
+use model::kitti360::poses::{read_pose_file, PoseFormat};
+use model::kitti360::timestamps::read_timestamps;
+use model::kitti360::{layout, Calibration};
+
+use crate::bag::BagReader;
+use crate::fusion::{decode_update, GlobalMap};
+use crate::launch::Plan;
+use crate::msg::gaussians::gaussians_from_cloud;
+use crate::msg::geometry_msgs::PoseStamped;
+use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
+use crate::msg::latency::{BinLatency, Diagnostics};
+use crate::msg::map_update::MapUpdate;
+use crate::msg::pose::affine_from_pose;
+use crate::msg::sensor_msgs::{CameraInfo, Image, PointCloud2};
+use crate::msg::tf2_msgs::TfMessage;
+use crate::msg::Message;
+
+/// An entry point: raw bytes in, nothing out (it must simply return).
+pub type Entry = fn(&[u8]);
+
+/// Every entry by its name (the fuzz target of the same name calls it).
+pub const ENTRIES: [(&str, Entry); 14] = [
+    ("cdr_camera_info", cdr_camera_info),
+    ("cdr_image", cdr_image),
+    ("cdr_latency", cdr_latency),
+    ("cdr_map_update", cdr_map_update),
+    ("cdr_point_cloud", cdr_point_cloud),
+    ("cdr_pose", cdr_pose),
+    ("cdr_tf", cdr_tf),
+    ("global_map", global_map),
+    ("kitti_calibration", kitti_calibration),
+    ("kitti_poses", kitti_poses),
+    ("kitti_timestamps", kitti_timestamps),
+    ("launch", launch),
+    ("mcap", mcap),
+    ("ply", ply),
+];
+
+/// `sensor_msgs/CameraInfo`, then the intrinsics the node takes from it.
+pub fn cdr_camera_info(data: &[u8]) {
+    if let Ok(msg) = CameraInfo::decode(data) {
+        let _ = intrinsics_from_camera_info(&msg);
+    }
+}
+
+/// `sensor_msgs/Image`, its stamp and its pixels as RGB.
+pub fn cdr_image(data: &[u8]) {
+    if let Ok(msg) = Image::decode(data) {
+        let _ = msg.header.stamp.to_nanos();
+        let _ = rgb_from_image(&msg);
+    }
+}
+
+/// The node's latency and diagnostics messages (what `monitor` and `record` read).
+pub fn cdr_latency(data: &[u8]) {
+    let _ = BinLatency::decode(data);
+    let _ = Diagnostics::decode(data);
+}
+
+/// A map increment or snapshot, decoded into world Gaussians as a subscriber's replica does.
+pub fn cdr_map_update(data: &[u8]) {
+    if let Ok(msg) = MapUpdate::decode(data) {
+        let _ = decode_update(&msg);
+    }
+}
+
+/// `sensor_msgs/PointCloud2` with the 3DGS fields, as Gaussians near and far from the origin.
+pub fn cdr_point_cloud(data: &[u8]) {
+    if let Ok(cloud) = PointCloud2::decode(data) {
+        let _ = gaussians_from_cloud(&cloud, DVec3::ZERO);
+        let _ = gaussians_from_cloud(&cloud, DVec3::new(1e5, -2.5e5, 30.0));
+    }
+}
+
+/// `geometry_msgs/PoseStamped`, its stamp and the pose as an affine transform.
+pub fn cdr_pose(data: &[u8]) {
+    if let Ok(msg) = PoseStamped::decode(data) {
+        let _ = msg.header.stamp.to_nanos();
+        let _ = affine_from_pose(&msg);
+    }
+}
+
+/// `tf2_msgs/TFMessage`, every transform's stamp and its affine form.
+pub fn cdr_tf(data: &[u8]) {
+    if let Ok(msg) = TfMessage::decode(data) {
+        for t in &msg.transforms {
+            let _ = t.header.stamp.to_nanos();
+            let (p, q) = (t.transform.translation, t.transform.rotation);
+            let _ = DAffine3::from_rotation_translation(
+                DQuat::from_xyzw(q.x, q.y, q.z, q.w),
+                DVec3::new(p.x, p.y, p.z),
+            );
+        }
+    }
+}
+
+/// The fused map's checkpoint (`global_map.ssgmap`) as `run` reads it when it resumes: every
+/// Gaussian walked and the snapshot taken, as the node does before it publishes the map.
+pub fn global_map(data: &[u8]) {
+    let Ok(map) = GlobalMap::from_bytes(data, Path::new("global_map.ssgmap")) else {
+        return;
+    };
+    let finite = map
+        .gaussians()
+        .filter(|(_, g)| g.position.is_finite())
+        .count();
+    let _ = (finite, map.len(), map.last_bin_id(), map.snapshot());
+}
+
+/// The three KITTI-360 calibration files (`perspective.txt`, `calib_cam_to_pose.txt`,
+/// `calib_cam_to_velo.txt`, joined by NULs in one input, see [`split`]), then their rig.
+pub fn kitti_calibration(data: &[u8]) {
+    let root = scratch_dir().join("calibration");
+    let [perspective, cam_to_pose, cam_to_velo] = split::<3>(data);
+    for (path, bytes) in [
+        (layout::perspective(&root), perspective),
+        (layout::cam_to_pose(&root), cam_to_pose),
+        (layout::cam_to_velo(&root), cam_to_velo),
+    ] {
+        write_file(&path, bytes);
+    }
+    if let Ok(calibration) = Calibration::read(&root) {
+        let _ = calibration.rig();
+    }
+}
+
+/// A KITTI-360 pose file, read as both of its formats.
+pub fn kitti_poses(data: &[u8]) {
+    let path = scratch_file("poses.txt", data);
+    for format in [PoseFormat::ThreeByFour, PoseFormat::FourByFour] {
+        let _ = read_pose_file(&path, format);
+    }
+}
+
+/// A KITTI-360 `timestamps.txt`.
+pub fn kitti_timestamps(data: &[u8]) {
+    let _ = read_timestamps(&scratch_file("timestamps.txt", data));
+}
+
+/// A launch file's text (UTF-8 only, as the launcher reads it).
+pub fn launch(data: &[u8]) {
+    if let Ok(text) = std::str::from_utf8(data) {
+        let _ = Plan::parse(text, Path::new("fuzz.toml"), &[], Path::new("stereosplat"));
+    }
+}
+
+/// An MCAP log as `replay --mcap` reads it: the summary, then every message in log-time order.
+pub fn mcap(data: &[u8]) {
+    let path = scratch_file("bag.mcap", data);
+    let Ok(bag) = BagReader::open(&path) else {
+        return;
+    };
+    let _ = (bag.channels().len(), bag.message_count(), bag.time_range());
+    for message in bag.messages() {
+        if message.is_err() {
+            break;
+        }
+    }
+}
+
+/// A 3DGS PLY file (binary or ASCII).
+pub fn ply(data: &[u8]) {
+    let _ = renderer::ply::read_ply(data);
+}
+
+/// This process's scratch folder (under the system temporary folder, one per process and
+/// thread, so parallel runs do not overwrite each other's files).
+pub fn scratch_dir() -> PathBuf {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let base = DIR.get_or_init(|| {
+        std::env::temp_dir().join(format!("stereosplat-input-{}", std::process::id()))
+    });
+    let thread = format!("{:?}", std::thread::current().id());
+    let dir = base.join(thread.trim_start_matches("ThreadId(").trim_end_matches(')'));
+    std::fs::create_dir_all(&dir).expect("the temporary folder is writable");
+    dir
+}
+
+/// Writes `bytes` to `name` in [`scratch_dir`] and returns its path, for decoders that take
+/// a path.
+pub fn scratch_file(name: &str, bytes: &[u8]) -> PathBuf {
+    let path = scratch_dir().join(name);
+    write_file(&path, bytes);
+    path
+}
+
+/// Writes `bytes` to `path`, creating its parent folders (a path under [`scratch_dir`]).
+fn write_file(path: &Path, bytes: &[u8]) {
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).expect("the scratch folder is writable");
+    }
+    std::fs::write(path, bytes).expect("the scratch folder is writable");
+}
+
+/// `data` cut at its first `N - 1` NUL bytes into `N` parts (the last ones empty when there
+/// are fewer NULs): one input becomes several text files, and the seeds join files with a
+/// NUL, which no text file of the formats holds.
+pub fn split<const N: usize>(data: &[u8]) -> [&[u8]; N] {
+    let mut parts = [&data[data.len()..]; N];
+    let mut rest = data;
+    for part in parts.iter_mut().take(N - 1) {
+        match rest.iter().position(|&b| b == 0) {
+            Some(at) => {
+                *part = &rest[..at];
+                rest = &rest[at + 1..];
+            }
+            None => {
+                *part = rest;
+                rest = &rest[rest.len()..];
+            }
+        }
+    }
+    parts[N - 1] = rest;
+    parts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_cuts_at_the_first_nuls_and_pads_with_empty_parts() {
+        assert_eq!(split::<3>(b"a\0b\0c\0d"), [&b"a"[..], b"b", b"c\0d"]);
+        assert_eq!(split::<3>(b"a"), [&b"a"[..], b"", b""]);
+        assert_eq!(split::<2>(b""), [&b""[..], b""]);
+    }
+
+    #[test]
+    fn every_entry_returns_on_empty_and_junk_input() {
+        for (name, entry) in ENTRIES {
+            for input in [&b""[..], b"\0", b"\xff\xff\xff\xff", b"ply\nformat"] {
+                entry(input);
+            }
+            assert!(!name.is_empty());
+        }
+    }
+}

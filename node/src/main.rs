@@ -85,15 +85,19 @@ fn main() -> Result<()> {
     // Before any thread or wgpu/Mesa start: a private runtime folder when the environment
     // has none, so Mesa does not print its XDG_RUNTIME_DIR error lines.
     #[cfg(unix)]
-    node::cli::runtime_dir::ensure_runtime_dir();
+    renderer::gpu::runtime_dir::ensure_runtime_dir();
     let cli = Cli::parse();
-    // Mesa's shader cache inside the out folder of the commands that have one, else off.
+    // Mesa's shader cache inside the out folder of the commands that have one, else off;
+    // `launch` leaves it to the processes it starts.
     let out = match &cli.command {
-        Command::Run(args) => Some(args.out_dir()),
-        Command::Demo(args) => Some(args.out_dir()),
-        _ => None,
+        Command::Run(args) => Some(Some(args.out_dir())),
+        Command::Demo(args) => Some(Some(args.out_dir())),
+        Command::Launch(_) => None,
+        _ => Some(None),
     };
-    node::cli::shader_cache::place_shader_cache(out);
+    if let Some(out) = out {
+        node::cli::shader_cache::place_shader_cache(out);
+    }
     match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Render(args) => render::run(&args),

@@ -18,7 +18,6 @@ pub mod progress;
 pub mod reconstruct;
 pub mod render;
 #[cfg(unix)]
-pub mod runtime_dir;
 pub mod scene_source;
 pub mod shader_cache;
 pub mod shutdown;

@@ -33,6 +33,13 @@ impl Context {
     /// Picks an adapter (honouring `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`, `WGPU_POWER_PREF`)
     /// and opens a device with the adapter's buffer-size limits, WebGPU defaults otherwise.
     pub fn new() -> Result<Self, GpuError> {
+        #[cfg(unix)]
+        {
+            static RUNTIME_DIR: std::sync::Once = std::sync::Once::new();
+            RUNTIME_DIR.call_once(|| {
+                super::runtime_dir::ensure_runtime_dir();
+            });
+        }
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(

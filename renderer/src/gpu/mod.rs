@@ -18,6 +18,8 @@ mod emit_keys;
 mod prefix_sum;
 mod project;
 mod radix_sort;
+#[cfg(unix)]
+pub mod runtime_dir;
 mod tile_ranges;
 mod timing;
 

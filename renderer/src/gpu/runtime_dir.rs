@@ -1,7 +1,8 @@
-//! A private `XDG_RUNTIME_DIR` for the process when the environment has none. Mesa (the
-//! lavapipe and llvmpipe drivers wgpu runs on without a GPU) prints `error: XDG_RUNTIME_DIR
-//! is invalid or not set` twice when it is missing, which a newcomer reads as a failure of
-//! the command; nothing of ours uses the folder.
+//! A private `XDG_RUNTIME_DIR` for the process when the environment has none. Mesa's
+//! lavapipe (the Vulkan driver wgpu runs on without a GPU) prints `error: XDG_RUNTIME_DIR is
+//! invalid or not set` when it is missing, every time a device is opened, which a newcomer
+//! reads as a failure; nothing of ours uses the folder. [`super::Context::new`] ensures it
+//! once per process before the first instance, and the `stereosplat` binary at its start.
 
 use std::os::unix::fs::{MetadataExt, PermissionsExt};
 use std::path::{Path, PathBuf};
@@ -11,7 +12,8 @@ const VAR: &str = "XDG_RUNTIME_DIR";
 
 /// Points `XDG_RUNTIME_DIR` at `<temp>/stereosplat-runtime-<uid>` (created with mode 0700)
 /// when it is unset or does not name a folder of this user with mode 0700, as Mesa wants.
-/// Call it first thing in `main`, before any thread starts (it changes the environment).
+/// It changes the environment: call it before threads start where possible (`main`); the
+/// GPU context calls it once per process before its first instance.
 /// Returns the folder it set, `None` when the variable was fine or no folder could be made
 /// (then Mesa only prints its message).
 pub fn ensure_runtime_dir() -> Option<PathBuf> {

@@ -111,7 +111,7 @@ pub fn fuse(maps: &[BinMap], config: FusionConfig) -> Result<GlobalMap, MapEvalE
     Ok(map)
 }
 
-/// The map's Gaussians within [`RENDER_RADIUS_M`] of `camera_to_world`'s centre, in that
+/// The map's Gaussians within `RENDER_RADIUS_M` of `camera_to_world`'s centre, in that
 /// camera's frame.
 pub fn set_around(map: &GlobalMap, camera_to_world: DAffine3) -> Result<GaussianSet, ExportError> {
     let centre: DVec3 = camera_to_world.translation;

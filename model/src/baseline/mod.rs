@@ -4,7 +4,7 @@
 //!
 //! Stages, each a module: [`census`] (census transform and Hamming cost volume, `u8`
 //! W x H x D), [`aggregate`] (semi-global path costs along 4 or 8 directions, summed in
-//! `u16`), [`disparity`] (winner-take-all, sub-pixel parabola, uniqueness, left-right check,
+//! `u16`), [`mod@disparity`] (winner-take-all, sub-pixel parabola, uniqueness, left-right check,
 //! confidence, 3x3 median), [`unproject`] (disparity to Gaussians in the bin frame).
 //!
 //! Far surfaces and the sky get no Gaussians: their disparity is too small to measure, so
@@ -24,7 +24,7 @@ use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
 #[derive(Clone, Debug, PartialEq)]
 pub struct SgmConfig {
     /// Largest disparity searched, pixels. `None` derives it from the rig as
-    /// `fx * baseline / min_depth` (capped by `disparity_cap`); the rig-free [`disparity`]
+    /// `fx * baseline / min_depth` (capped by `disparity_cap`); the rig-free [`disparity()`]
     /// function then searches up to `disparity_cap`.
     pub max_disparity: Option<u32>,
     /// Upper bound on the searched disparity, which bounds the cost volume (W x H x D bytes).

@@ -64,7 +64,7 @@ pub struct Config {
     /// `census_matching` instead.
     #[serde(default)]
     pub backbone_matching: bool,
-    /// Add the soft census correlation of the grey images ([`super::census_volume`]) to the
+    /// Add the soft census correlation of the grey images (`census_volume`) to the
     /// depth head's matching term at a learned weight from zero: a cost that a camera's gain,
     /// offset and texture statistics cannot move, so matching that transfers from the
     /// generated streets to real photographs.
@@ -114,7 +114,7 @@ pub struct Config {
     #[serde(default)]
     pub sgm_snap: bool,
     /// Scale factor for the Gaussians on a foreground edge: those with a neighbour within
-    /// [`super::gaussian_head::EDGE_RADIUS`] cells over [`super::gaussian_head::EDGE_RATIO`]
+    /// `EDGE_RADIUS` cells over `EDGE_RATIO`
     /// times farther get their scales multiplied by it, so a near surface's footprints do
     /// not spill over the background beside it (a thin leaf drawn fat). As `sgm_snap`,
     /// only where SGM's hints are (the first pair of a near scene): on the streets the

@@ -195,7 +195,7 @@ fn candidate_indices(d: usize, device: &candle_core::Device) -> Result<Tensor> {
 }
 
 /// Normalised inverse depth of a metric `depth` (1 at `near`, 0 at `far`, outside `[0, 1]`
-/// beyond them): the inverse of [`metric_depth`], where a depth falls among the candidates.
+/// beyond them): the inverse of `metric_depth`, where a depth falls among the candidates.
 pub fn normalised_inverse(depth: f64, cfg: &Config) -> f64 {
     let (a, b) = (1.0 / cfg.near as f64, 1.0 / cfg.far as f64);
     (1.0 / depth - b) / (a - b)

@@ -1,7 +1,7 @@
 //! Launch files: start a graph of processes (`stereosplat` subcommands or any program) from
 //! one TOML file, forward their output behind `[name] ` prefixes, and stop them together.
 //!
-//! [`file`] is the schema as written, [`plan`] checks it into a [`Plan`] (vars substituted,
+//! [`mod@file`] is the schema as written, [`plan`] checks it into a [`Plan`] (vars substituted,
 //! references and cycles checked), [`supervisor`] runs a plan. Unix first: stopping uses
 //! process groups and signals (see [`signals`]).
 

@@ -9,7 +9,7 @@
 //! * conversions to and from the project's types: [`image`] (RgbImage, Intrinsics),
 //!   [`pose`] (DAffine3), [`gaussians`] (GaussianSet as a PointCloud2 in the 3DGS PLY
 //!   convention), failing with [`ConvertError`];
-//! * names and REP 2011 type hashes for rmw_zenoh: [`MessageKind`], [`type_hash`]; complete
+//! * names and REP 2011 type hashes for rmw_zenoh: [`MessageKind`], [`mod@type_hash`]; complete
 //!   definitions as MCAP schemas: [`schema`].
 //!
 //! Decoders never panic and never allocate much more than their input: every malformed

@@ -1,7 +1,7 @@
 //! Speed against accuracy as a measured trade (`stereosplat bench pareto`): operating points
 //! from a TOML list ([`points`]), each run through the node worker's own path
 //! ([`path::WorkerPath`]) on the same held-out bins and scored by the evaluation protocol,
-//! the Pareto front of latency against quality ([`front`]), and the table, JSON and chart
+//! the Pareto front of latency against quality ([`front()`]), and the table, JSON and chart
 //! ([`report`]).
 
 pub mod front;

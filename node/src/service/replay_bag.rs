@@ -1,4 +1,4 @@
-//! Replaying an MCAP recording of the node's topics ([`super::record`]) onto zenoh: each
+//! Replaying an MCAP recording of the node's topics ([`super::record()`]) onto zenoh: each
 //! message's payload goes out verbatim on the key of its topic, at the recorded pace (or a
 //! multiple of it, or as fast as possible).
 

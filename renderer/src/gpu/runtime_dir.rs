@@ -1,7 +1,7 @@
 //! A private `XDG_RUNTIME_DIR` for the process when the environment has none. Mesa's
 //! lavapipe (the Vulkan driver wgpu runs on without a GPU) prints `error: XDG_RUNTIME_DIR is
 //! invalid or not set` when it is missing, every time a device is opened, which a newcomer
-//! reads as a failure; nothing of ours uses the folder. [`super::Context::new`] ensures it
+//! reads as a failure; nothing of ours uses the folder. `Context::new` ensures it
 //! once per process before the first instance, and the `stereosplat` binary at its start.
 
 use std::os::unix::fs::{MetadataExt, PermissionsExt};

@@ -68,7 +68,7 @@ fn to_bin(cfg: &VolumeConfig, p: [f64; 3]) -> DVec3 {
 /// Constant (cameras are inputs): build once per forward pass and share between layers.
 #[derive(Clone, Debug)]
 pub struct ViewAnchors {
-    /// `(V, N, A, 2)` pixel coordinates `(x, y)` in the views' feature maps; [`NOWHERE`] for
+    /// `(V, N, A, 2)` pixel coordinates `(x, y)` in the views' feature maps; `NOWHERE` for
     /// an anchor behind a view or outside its image.
     pub pixels: Tensor,
     /// `(N, 1)`: 1 / (number of views that see at least one of the query's anchors), 0 for a

@@ -3,11 +3,15 @@
 //! `@mkkellogg/gaussian-splats-3d` on three.js, served from `view/node_modules`), the
 //! latest bin's render beside its input image, the bird's-eye view, and per-stage latency
 //! charts with the counters. The page polls `/api/state`; the server is fed by a zenoh
-//! session that listens to the node's topics like `monitor` does ([`watch`]), so it works
-//! beside any node: `stereosplat view`, or `--view` on `run` and `demo`.
+//! session that listens to the node's topics like `monitor` does (`watch`), so it works
+//! beside any node: `stereosplat view`, or `--view` on `run` and `demo`. [`routes`] says
+//! what each path answers; [`server`] serves it with axum on hyper, bounded so that no
+//! client can hold the node.
 
-mod http;
 mod routes;
+mod server;
+#[cfg(test)]
+mod server_tests;
 mod state;
 mod watch;
 
@@ -121,8 +125,13 @@ impl Bound {
                 let _ = rx.wait_for(|s| *s).await;
             }
         };
-        let handler = Arc::new(routes::handler(state.clone(), self.node_modules));
-        let server = tokio::spawn(http::serve(self.listener, handler, until_stop()));
+        let router = routes::router(state.clone(), self.node_modules);
+        let server = tokio::spawn(server::serve(
+            self.listener,
+            router,
+            server::Limits::default(),
+            until_stop(),
+        ));
         let session = session.clone();
         let watcher = tokio::spawn({
             let stop = until_stop();

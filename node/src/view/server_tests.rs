@@ -1,0 +1,300 @@
+//! The view's server over raw TCP on 127.0.0.1: what it guarantees a browser (HEAD, 404,
+//! no path outside the table) and what bounds it keeps against clients that misbehave (a
+//! slow request head, an oversized one, more connections than slots).
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+
+use super::routes;
+use super::server::{serve, Limits};
+use super::state::ViewState;
+
+/// Longest a well-behaved exchange may take here.
+const PATIENCE: Duration = Duration::from_secs(5);
+
+/// A `node_modules` folder with the three library files, and a secret file beside it that
+/// no request may reach.
+fn libraries() -> PathBuf {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let root = std::env::temp_dir().join(format!(
+        "ss-view-test-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    let modules = root.join("node_modules");
+    for file in [
+        "three/build/three.module.js",
+        "three/build/three.core.js",
+        "@mkkellogg/gaussian-splats-3d/build/gaussian-splats-3d.module.js",
+    ] {
+        let path = modules.join(file);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, format!("// {file}\n")).unwrap();
+    }
+    std::fs::write(root.join("secret.txt"), "SECRET\n").unwrap();
+    std::fs::write(modules.join("secret.txt"), "SECRET\n").unwrap();
+    modules
+}
+
+/// Starts a server within `limits` on a free loopback port, with a render picture of bin 7
+/// in its state. The server stops when the test's runtime ends.
+async fn start(limits: Limits) -> SocketAddr {
+    let mut state = ViewState::default();
+    state.render(7, 0, b"not really a png".to_vec());
+    let router = routes::router(Arc::new(Mutex::new(state)), libraries());
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(serve(listener, router, limits, std::future::pending()));
+    addr
+}
+
+/// One answer: status, headers (names lower-cased) and body.
+#[derive(Debug)]
+struct Answer {
+    status: u16,
+    headers: Vec<(String, String)>,
+    body: Vec<u8>,
+}
+
+impl Answer {
+    fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+    }
+}
+
+/// Everything the server writes on `stream` until it closes, split into an [`Answer`].
+async fn read_answer(stream: &mut TcpStream) -> Answer {
+    let mut raw = Vec::new();
+    tokio::time::timeout(PATIENCE, stream.read_to_end(&mut raw))
+        .await
+        .expect("the server closes the connection after its answer")
+        .unwrap();
+    let end = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .unwrap_or_else(|| panic!("no end of head in {:?}", String::from_utf8_lossy(&raw)));
+    let head = std::str::from_utf8(&raw[..end]).unwrap();
+    let mut lines = head.split("\r\n");
+    let status = lines.next().unwrap().split(' ').nth(1).unwrap();
+    let headers = lines
+        .map(|l| {
+            let (n, v) = l.split_once(':').unwrap();
+            (n.trim().to_ascii_lowercase(), v.trim().to_string())
+        })
+        .collect();
+    Answer {
+        status: status.parse().unwrap(),
+        headers,
+        body: raw[end + 4..].to_vec(),
+    }
+}
+
+/// Sends `method path` on a fresh connection and reads the answer.
+async fn request(addr: SocketAddr, method: &str, path: &str) -> Answer {
+    let mut stream = TcpStream::connect(addr).await.unwrap();
+    let req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+    stream.write_all(req.as_bytes()).await.unwrap();
+    read_answer(&mut stream).await
+}
+
+#[tokio::test]
+async fn every_route_answers_get_with_its_type_and_the_shared_headers() {
+    let addr = start(Limits::default()).await;
+    for (path, status, content_type) in [
+        ("/", 200, "text/html; charset=utf-8"),
+        ("/index.html", 200, "text/html; charset=utf-8"),
+        ("/app.js", 200, "text/javascript; charset=utf-8"),
+        ("/favicon.ico", 200, "image/x-icon"),
+        ("/api/state", 200, "application/json"),
+        ("/api/state?t=1", 200, "application/json"),
+        ("/map.ply", 404, "text/plain; charset=utf-8"),
+        ("/render.png", 200, "image/png"),
+        ("/input.png", 404, "text/plain; charset=utf-8"),
+        ("/bev.png", 404, "text/plain; charset=utf-8"),
+        (
+            "/lib/three/three.module.js",
+            200,
+            "text/javascript; charset=utf-8",
+        ),
+        (
+            "/lib/three/three.core.js",
+            200,
+            "text/javascript; charset=utf-8",
+        ),
+        (
+            "/lib/splats/gaussian-splats-3d.module.js",
+            200,
+            "text/javascript; charset=utf-8",
+        ),
+    ] {
+        let a = request(addr, "GET", path).await;
+        assert_eq!(a.status, status, "{path}: {a:?}");
+        assert_eq!(a.header("content-type"), Some(content_type), "{path}");
+        assert_eq!(a.header("cache-control"), Some("no-store"), "{path}");
+        assert_eq!(
+            a.header("x-content-type-options"),
+            Some("nosniff"),
+            "{path}"
+        );
+        assert_eq!(a.header("connection"), Some("close"), "{path}");
+        assert_eq!(
+            a.header("content-length"),
+            Some(a.body.len().to_string().as_str()),
+            "{path}"
+        );
+    }
+    let state: serde_json::Value =
+        serde_json::from_slice(&request(addr, "GET", "/api/state").await.body).unwrap();
+    assert!(state.is_object(), "{state}");
+    let render = request(addr, "GET", "/render.png").await;
+    assert_eq!(render.body, b"not really a png");
+    assert_eq!(render.header("x-bin-id"), Some("7"));
+    let lib = request(addr, "GET", "/lib/three/three.core.js").await;
+    assert_eq!(lib.body, b"// three/build/three.core.js\n");
+}
+
+#[tokio::test]
+async fn head_has_get_s_headers_and_no_body() {
+    let addr = start(Limits::default()).await;
+    for path in [
+        "/",
+        "/api/state",
+        "/render.png",
+        "/lib/three/three.core.js",
+        "/nope",
+    ] {
+        let get = request(addr, "GET", path).await;
+        let head = request(addr, "HEAD", path).await;
+        assert_eq!(head.status, get.status, "{path}");
+        assert!(head.body.is_empty(), "{path}: {head:?}");
+        for name in [
+            "content-type",
+            "content-length",
+            "cache-control",
+            "x-bin-id",
+        ] {
+            assert_eq!(head.header(name), get.header(name), "{path}: {name}");
+        }
+        assert!(head.header("content-length").is_some(), "{path}");
+    }
+}
+
+#[tokio::test]
+async fn unknown_paths_404_and_other_methods_405() {
+    let addr = start(Limits::default()).await;
+    for path in [
+        "/nope",
+        "/lib/three/",
+        "/lib/three/other.js",
+        "/api/state/x",
+        "/app.js/",
+    ] {
+        assert_eq!(request(addr, "GET", path).await.status, 404, "{path}");
+    }
+    for (method, path) in [("POST", "/api/state"), ("PUT", "/"), ("DELETE", "/nope")] {
+        let a = request(addr, method, path).await;
+        assert_eq!(a.status, 405, "{method} {path}");
+        assert_eq!(a.header("cache-control"), Some("no-store"));
+    }
+}
+
+#[tokio::test]
+async fn no_path_reaches_a_file_outside_the_table() {
+    let addr = start(Limits::default()).await;
+    for path in [
+        "/lib/three/../secret.txt",
+        "/lib/three/../../secret.txt",
+        "/lib/three/../../../secret.txt",
+        "/lib/three/%2e%2e/%2e%2e/secret.txt",
+        "/lib/three/..%2f..%2fsecret.txt",
+        "/lib/%2e%2e/%2e%2e/%2e%2e/node_modules/secret.txt",
+        "/../secret.txt",
+        "/..%5csecret.txt",
+        "/three/build/three.core.js",
+        "/lib/three/./three.core.js",
+        "/lib/three//three.core.js",
+    ] {
+        let a = request(addr, "GET", path).await;
+        assert!(a.status == 404 || a.status == 400, "{path}: {a:?}");
+        assert!(
+            !String::from_utf8_lossy(&a.body).contains("SECRET"),
+            "{path}: {a:?}"
+        );
+        assert!(!String::from_utf8_lossy(&a.body).contains("//"), "{path}");
+    }
+}
+
+#[tokio::test]
+async fn an_oversized_request_head_is_refused() {
+    let addr = start(Limits::default()).await;
+    let mut stream = TcpStream::connect(addr).await.unwrap();
+    let filler = "a".repeat(Limits::default().head_bytes);
+    let req = format!("GET / HTTP/1.1\r\nHost: {addr}\r\nX-Filler: {filler}\r\n\r\n");
+    // The server may close before it has read everything: only the answer matters.
+    let _ = stream.write_all(req.as_bytes()).await;
+    assert_eq!(read_answer(&mut stream).await.status, 431);
+}
+
+#[tokio::test]
+async fn a_slow_client_neither_blocks_others_nor_keeps_its_connection() {
+    let read_timeout = Duration::from_millis(500);
+    let addr = start(Limits {
+        read_timeout,
+        ..Limits::default()
+    })
+    .await;
+    let mut slow = TcpStream::connect(addr).await.unwrap();
+    slow.write_all(format!("GET / HTTP/1.1\r\nHost: {addr}\r\nX-Half: ").as_bytes())
+        .await
+        .unwrap();
+    let started = Instant::now();
+    let other = request(addr, "GET", "/api/state").await;
+    assert_eq!(other.status, 200);
+    assert!(started.elapsed() < read_timeout, "{:?}", started.elapsed());
+    // The slow client's connection ends after the read timeout (hyper may say 408 first).
+    let mut rest = Vec::new();
+    tokio::time::timeout(PATIENCE, slow.read_to_end(&mut rest))
+        .await
+        .expect("the slow client's connection is closed")
+        .unwrap();
+    assert!(started.elapsed() >= read_timeout, "{:?}", started.elapsed());
+    let said = String::from_utf8_lossy(&rest);
+    assert!(
+        rest.is_empty() || said.starts_with("HTTP/1.1 408"),
+        "{said}"
+    );
+}
+
+#[tokio::test]
+async fn connections_beyond_the_limit_wait_for_a_free_slot() {
+    let limits = Limits {
+        connections: 4,
+        read_timeout: Duration::from_secs(60),
+        ..Limits::default()
+    };
+    let addr = start(limits).await;
+    // Connections that send nothing hold every slot.
+    let mut idle = Vec::new();
+    for _ in 0..limits.connections {
+        idle.push(TcpStream::connect(addr).await.unwrap());
+    }
+    // The operating system completes the next connection, but the server does not take it.
+    let mut waiting = TcpStream::connect(addr).await.unwrap();
+    let req = format!("GET /api/state HTTP/1.1\r\nHost: {addr}\r\n\r\n");
+    waiting.write_all(req.as_bytes()).await.unwrap();
+    let mut byte = [0u8; 1];
+    let early = tokio::time::timeout(Duration::from_millis(500), waiting.read(&mut byte)).await;
+    assert!(early.is_err(), "answered beyond the limit: {early:?}");
+    // One idle client leaves: its slot goes to the waiting one.
+    drop(idle.pop());
+    assert_eq!(read_answer(&mut waiting).await.status, 200);
+}

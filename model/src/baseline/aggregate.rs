@@ -243,11 +243,13 @@ fn step(cell: &[u8], pred: &[i16], pm: i16, jump: i16, p1: u16, out: &mut [i16])
     let p1 = p1 as i16;
     let jump = pm + jump;
     let n = out.len();
-    let (below, same, above) = (&pred[..n], &pred[1..n + 1], &pred[2..n + 2]);
+    // Equal-length slices, so the loop has no bounds checks and vectorises.
+    let (cell, below, same, above) = (&cell[..n], &pred[..n], &pred[1..n + 1], &pred[2..n + 2]);
     let mut best = i16::MAX;
-    for ((((o, &c), &b), &s), &a) in out.iter_mut().zip(cell).zip(below).zip(same).zip(above) {
-        *o = c as i16 + s.min(b.min(a) + p1).min(jump) - pm;
-        best = best.min(*o);
+    for d in 0..n {
+        let v = cell[d] as i16 + same[d].min(below[d].min(above[d]) + p1).min(jump) - pm;
+        out[d] = v;
+        best = best.min(v);
     }
     best
 }

@@ -85,8 +85,28 @@ pub fn census(grey: &Grey) -> Vec<u64> {
 /// Hamming distance between the left census at x and the right census at x - d. Where x - d
 /// falls off the image the cost is [`MAX_CENSUS_COST`], so those disparities never win on
 /// their own. Rows are computed when the aggregation reaches them, so no `W x H x D` cost
-/// volume is ever held.
+/// volume is ever held. On x86-64 CPUs with POPCNT (nearly all) the count is one
+/// instruction instead of the baseline target's bit arithmetic, which took a third of the
+/// matcher's instructions.
 pub fn cost_row(left: &[u64], right: &[u64], levels: usize, out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("popcnt") {
+        // SAFETY: the CPU was just found to support POPCNT, the only feature enabled.
+        return unsafe { cost_row_popcnt(left, right, levels, out) };
+    }
+    cost_row_portable(left, right, levels, out);
+}
+
+/// [`cost_row`] compiled with POPCNT enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "popcnt")]
+fn cost_row_popcnt(left: &[u64], right: &[u64], levels: usize, out: &mut [u8]) {
+    cost_row_portable(left, right, levels, out);
+}
+
+/// [`cost_row`] for any CPU; inlined into each caller so it takes on its target features.
+#[inline(always)]
+fn cost_row_portable(left: &[u64], right: &[u64], levels: usize, out: &mut [u8]) {
     for (x, costs) in out.chunks_exact_mut(levels).enumerate() {
         let reach = levels.min(x + 1);
         for (d, c) in costs[..reach].iter_mut().enumerate() {

@@ -5,7 +5,7 @@ use crate::reconstruct::ReconstructError;
 
 /// Settings of the SGM baseline. The defaults are the textbook ones (Hirschmüller 2008,
 /// OpenCV `StereoSGBM`): eight paths, a 10% uniqueness ratio, a 1-px left-right check,
-/// speckle regions under 100 px with steps over 2 px removed. The disparity range follows
+/// speckle regions under 100 px with steps over 2 px removed, a 3x3 median. The disparity range follows
 /// the image and the rig, not fixed metres ([`SgmConfig::levels_for`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SgmConfig {
@@ -40,7 +40,8 @@ pub struct SgmConfig {
     pub speckle_window: u32,
     /// Largest disparity step, pixels, between neighbours of one speckle region.
     pub speckle_range: f32,
-    /// Apply the 3x3 median filter to the valid disparities.
+    /// Apply the 3x3 median filter to the valid disparities (on by default: on generated
+    /// streets it took bad-1 from 29.6% to 26.6% at the same coverage, `results/sgm/`).
     pub median: bool,
     /// Nearest depth kept, metres: a safety clamp, and with the baseline the rig's share of
     /// the disparity range (`fx * baseline / min_depth`, within the width fractions).
@@ -78,7 +79,7 @@ impl Default for SgmConfig {
             margin_for_full_confidence: 0.3,
             speckle_window: 100,
             speckle_range: 2.0,
-            median: false,
+            median: true,
             min_depth: 0.1,
             max_depth: 100.0,
             min_confidence: 0.05,

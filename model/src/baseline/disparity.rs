@@ -34,16 +34,23 @@ pub fn select_row(
     }
 }
 
-/// The winning disparity of each right-image pixel of one row (integer).
+/// The winning disparity of each right-image pixel of one row (integer, the smallest on a
+/// tie), in one pass over the row in memory order: left pixel x at disparity d votes for
+/// right pixel x - d.
 fn right_disparities(row: &[u16], width: usize, levels: usize) -> Vec<u16> {
-    (0..width)
-        .map(|xr| {
-            let reach = levels.min(width - xr);
-            (0..reach)
-                .min_by_key(|&d| row[(xr + d) * levels + d])
-                .unwrap_or(0) as u16
-        })
-        .collect()
+    let mut best = vec![u16::MAX; width];
+    let mut arg = vec![0u16; width];
+    for (x, costs) in row.chunks_exact(levels).enumerate().take(width) {
+        let reach = levels.min(x + 1);
+        for (d, &c) in costs[..reach].iter().enumerate() {
+            let xr = x - d;
+            if c < best[xr] {
+                best[xr] = c;
+                arg[xr] = d as u16;
+            }
+        }
+    }
+    arg
 }
 
 /// The disparity and confidence at left pixel `x`, or `None` if a check rejects it.

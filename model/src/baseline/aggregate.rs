@@ -34,7 +34,8 @@ impl Penalties {
 }
 
 /// How many path directions are aggregated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Paths {
     /// One sweep, five directions (OpenCV's `MODE_SGBM`): memory `O(W x D)`.
     Five,

@@ -7,7 +7,7 @@ use crate::reconstruct::ReconstructError;
 /// OpenCV `StereoSGBM`): eight paths, a 10% uniqueness ratio, a 1-px left-right check,
 /// speckle regions under 100 px with steps over 2 px removed, a 3x3 median. The disparity range follows
 /// the image and the rig, not fixed metres ([`SgmConfig::levels_for`]).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SgmConfig {
     /// Largest disparity searched, pixels, overriding the derived range when set.
     pub max_disparity: Option<u32>,
@@ -24,7 +24,8 @@ pub struct SgmConfig {
     pub p2: u16,
     /// Grey step (0..255) that halves P2, so disparity may jump where the image has an edge.
     pub p2_gradient: f32,
-    /// Path directions aggregated: eight (two sweeps) or five (one sweep).
+    /// Path directions aggregated: eight (two sweeps) or five (one sweep); `eight` or
+    /// `five` as a setting.
     pub paths: Paths,
     /// Most bytes the eight-path volume (`2 x W x H x D`) may take; a larger pair is
     /// aggregated along five paths in one sweep instead, whose memory is `O(W x D)`.
@@ -40,8 +41,8 @@ pub struct SgmConfig {
     pub speckle_window: u32,
     /// Largest disparity step, pixels, between neighbours of one speckle region.
     pub speckle_range: f32,
-    /// Apply the 3x3 median filter to the valid disparities (on by default: on generated
-    /// streets it took bad-1 from 29.6% to 26.6% at the same coverage, `results/sgm/`).
+    /// Apply the 3x3 median filter to the valid disparities (on by default: chosen on
+    /// generated streets, `results/sgm/sizes.md`).
     pub median: bool,
     /// Nearest depth kept, metres: a safety clamp, and with the baseline the rig's share of
     /// the disparity range (`fx * baseline / min_depth`, within the width fractions).

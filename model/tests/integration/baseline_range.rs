@@ -217,3 +217,27 @@ fn extreme_rigs_and_images_give_finite_output_or_a_typed_error() {
         .unwrap();
     assert!(all_finite(&out));
 }
+
+#[test]
+fn sgm_settings_change_the_defaults_and_bad_ones_are_typed_errors() {
+    use model::methods::{build, MethodError};
+    let set = |s: &[&str]| {
+        let settings: Vec<String> = s.iter().map(|v| v.to_string()).collect();
+        build("sgm", None, None, &settings)
+    };
+    assert!(set(&["median=false", "paths=five", "uniqueness_ratio=0.05"]).is_ok());
+    for bad in ["paths=six", "median=maybe", "no_such_key=1", "median"] {
+        assert!(
+            matches!(set(&[bad]), Err(MethodError::Setting(_))),
+            "{bad} accepted"
+        );
+    }
+    // A setting the algorithm cannot honour parses but is refused when matching.
+    let rig = Rig::new(64, 16, 50.0, 0.1);
+    let image = RgbImage::new(64, 16);
+    let mut sgm = set(&["p2=9000"]).unwrap();
+    assert!(matches!(
+        sgm.reconstruct(&[rig.view(&image, &image)]),
+        Err(model::reconstruct::ReconstructError::InvalidInput(_))
+    ));
+}

@@ -65,7 +65,9 @@ pub enum CurveError {
         message: String,
     },
     /// The canvas has no room for the axes, their labels and the legend.
-    #[error("a {width}x{height} chart is too small: it needs at least {min_width}x{min_height} pixels")]
+    #[error(
+        "a {width}x{height} chart is too small: it needs at least {min_width}x{min_height} pixels"
+    )]
     Canvas {
         /// Requested width, pixels (of one panel for scatter charts).
         width: u32,
@@ -128,9 +130,8 @@ fn font(size: u32, c: RGBColor) -> TextStyle<'static> {
 /// Registers the embedded font with plotters once per process.
 fn register_font() -> Result<(), CurveError> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let ok = *REGISTERED.get_or_init(|| {
-        plotters::style::register_font(FONT, FontStyle::Normal, FONT_TTF).is_ok()
-    });
+    let ok = *REGISTERED
+        .get_or_init(|| plotters::style::register_font(FONT, FontStyle::Normal, FONT_TTF).is_ok());
     ok.then_some(()).ok_or(CurveError::Font)
 }
 
@@ -170,7 +171,11 @@ fn paint<T>(
 fn number(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 || !v.is_finite() {
-        return if v.is_finite() { "0".into() } else { v.to_string() };
+        return if v.is_finite() {
+            "0".into()
+        } else {
+            v.to_string()
+        };
     }
     if !(1e-3..1e5).contains(&a) {
         let s = format!("{v:.2e}");
@@ -202,9 +207,7 @@ fn extent(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
 /// `(lo, hi)` widened to at least `min_span` (and a relative 1e-9, so the span survives
 /// rounding at any magnitude), centred on the data.
 fn widen((lo, hi): (f64, f64), min_span: f64) -> (f64, f64) {
-    let span = (hi - lo)
-        .max(min_span)
-        .max(1e-9 * lo.abs().max(hi.abs()));
+    let span = (hi - lo).max(min_span).max(1e-9 * lo.abs().max(hi.abs()));
     let mid = lo / 2.0 + hi / 2.0;
     match hi - lo >= span {
         true => (lo, hi),

@@ -46,8 +46,14 @@ fn flat_series_draw_in_their_colours_at_their_heights_on_a_log_axis() {
     for (i, v) in [(0, 3f64), (1, 0.3)] {
         let (row, n) = busiest_row(&img, &f, colour(i));
         let want = row_of(&f, v.log10());
-        assert!((row as f64 - want).abs() <= 2.0, "series {i}: row {row}, want {want}");
-        assert!(n as i32 >= (f.x_px.end - f.x_px.start) * 9 / 10, "series {i}: {n} px");
+        assert!(
+            (row as f64 - want).abs() <= 2.0,
+            "series {i}: row {row}, want {want}"
+        );
+        assert!(
+            n as i32 >= (f.x_px.end - f.x_px.start) * 9 / 10,
+            "series {i}: {n} px"
+        );
     }
     // A decade apart on the log axis: half the plot's height.
     let gap = busiest_row(&img, &f, colour(1)).0 - busiest_row(&img, &f, colour(0)).0;
@@ -69,7 +75,14 @@ fn the_legend_names_every_series_in_its_colour() {
     assert!(in_legend(colour(0)) >= 100, "{}", in_legend(colour(0)));
     assert!(in_legend(colour(1)) >= 100, "{}", in_legend(colour(1)));
     // The names are written: renaming a series changes the picture.
-    let renamed = render(&[series("a much longer name", &[]), series("lone", &[(5.0, 1e-3)])], 320, 200);
+    let renamed = render(
+        &[
+            series("a much longer name", &[]),
+            series("lone", &[(5.0, 1e-3)]),
+        ],
+        320,
+        200,
+    );
     assert_ne!(renamed.unwrap(), img);
     // The lone point is a dot, so its colour appears beyond its legend marker.
     let all = |c: Rgb<u8>| img.pixels().filter(|&&p| p == c).count();
@@ -98,9 +111,7 @@ fn extremes_give_a_png_or_a_typed_error_never_a_panic() {
     let wide_steps: Vec<(f64, f64)> = (0..=70)
         .map(|k| (10f64.powf(k as f64 / 10.0), 1.0 / (1.0 + k as f64)))
         .collect();
-    let wide_values: Vec<(f64, f64)> = (0..=24)
-        .map(|k| (k as f64, 10f64.powi(k - 12)))
-        .collect();
+    let wide_values: Vec<(f64, f64)> = (0..=24).map(|k| (k as f64, 10f64.powi(k - 12))).collect();
     let cases: Vec<Vec<Series>> = vec![
         vec![],
         vec![series("empty", &[])],
@@ -112,12 +123,17 @@ fn extremes_give_a_png_or_a_typed_error_never_a_panic() {
         vec![series("steps 1..1e7", &wide_steps)],
         vec![series("values 1e-12..1e12", &wide_values)],
         vec![series("limits", &[(-1e300, 1e-300), (1e300, 1e300)])],
-        (0..12).map(|i| series(&format!("s{i}"), &[(0.0, 1.0 + i as f64)])).collect(),
+        (0..12)
+            .map(|i| series(&format!("s{i}"), &[(0.0, 1.0 + i as f64)]))
+            .collect(),
     ];
     for s in &cases {
         let img = render(s, 400, 240).unwrap_or_else(|e| panic!("{s:?}: {e}"));
         assert_eq!(img.dimensions(), (400, 240));
-        assert!(img.pixels().any(|p| p.0.iter().all(|&v| v < 80)), "{s:?}: no axes");
+        assert!(
+            img.pixels().any(|p| p.0.iter().all(|&v| v < 80)),
+            "{s:?}: no axes"
+        );
     }
     for (w, h) in [(0, 0), (5, 5), (159, 480), (800, 119)] {
         let e = render(&cases[2], w, h).unwrap_err();

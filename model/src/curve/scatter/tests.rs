@@ -68,7 +68,10 @@ fn dots_sit_where_their_values_say_with_labels_and_the_front_line() {
     let ring = RING as u32 - 1;
     assert!(black(x0 + ring, y0), "ring right of the fast dot");
     let (_, x2, y2) = find(&img, colour(2), 0..400);
-    assert!(!black(x2 + ring, y2), "no ring around the point off the front");
+    assert!(
+        !black(x2 + ring, y2),
+        "no ring around the point off the front"
+    );
     let mid = ((x0 + x1) / 2, (y0 + y1) / 2);
     let near_black = (mid.1 - 3..mid.1 + 4).any(|y| black(mid.0, y));
     assert!(near_black, "front line near {mid:?}");
@@ -84,7 +87,10 @@ fn a_linear_x_axis_puts_dots_in_proportion() {
     let (img, frames) = render_frames(&[panel(false, points)], 400, 300).unwrap();
     let x = |i| find(&img, colour(i), 0..400).1;
     let (xa, xb, xc) = (x(0), x(1), x(2));
-    assert!(((xa + xb) as f64 / 2.0 - xc as f64).abs() <= 1.0, "{xa} {xc} {xb}");
+    assert!(
+        ((xa + xb) as f64 / 2.0 - xc as f64).abs() <= 1.0,
+        "{xa} {xc} {xb}"
+    );
     let inside = |x: u32| frames[0].x_px.contains(&(x as i32));
     assert!(inside(xa) && inside(xb));
 }
@@ -100,11 +106,26 @@ fn extremes_give_a_png_or_a_typed_error_never_a_panic() {
     let cases = [
         vec![],
         vec![point("one", 3.0, 3.0, true)],
-        vec![point("zero", 0.0, 0.0, true), point("neg", -1.0, 1.0, false)],
-        vec![point("same", 5.0, 2.0, true), point("same too", 5.0, 2.0, true)],
-        vec![point("tiny", 1e-12, 1e-12, true), point("huge", 1e12, 1e12, true)],
-        vec![point("limit", 1e-300, -1e300, false), point("far", 1e300, 1e300, true)],
-        vec![point("inf", f64::INFINITY, 1.0, true), point("nan y", 1.0, f64::NAN, true)],
+        vec![
+            point("zero", 0.0, 0.0, true),
+            point("neg", -1.0, 1.0, false),
+        ],
+        vec![
+            point("same", 5.0, 2.0, true),
+            point("same too", 5.0, 2.0, true),
+        ],
+        vec![
+            point("tiny", 1e-12, 1e-12, true),
+            point("huge", 1e12, 1e12, true),
+        ],
+        vec![
+            point("limit", 1e-300, -1e300, false),
+            point("far", 1e300, 1e300, true),
+        ],
+        vec![
+            point("inf", f64::INFINITY, 1.0, true),
+            point("nan y", 1.0, f64::NAN, true),
+        ],
         many,
     ];
     for log_x in [false, true] {

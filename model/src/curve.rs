@@ -22,7 +22,7 @@ use plotters::prelude::*;
 pub use csv::{parse_csv, plot_csv};
 
 /// One named line of a chart: (step, value) points. Points that cannot sit on the log10 y
-/// axis are skipped: a value that is not finite, not positive or outside [1e-300, 1e300], and
+/// axis are skipped: a value that is not finite, not positive or outside [1e-150, 1e150], and
 /// a step that is not finite or beyond ±1e300.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
@@ -109,8 +109,11 @@ const FONT_TTF: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 const FONT: &str = "sans-serif";
 /// Smallest loss-curve canvas, pixels: room for the tick labels, axis titles and legend.
 const MIN_SIZE: (u32, u32) = (160, 120);
-/// Largest magnitude a drawn step or value may have, so every axis span stays finite.
+/// Largest magnitude a drawn step may have, so every axis span stays finite.
 const LIMIT: f64 = 1e300;
+/// Largest decade (and, negated, smallest) a value on a log axis may lie in: plotters' log
+/// axis divides its ends, so their ratio must stay a finite f64 (below 1e308).
+const DECADES: f64 = 150.0;
 
 /// The colour of the `index`-th series (in the lines and the legend); cycles after ten.
 pub fn colour(index: usize) -> Rgb<u8> {
@@ -196,6 +199,16 @@ fn number(v: f64) -> String {
     }
 }
 
+/// A tick value on a log axis: written (see [`number`]) at 1, 2 and 5 times a decade, left
+/// blank at the other multiples so that the labels of a short range do not crowd.
+fn log_tick(v: f64) -> String {
+    let mantissa = v / 10f64.powf(v.abs().log10().floor());
+    match [1.0, 2.0, 5.0].iter().any(|m| (mantissa - m).abs() < 1e-6) {
+        true => number(v),
+        false => String::new(),
+    }
+}
+
 /// Smallest and largest of `values`, or `None` when there are none.
 fn extent(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     values.fold(None, |r, v| match r {
@@ -218,7 +231,8 @@ fn widen((lo, hi): (f64, f64), min_span: f64) -> (f64, f64) {
 /// The points of `series` that can be drawn (see [`Series`]).
 fn visible(series: &Series) -> impl Iterator<Item = (f64, f64)> + '_ {
     series.points.iter().copied().filter(|&(s, v)| {
-        s.is_finite() && s.abs() <= LIMIT && v.is_finite() && (1.0 / LIMIT..=LIMIT).contains(&v)
+        let decade = v.log10();
+        s.is_finite() && s.abs() <= LIMIT && (-DECADES..=DECADES).contains(&decade)
     })
 }
 
@@ -242,7 +256,15 @@ fn fit(series: &[Series]) -> ((f64, f64), (f64, f64)) {
         Some((lo, hi)) => (lo.floor(), hi.ceil().max(lo.floor() + 1.0)),
         None => (0.0, 1.0),
     };
-    (x, (10f64.powf(y.0), 10f64.powf(y.1)))
+    (x, y)
+}
+
+/// A log axis from 10^`lo` to 10^`hi`, its ends nudged outwards by a millionth so that
+/// rounding in plotters' tick search cannot drop the tick of a decade at an end.
+fn log_axis((lo, hi): (f64, f64)) -> LogCoord<f64> {
+    (10f64.powf(lo) * (1.0 - 1e-6)..10f64.powf(hi) * (1.0 + 1e-6))
+        .log_scale()
+        .into()
 }
 
 /// Draws the loss curve of `series` on `area` (see the module documentation).
@@ -257,13 +279,13 @@ fn draw_curves(area: &Area, series: &[Series]) -> Result<Frame, CurveError> {
         .margin(12)
         .x_label_area_size(44)
         .y_label_area_size(70)
-        .build_cartesian_2d(x.0..x.1, (y.0..y.1).log_scale())?;
+        .build_cartesian_2d(x.0..x.1, log_axis(y))?;
     chart
         .configure_mesh()
         .x_desc("step")
         .y_desc(y_title)
         .x_label_formatter(&|v| number(*v))
-        .y_label_formatter(&|v| number(*v))
+        .y_label_formatter(&|v| log_tick(*v))
         .label_style(font(13, BLACK))
         .axis_desc_style(font(15, BLACK))
         .bold_line_style(RGBColor(215, 215, 215))
@@ -292,7 +314,6 @@ fn draw_curves(area: &Area, series: &[Series]) -> Result<Frame, CurveError> {
             .draw()?;
     }
     let (x_px, y_px) = chart.plotting_area().get_pixel_range();
-    let y = (y.0.log10(), y.1.log10());
     Ok(Frame { x_px, y_px, x, y })
 }
 

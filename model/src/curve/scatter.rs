@@ -11,7 +11,10 @@ use image::{Rgb, RgbImage};
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
-use super::{colour, extent, font, number, paint, rgb, save_png, widen, Area, CurveError};
+use super::{
+    colour, extent, font, log_axis, log_tick, number, paint, rgb, save_png, widen, Area,
+    CurveError, DECADES,
+};
 
 /// One labelled point.
 #[derive(Clone, Debug, PartialEq)]
@@ -53,7 +56,9 @@ const LIMIT: f64 = 1e300;
 fn fx(log_x: bool, x: f64) -> Option<f64> {
     let finite = x.is_finite() && x.abs() <= LIMIT;
     match log_x {
-        true => (finite && x >= 1.0 / LIMIT).then(|| x.log10()),
+        true => (finite && x > 0.0)
+            .then(|| x.log10())
+            .filter(|d| (-DECADES..=DECADES).contains(d)),
         false => finite.then_some(x),
     }
 }
@@ -65,7 +70,7 @@ fn position(log_x: bool, p: &ScatterPoint) -> Option<(f64, f64)> {
 }
 
 /// A panel's data ranges: every drawable point with 8% to spare on each side; x in log10 on
-/// a log axis (at least 0.3 decades, within 1e-307..1e307), y at least 1e-3 plus 5% of its
+/// a log axis (at least 0.3 decades, points within 1e-150..1e150), y at least 1e-3 plus 5% of its
 /// size.
 fn fit(panel: &Panel) -> ((f64, f64), (f64, f64)) {
     let at = || panel.points.iter().filter_map(|p| position(panel.log_x, p));
@@ -76,8 +81,8 @@ fn fit(panel: &Panel) -> ((f64, f64), (f64, f64)) {
     let min_x = if panel.log_x { 0.3 } else { 1.0 };
     let mut x = extent(at().map(|p| p.0)).map_or((0.0, 1.0), |r| pad(widen(r, min_x)));
     if panel.log_x {
-        // Decades whose powers of ten stay normal, non-zero f64 numbers.
-        x = (x.0.max(-307.0), x.1.min(307.0));
+        // Plotters' log axis divides its ends: keep their ratio a finite f64.
+        x = (x.0.max(-DECADES - 2.0), x.1.min(DECADES + 2.0));
     }
     let y = extent(at().map(|p| p.1)).map_or((0.0, 1.0), |r| {
         pad(widen(r, 1e-3 + 0.05 * r.0.abs().max(r.1.abs())))
@@ -115,6 +120,7 @@ where
     XC: AsRangedCoord<Value = f64>,
     XC::CoordDescType: ValueFormatter<f64>,
 {
+    let log_x = panel.log_x;
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, font(16, BLACK))
         .margin(10)
@@ -125,7 +131,10 @@ where
         .configure_mesh()
         .x_desc(panel.x_title.as_str())
         .y_desc(panel.y_title.as_str())
-        .x_label_formatter(&|v| number(*v))
+        .x_label_formatter(&|v| match log_x {
+            true => log_tick(*v),
+            false => number(*v),
+        })
         .y_label_formatter(&|v| number(*v))
         .label_style(font(12, BLACK))
         .axis_desc_style(font(14, BLACK))
@@ -241,10 +250,7 @@ fn render_frames(
         for (panel, area) in panels.iter().zip(&areas) {
             let (x, y) = fit(panel);
             let frame = match panel.log_x {
-                true => {
-                    let axis = (10f64.powf(x.0)..10f64.powf(x.1)).log_scale();
-                    draw_panel(area, panel, axis, y, |v| 10f64.powf(v))?
-                }
+                true => draw_panel(area, panel, log_axis(x), y, |v| 10f64.powf(v))?,
                 false => draw_panel(area, panel, x.0..x.1, y, |v| v)?,
             };
             frames.push(frame);

@@ -14,6 +14,7 @@ pub mod bins;
 #[cfg(feature = "net")]
 pub mod compute;
 pub mod consistency;
+#[cfg(feature = "charts")]
 pub mod curve;
 #[cfg(feature = "net")]
 pub mod enhance;

@@ -184,8 +184,9 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
         let path = args.out.join(file);
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
     }
-    let panel = |y_title: &str, y: &dyn Fn(&Row) -> (f64, bool)| Panel {
-        x_title: "GAUSSIANS IN THE FUSED MAP (LOG)".into(),
+    let panel = |title: &str, y_title: &str, y: &dyn Fn(&Row) -> (f64, bool)| Panel {
+        title: title.into(),
+        x_title: "Gaussians in the fused map (log scale)".into(),
         y_title: y_title.into(),
         log_x: true,
         points: rows
@@ -202,12 +203,16 @@ pub fn run(args: &EvalMapArgs) -> Result<()> {
             .collect(),
     };
     let panels = [
-        panel("FUSED MAP PSNR, DB", &|r| {
-            (r.scores.mean.psnr, r.front_psnr)
-        }),
-        panel("FUSED MAP ABSREL", &|r| {
-            (r.scores.mean.abs_rel.unwrap_or(f64::NAN), r.front_abs_rel)
-        }),
+        panel(
+            "PSNR against map size (ringed: Pareto front)",
+            "fused-map PSNR, dB",
+            &|r| (r.scores.mean.psnr, r.front_psnr),
+        ),
+        panel(
+            "AbsRel against map size (ringed: Pareto front)",
+            "fused-map AbsRel",
+            &|r| (r.scores.mean.abs_rel.unwrap_or(f64::NAN), r.front_abs_rel),
+        ),
     ];
     scatter::write_png(&args.out.join("eval_map.png"), &panels, 640, 440)?;
     println!("{md}");

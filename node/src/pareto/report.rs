@@ -196,8 +196,9 @@ impl ParetoReport {
 
     /// The chart's two panels.
     pub fn panels(&self) -> Vec<Panel> {
-        let panel = |y_title: &str, y: &dyn Fn(&PointResult) -> (f64, bool)| Panel {
-            x_title: "LATENCY PER BIN, MS (LOG)".into(),
+        let panel = |title: &str, y_title: &str, y: &dyn Fn(&PointResult) -> (f64, bool)| Panel {
+            title: title.into(),
+            x_title: "latency per bin, ms (log scale)".into(),
             y_title: y_title.into(),
             log_x: true,
             points: self
@@ -215,12 +216,16 @@ impl ParetoReport {
                 .collect(),
         };
         vec![
-            panel("BIN-AVERAGE PSNR, DB (HIGHER IS BETTER)", &|p| {
-                (p.psnr, p.front_psnr)
-            }),
-            panel("BIN-AVERAGE ABSREL (LOWER IS BETTER)", &|p| {
-                (p.abs_rel.unwrap_or(f64::NAN), p.front_abs_rel)
-            }),
+            panel(
+                "PSNR against latency (ringed: Pareto front)",
+                "bin-average PSNR, dB (higher is better)",
+                &|p| (p.psnr, p.front_psnr),
+            ),
+            panel(
+                "AbsRel against latency (ringed: Pareto front)",
+                "bin-average AbsRel (lower is better)",
+                &|p| (p.abs_rel.unwrap_or(f64::NAN), p.front_abs_rel),
+            ),
         ]
     }
 }

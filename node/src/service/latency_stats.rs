@@ -199,23 +199,41 @@ pub struct StageSummary {
     pub mean_ms: f64,
 }
 
+/// Nanosecond values sorted ascending, read out in milliseconds.
+struct Sorted(Vec<i64>);
+
+impl Sorted {
+    /// `values` sorted, `None` when empty.
+    fn of(values: &[i64]) -> Option<Self> {
+        let mut sorted = values.to_vec();
+        sorted.sort_unstable();
+        (!sorted.is_empty()).then_some(Self(sorted))
+    }
+
+    /// The p-th percentile by nearest rank (`ceil(p / 100 * n)`, 1-based), milliseconds.
+    fn percentile_ms(&self, p: usize) -> f64 {
+        let n = self.0.len();
+        self.0[(p * n).div_ceil(100).max(1) - 1] as f64 / 1e6
+    }
+
+    /// The arithmetic mean, milliseconds (summed in i128, so no sum overflows).
+    fn mean_ms(&self) -> f64 {
+        let sum: i128 = self.0.iter().map(|&d| i128::from(d)).sum();
+        sum as f64 / self.0.len() as f64 / 1e6
+    }
+}
+
 impl StageSummary {
     /// The summary of `durations_ns`, `None` when it is empty.
     fn of(durations_ns: &[i64]) -> Option<Self> {
-        let mut sorted = durations_ns.to_vec();
-        sorted.sort_unstable();
-        let n = sorted.len();
-        let max = *sorted.last()?;
-        let ms = |ns: i64| ns as f64 / 1e6;
-        let percentile = |p: usize| sorted[(p * n).div_ceil(100).max(1) - 1];
-        let sum: i128 = sorted.iter().map(|&d| i128::from(d)).sum();
+        let s = Sorted::of(durations_ns)?;
         Some(Self {
-            count: n,
-            p50_ms: ms(percentile(50)),
-            p90_ms: ms(percentile(90)),
-            p99_ms: ms(percentile(99)),
-            max_ms: ms(max),
-            mean_ms: sum as f64 / n as f64 / 1e6,
+            count: s.0.len(),
+            p50_ms: s.percentile_ms(50),
+            p90_ms: s.percentile_ms(90),
+            p99_ms: s.percentile_ms(99),
+            max_ms: s.percentile_ms(100),
+            mean_ms: s.mean_ms(),
         })
     }
 }
@@ -279,20 +297,14 @@ pub struct MarginSummary {
 impl MarginSummary {
     /// The summary of `margins_ns`, `None` when it is empty.
     fn of(margins_ns: &[i64]) -> Option<Self> {
-        let mut sorted = margins_ns.to_vec();
-        sorted.sort_unstable();
-        let n = sorted.len();
-        let min = *sorted.first()?;
-        let ms = |ns: i64| ns as f64 / 1e6;
-        let percentile = |p: usize| sorted[(p * n).div_ceil(100).max(1) - 1];
-        let sum: i128 = sorted.iter().map(|&d| i128::from(d)).sum();
+        let s = Sorted::of(margins_ns)?;
         Some(Self {
-            count: n,
-            p50_ms: ms(percentile(50)),
-            p10_ms: ms(percentile(10)),
-            p1_ms: ms(percentile(1)),
-            min_ms: ms(min),
-            mean_ms: sum as f64 / n as f64 / 1e6,
+            count: s.0.len(),
+            p50_ms: s.percentile_ms(50),
+            p10_ms: s.percentile_ms(10),
+            p1_ms: s.percentile_ms(1),
+            min_ms: s.0[0] as f64 / 1e6,
+            mean_ms: s.mean_ms(),
         })
     }
 }

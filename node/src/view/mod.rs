@@ -4,8 +4,8 @@
 //! latest bin's render beside its input image, the bird's-eye view, and per-stage latency
 //! charts with the counters. The page polls `/api/state`; the server is fed by a zenoh
 //! session that listens to the node's topics like `monitor` does (`watch`), so it works
-//! beside any node: `stereosplat view`, or `--view` on `run` and `demo`. [`routes`] says
-//! what each path answers; [`server`] serves it with axum on hyper, bounded so that no
+//! beside any node: `stereosplat view`, or `--view` on `run` and `demo`. `routes` says
+//! what each path answers; `server` serves it with axum on hyper, bounded so that no
 //! client can hold the node.
 
 mod routes;

@@ -89,14 +89,12 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     // Mesa's shader cache inside the out folder of the commands that have one, else off;
     // `launch` leaves it to the processes it starts.
-    let out = match &cli.command {
-        Command::Run(args) => Some(Some(args.out_dir())),
-        Command::Demo(args) => Some(Some(args.out_dir())),
-        Command::Launch(_) => None,
-        _ => Some(None),
-    };
-    if let Some(out) = out {
-        node::cli::shader_cache::place_shader_cache(out);
+    let place = node::cli::shader_cache::place_shader_cache;
+    match &cli.command {
+        Command::Launch(_) => {}
+        Command::Run(args) => _ = place(Some(args.out_dir())),
+        Command::Demo(args) => _ = place(Some(args.out_dir())),
+        _ => _ = place(None),
     }
     match cli.command {
         Command::Demo(args) => demo::run(&args),

@@ -12,7 +12,7 @@
 //! of this process first ([`scratch_dir`]).
 
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::{DAffine3, DQuat, DVec3};
 use model::kitti360::poses::{read_pose_file, PoseFormat};
@@ -180,17 +180,20 @@ pub fn ply(data: &[u8]) {
     let _ = renderer::ply::read_ply(data);
 }
 
-/// This process's scratch folder (under the system temporary folder, one per process and
-/// thread, so parallel runs do not overwrite each other's files).
+/// This thread's scratch folder (under the system temporary folder, one per process and
+/// thread, so parallel runs do not overwrite each other's files), made on first use.
 pub fn scratch_dir() -> PathBuf {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    let base = DIR.get_or_init(|| {
-        std::env::temp_dir().join(format!("stereosplat-input-{}", std::process::id()))
-    });
-    let thread = format!("{:?}", std::thread::current().id());
-    let dir = base.join(thread.trim_start_matches("ThreadId(").trim_end_matches(')'));
-    std::fs::create_dir_all(&dir).expect("the temporary folder is writable");
-    dir
+    static THREADS: AtomicUsize = AtomicUsize::new(0);
+    thread_local! {
+        static DIR: PathBuf = {
+            let n = THREADS.fetch_add(1, Ordering::Relaxed);
+            let dir = std::env::temp_dir()
+                .join(format!("stereosplat-input-{}-{n}", std::process::id()));
+            std::fs::create_dir_all(&dir).expect("the temporary folder is writable");
+            dir
+        };
+    }
+    DIR.with(PathBuf::clone)
 }
 
 /// Writes `bytes` to `name` in [`scratch_dir`] and returns its path, for decoders that take

@@ -1,7 +1,8 @@
 //! Reconstructors by name, so every command (`eval`, the node) picks one the same way and a
 //! new method is added in one place.
 //!
-//! - `sgm`: the classical baseline (semi-global matching).
+//! - `sgm`: the classical baseline (semi-global matching), its defaults changed by
+//!   `KEY=VALUE` settings of [`SgmConfig`] (e.g. `median=false`, `paths=five`).
 //! - `stereosplat`: the learned network, preset `tiny` unless another is given, with the
 //!   preset's shipped weights (`model/weights/stereosplat_<preset>.safetensors`) unless a
 //!   weight file is given; with `--set progressive=true`, StereoSplat+'s progressive pass
@@ -13,7 +14,8 @@ use std::path::Path;
 use crate::baseline::{SgmConfig, SgmReconstructor};
 use crate::enhance;
 use crate::net::{
-    default_weights, Config, LearnedReconstructor, LoadError, SettingError, UnknownPreset,
+    apply_settings, default_weights, Config, LearnedReconstructor, LoadError, SettingError,
+    UnknownPreset,
 };
 use crate::progressive::ProgressiveReconstructor;
 use crate::reconstruct::Reconstructor;
@@ -67,7 +69,7 @@ pub fn by_name(name: &str) -> Result<Box<dyn Reconstructor + Send>, MethodError>
 
 /// The reconstructor called `name`; for `stereosplat`, of `preset` (default `tiny`) changed by
 /// `KEY=VALUE` `settings` ([`Config::with_settings`]), with the weights at `weights` (default:
-/// the preset's shipped file). Settings are an error for a method without a preset.
+/// the preset's shipped file); for `sgm`, its default [`SgmConfig`] changed by `settings`.
 pub fn build(
     name: &str,
     preset: Option<&str>,
@@ -75,12 +77,10 @@ pub fn build(
     settings: &[String],
 ) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
     match name {
-        "sgm" => match settings.first() {
-            Some(s) => {
-                Err(SettingError::UnknownKey(s.split('=').next().unwrap_or(s).into()).into())
-            }
-            None => Ok(Box::new(SgmReconstructor::new(SgmConfig::default()))),
-        },
+        "sgm" => Ok(Box::new(SgmReconstructor::new(apply_settings(
+            SgmConfig::default(),
+            settings,
+        )?))),
         "stereosplat" => {
             let cfg = Config::preset(preset.unwrap_or(DEFAULT_PRESET))?.with_settings(settings)?;
             let path = weights.map_or_else(|| default_weights(&cfg.name), Path::to_path_buf);

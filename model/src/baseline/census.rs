@@ -81,24 +81,39 @@ pub fn census(grey: &Grey) -> Vec<u64> {
     out
 }
 
-/// The matching cost volume, `[y][x][d]` with `levels` disparities: the Hamming distance
-/// between the left census at x and the right census at x - d. Where x - d falls off the
-/// image the cost is [`MAX_CENSUS_COST`], so those disparities never win on their own.
-pub fn cost_volume(left: &[u64], right: &[u64], width: usize, levels: usize) -> Vec<u8> {
-    let mut cost = vec![MAX_CENSUS_COST; left.len() * levels];
-    cost.par_chunks_mut((width * levels).max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            let l_row = &left[y * width..(y + 1) * width];
-            let r_row = &right[y * width..(y + 1) * width];
-            for (x, costs) in row.chunks_exact_mut(levels).enumerate() {
-                let reach = levels.min(x + 1);
-                for (d, c) in costs[..reach].iter_mut().enumerate() {
-                    *c = (l_row[x] ^ r_row[x - d]).count_ones() as u8;
-                }
-            }
-        });
-    cost
+/// The matching costs of one row, `[x][d]` with `levels` disparities, into `out`: the
+/// Hamming distance between the left census at x and the right census at x - d. Where x - d
+/// falls off the image the cost is [`MAX_CENSUS_COST`], so those disparities never win on
+/// their own. Rows are computed when the aggregation reaches them, so no `W x H x D` cost
+/// volume is ever held. On x86-64 CPUs with POPCNT (nearly all) the count is one
+/// instruction instead of the baseline target's bit arithmetic, which took a third of the
+/// matcher's instructions.
+pub fn cost_row(left: &[u64], right: &[u64], levels: usize, out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("popcnt") {
+        // SAFETY: the CPU was just found to support POPCNT, the only feature enabled.
+        return unsafe { cost_row_popcnt(left, right, levels, out) };
+    }
+    cost_row_portable(left, right, levels, out);
+}
+
+/// [`cost_row`] compiled with POPCNT enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "popcnt")]
+fn cost_row_popcnt(left: &[u64], right: &[u64], levels: usize, out: &mut [u8]) {
+    cost_row_portable(left, right, levels, out);
+}
+
+/// [`cost_row`] for any CPU; inlined into each caller so it takes on its target features.
+#[inline(always)]
+fn cost_row_portable(left: &[u64], right: &[u64], levels: usize, out: &mut [u8]) {
+    for (x, costs) in out.chunks_exact_mut(levels).enumerate() {
+        let reach = levels.min(x + 1);
+        for (d, c) in costs[..reach].iter_mut().enumerate() {
+            *c = (left[x] ^ right[x - d]).count_ones() as u8;
+        }
+        costs[reach..].fill(MAX_CENSUS_COST);
+    }
 }
 
 #[cfg(test)]
@@ -119,9 +134,11 @@ mod tests {
             height: h,
             data: (0..w * h).map(|i| pattern(i % w + 3, i / w)).collect(),
         };
-        let cost = cost_volume(&census(&left), &census(&right), w, 8);
+        let (l, r) = (census(&left), census(&right));
+        let mut cost = vec![0u8; w * 8];
+        cost_row(&l[4 * w..5 * w], &r[4 * w..5 * w], 8, &mut cost);
         let x = 16;
-        let costs = &cost[(4 * w + x) * 8..(4 * w + x + 1) * 8];
+        let costs = &cost[x * 8..(x + 1) * 8];
         assert_eq!(costs[3], 0);
         assert!(costs.iter().enumerate().all(|(d, &c)| d == 3 || c > 0));
         assert_eq!(MAX_CENSUS_COST, 62);

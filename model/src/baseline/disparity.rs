@@ -1,4 +1,4 @@
-//! From the aggregated cost volume to a disparity map: winner-take-all, a parabola fit for
+//! From the aggregated costs to a disparity map: winner-take-all, a parabola fit for
 //! sub-pixel disparity, the uniqueness test, the left-right consistency check, a
 //! confidence per pixel, and a 3x3 median filter. Rejected pixels hold NaN.
 
@@ -15,66 +15,54 @@ pub struct Checks {
     pub margin_for_full_confidence: f32,
 }
 
-/// Per-pixel disparity and confidence of the left image, NaN and 0 where rejected.
-pub struct Selected {
-    /// Disparity in pixels, NaN where invalid.
-    pub disparity: Vec<f32>,
-    /// Confidence in (0, 1] where valid, 0 where invalid.
-    pub confidence: Vec<f32>,
-}
-
-/// Winner-take-all on the `[y][x][d]` aggregated volume with the uniqueness and left-right
-/// checks. The right image's disparity is read from the same volume, d_R(x) = argmin_d
+/// Winner-take-all on one row's aggregated costs (`[x][d]`, `width x levels`) with the
+/// uniqueness and left-right checks, into `disparity` (NaN where rejected) and `confidence`
+/// (0 there). The right image's disparity is read from the same costs, d_R(x) = argmin_d
 /// S(x + d, d), as Hirschmüller proposes, which saves a second aggregation.
-pub fn select(sum: &[u16], width: usize, levels: usize, checks: Checks) -> Selected {
-    let n = sum.len() / levels.max(1);
-    let mut disparity = vec![f32::NAN; n];
-    let mut confidence = vec![0.0f32; n];
-    disparity
-        .par_chunks_mut(width.max(1))
-        .zip(confidence.par_chunks_mut(width.max(1)))
-        .enumerate()
-        .for_each(|(y, (d_row, c_row))| {
-            let row = &sum[y * width * levels..(y + 1) * width * levels];
-            let right = right_disparities(row, width, levels);
-            for x in 0..width {
-                let costs = &row[x * levels..(x + 1) * levels];
-                if let Some((d, conf)) = pick(costs, x, &right, checks) {
-                    d_row[x] = d;
-                    c_row[x] = conf;
-                }
-            }
-        });
-    Selected {
-        disparity,
-        confidence,
+pub fn select_row(
+    row: &[u16],
+    levels: usize,
+    checks: Checks,
+    disparity: &mut [f32],
+    confidence: &mut [f32],
+) {
+    let width = disparity.len();
+    let right = right_disparities(row, width, levels);
+    for x in 0..width {
+        let costs = &row[x * levels..(x + 1) * levels];
+        (disparity[x], confidence[x]) = pick(costs, x, &right, checks).unwrap_or((f32::NAN, 0.0));
     }
 }
 
-/// The winning disparity of each right-image pixel of one row (integer).
+/// The winning disparity of each right-image pixel of one row (integer, the smallest on a
+/// tie), in one pass over the row in memory order: left pixel x at disparity d votes for
+/// right pixel x - d.
 fn right_disparities(row: &[u16], width: usize, levels: usize) -> Vec<u16> {
-    (0..width)
-        .map(|xr| {
-            let reach = levels.min(width - xr);
-            (0..reach)
-                .min_by_key(|&d| row[(xr + d) * levels + d])
-                .unwrap_or(0) as u16
-        })
-        .collect()
+    let mut best = vec![u16::MAX; width];
+    let mut arg = vec![0u16; width];
+    for (x, costs) in row.chunks_exact(levels).enumerate().take(width) {
+        let reach = levels.min(x + 1);
+        for (d, &c) in costs[..reach].iter().enumerate() {
+            let xr = x - d;
+            if c < best[xr] {
+                best[xr] = c;
+                arg[xr] = d as u16;
+            }
+        }
+    }
+    arg
 }
 
 /// The disparity and confidence at left pixel `x`, or `None` if a check rejects it.
 fn pick(costs: &[u16], x: usize, right: &[u16], checks: Checks) -> Option<(f32, f32)> {
     // Only disparities whose match lies inside the right image compete.
     let reach = costs.len().min(x + 1);
-    let (best_d, &best) = costs[..reach].iter().enumerate().min_by_key(|(_, c)| **c)?;
-    let second = costs[..reach]
-        .iter()
-        .enumerate()
-        .filter(|(d, _)| d.abs_diff(best_d) > 1)
-        .map(|(_, &c)| c)
-        .min()
-        .unwrap_or(u16::MAX);
+    // Plain minima over slices, which the compiler vectorises, then the first position.
+    let best = *costs[..reach].iter().min()?;
+    let best_d = costs[..reach].iter().position(|&c| c == best)?;
+    let lowest = |part: &[u16]| part.iter().copied().min().unwrap_or(u16::MAX);
+    let second = lowest(&costs[..best_d.saturating_sub(1)])
+        .min(lowest(&costs[(best_d + 2).min(reach)..reach]));
     let margin = (second as f32 - best as f32) / (second as f32).max(1.0);
     if margin <= checks.uniqueness_ratio {
         return None;

@@ -272,34 +272,46 @@ pub enum SettingError {
     },
 }
 
-impl Config {
-    /// This preset with fields changed by `KEY=VALUE` settings (values in JSON: `0.1`,
-    /// `true`, `null`, `[4, 16]`; anything else is a string), so every speed and accuracy
-    /// trade can be tried from the command line without a new preset.
-    pub fn with_settings<S: AsRef<str>>(self, settings: &[S]) -> Result<Self, SettingError> {
-        settings.iter().try_fold(self, |cfg, setting| {
-            let setting = setting.as_ref();
-            let (key, value) = setting
-                .split_once('=')
-                .ok_or_else(|| SettingError::Malformed(setting.to_string()))?;
-            let (key, value) = (key.trim(), value.trim());
-            let mut fields = match serde_json::to_value(&cfg) {
-                Ok(map @ serde_json::Value::Object(_)) => map,
-                _ => unreachable!("Config serialises to a JSON object"),
-            };
-            let slot = key
-                .split('.')
-                .try_fold(&mut fields, |node, part| node.get_mut(part))
-                .filter(|_| !key.is_empty())
-                .ok_or_else(|| SettingError::UnknownKey(key.to_string()))?;
-            *slot = serde_json::from_str(value)
-                .unwrap_or_else(|_| serde_json::Value::String(value.to_string()));
-            serde_json::from_value(fields).map_err(|e| SettingError::Invalid {
-                key: key.to_string(),
-                value: value.to_string(),
-                reason: e.to_string(),
-            })
+/// `value` with fields changed by `KEY=VALUE` settings (values in JSON: `0.1`, `true`,
+/// `null`, `[4, 16]`; anything else is a string; `a.b` names a nested field). Any settings
+/// type that serialises to a JSON object takes them: the network's presets and the SGM
+/// baseline's [`crate::baseline::SgmConfig`].
+pub fn apply_settings<T, S>(value: T, settings: &[S]) -> Result<T, SettingError>
+where
+    T: Serialize + serde::de::DeserializeOwned,
+    S: AsRef<str>,
+{
+    settings.iter().try_fold(value, |cfg, setting| {
+        let setting = setting.as_ref();
+        let (key, value) = setting
+            .split_once('=')
+            .ok_or_else(|| SettingError::Malformed(setting.to_string()))?;
+        let (key, value) = (key.trim(), value.trim());
+        let mut fields = match serde_json::to_value(&cfg) {
+            Ok(map @ serde_json::Value::Object(_)) => map,
+            _ => unreachable!("settings types serialise to JSON objects"),
+        };
+        let slot = key
+            .split('.')
+            .try_fold(&mut fields, |node, part| node.get_mut(part))
+            .filter(|_| !key.is_empty())
+            .ok_or_else(|| SettingError::UnknownKey(key.to_string()))?;
+        *slot = serde_json::from_str(value)
+            .unwrap_or_else(|_| serde_json::Value::String(value.to_string()));
+        serde_json::from_value(fields).map_err(|e| SettingError::Invalid {
+            key: key.to_string(),
+            value: value.to_string(),
+            reason: e.to_string(),
         })
+    })
+}
+
+impl Config {
+    /// This preset with fields changed by `KEY=VALUE` settings ([`apply_settings`]), so
+    /// every speed and accuracy trade can be tried from the command line without a new
+    /// preset.
+    pub fn with_settings<S: AsRef<str>>(self, settings: &[S]) -> Result<Self, SettingError> {
+        apply_settings(self, settings)
     }
 
     /// Real time on a 2-core CPU: small channels, 32 candidates, Gaussians at 1/2 resolution.

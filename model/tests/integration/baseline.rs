@@ -3,7 +3,7 @@
 //! depth or the plane's depth as ground truth.
 
 use glam::{Mat3, Quat, Vec3};
-use model::baseline::{disparity, SgmConfig, SgmReconstructor};
+use model::baseline::{disparity, Paths, SgmConfig, SgmReconstructor};
 use model::frame::RgbImage;
 use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
 use rand::{Rng, SeedableRng};
@@ -33,7 +33,7 @@ fn right_camera() -> Camera {
 }
 
 /// Renders `set` from `camera`: the image and the rendered depth (0 where empty).
-fn render(set: &GaussianSet, camera: &Camera) -> (RgbImage, Vec<f32>) {
+pub(crate) fn render(set: &GaussianSet, camera: &Camera) -> (RgbImage, Vec<f32>) {
     let view = set.view().expect("consistent set");
     let out =
         renderer::cpu::render(&view, &camera.params::<f32>(), &RenderSettings::default()).output;
@@ -46,10 +46,11 @@ fn render(set: &GaussianSet, camera: &Camera) -> (RgbImage, Vec<f32>) {
 }
 
 /// A fronto-parallel plane at depth `z` spanning `x` and `y` (metres), tiled with opaque
-/// flat discs one left-image pixel apart, each a random grey-ish colour (a noise texture).
-fn plane(set: &mut GaussianSet, z: f32, x: [f32; 2], y: [f32; 2], seed: u64) {
+/// flat discs one pixel apart for a camera of focal `fx`, each a random grey-ish colour (a
+/// noise texture).
+pub(crate) fn plane(set: &mut GaussianSet, fx: f32, z: f32, x: [f32; 2], y: [f32; 2], seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let step = z / intrinsics().fx;
+    let step = z / fx;
     let (nx, ny) = (
         ((x[1] - x[0]) / step) as usize,
         ((y[1] - y[0]) / step) as usize,
@@ -76,6 +77,7 @@ fn wall(set: &mut GaussianSet, z: f32, seed: u64) {
     let half_h = (k.cy + 4.0) / k.fy * z;
     plane(
         set,
+        k.fx,
         z,
         [-half_w, half_w + BASELINE],
         [-half_h, half_h],
@@ -98,7 +100,8 @@ fn median(mut v: Vec<f32>) -> f32 {
     v[v.len() / 2]
 }
 
-fn all_finite(set: &GaussianSet) -> bool {
+/// Whether every field of every Gaussian is finite and confidences lie in (0, 1].
+pub(crate) fn all_finite(set: &GaussianSet) -> bool {
     set.check_lengths().is_ok()
         && set.means.iter().all(|m| m.is_finite())
         && set.log_scales.iter().all(|s| s.is_finite())
@@ -114,13 +117,17 @@ fn all_finite(set: &GaussianSet) -> bool {
 fn a_textured_plane_gives_its_disparity_within_a_quarter_pixel() {
     // Disparities 15.98 px (near an integer) and 17.5 px (half way, where sub-pixel matters).
     let fxb = intrinsics().fx * BASELINE;
-    for (z, diagonals) in [(8.0, true), (8.0, false), (fxb / 17.5, true)] {
+    for (z, paths) in [
+        (8.0, Paths::Eight),
+        (8.0, Paths::Five),
+        (fxb / 17.5, Paths::Eight),
+    ] {
         let mut set = GaussianSet::default();
         wall(&mut set, z, 1);
         let (left, _) = render(&set, &left_camera());
         let (right, _) = render(&set, &right_camera());
         let config = SgmConfig {
-            diagonals,
+            paths,
             ..SgmConfig::default()
         };
         let map = disparity(&left, &right, &config).unwrap();
@@ -200,7 +207,14 @@ fn pixels_occluded_in_the_right_view_are_rejected() {
     let (z_wall, z_box, half) = (12.0, 4.0, 0.4);
     let mut set = GaussianSet::default();
     wall(&mut set, z_wall, 2);
-    plane(&mut set, z_box, [-half, half], [-2.0, 2.0], 3);
+    plane(
+        &mut set,
+        intrinsics().fx,
+        z_box,
+        [-half, half],
+        [-2.0, 2.0],
+        3,
+    );
     let (left, _) = render(&set, &left_camera());
     let (right, _) = render(&set, &right_camera());
     let map = disparity(&left, &right, &SgmConfig::default()).unwrap();
@@ -431,7 +445,11 @@ fn unrectified_or_mismatched_input_is_invalid() {
             ..SgmConfig::default()
         },
         SgmConfig {
-            max_depth: 1.0,
+            max_depth: 0.05,
+            ..SgmConfig::default()
+        },
+        SgmConfig {
+            min_search_fraction: 0.0,
             ..SgmConfig::default()
         },
     ] {

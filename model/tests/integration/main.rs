@@ -19,6 +19,7 @@ mod var_support;
 mod volume_support;
 
 mod baseline;
+mod baseline_range;
 mod enhance;
 mod enhance_train;
 mod eval;

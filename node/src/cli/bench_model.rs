@@ -11,6 +11,9 @@
 //! report also times the triplane encoder alone (`volume_encoder_*`: untrained, on features
 //! of the cost-volume branch's shape at stride 4, with the pair's cameras). `--set
 //! device=cuda` runs the network on the GPU (a build with the `cuda` feature).
+//! `--preset sgm` times the classical baseline (`model::baseline`, default settings) on the
+//! same generated pair instead: milliseconds, disparity levels searched, Gaussians and peak
+//! memory.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -18,6 +21,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use candle_core::Tensor;
 use clap::Args;
+use model::baseline::{rectified_baseline, SgmReconstructor};
 use model::frame::Side;
 use model::kitti360::Sequence;
 use model::net::volume::TriplaneEncoder;
@@ -35,7 +39,7 @@ use crate::service::loopback::peak_rss_bytes;
 /// Flags of `bench model`.
 #[derive(Args, Clone, Debug)]
 pub struct BenchModelArgs {
-    /// Preset to measure, or `all`.
+    /// Preset to measure, `all`, or `sgm` (the classical baseline).
     #[arg(long, default_value = "tiny")]
     preset: String,
     /// Change a preset setting, `KEY=VALUE` (repeatable), e.g. `--set volume_branch=true`.
@@ -102,6 +106,51 @@ fn time_runs(warmup: usize, runs: usize, mut f: impl FnMut() -> Result<()>) -> R
     ))
 }
 
+/// What `bench model --preset sgm` prints.
+#[derive(Serialize)]
+struct SgmReport {
+    preset: &'static str,
+    width: u32,
+    height: u32,
+    threads: usize,
+    /// Disparity levels searched (the rig- and width-derived range).
+    levels: usize,
+    median_ms: f64,
+    min_ms: f64,
+    runs: usize,
+    gaussians: usize,
+    peak_rss_mib: f64,
+}
+
+/// Times the SGM baseline with its default settings on `view` and prints its report.
+fn bench_sgm(args: &BenchModelArgs, view: &StereoView<'_>) -> Result<()> {
+    let mut sgm = SgmReconstructor::default();
+    let baseline = rectified_baseline(view)?;
+    let levels = sgm.config.levels_for(
+        view.left.width,
+        Some((view.left_camera.intrinsics.fx, baseline)),
+    );
+    let mut gaussians = 0;
+    let (median_ms, min_ms) = time_runs(args.warmup, args.runs, || {
+        gaussians = sgm.reconstruct(&[*view])?.len();
+        Ok(())
+    })?;
+    let report = SgmReport {
+        preset: "sgm",
+        width: args.width,
+        height: args.height,
+        threads: rayon::current_num_threads(),
+        levels,
+        median_ms,
+        min_ms,
+        runs: args.runs,
+        gaussians,
+        peak_rss_mib: peak_rss_bytes() as f64 / (1 << 20) as f64,
+    };
+    println!("{}", serde_json::to_string(&report)?);
+    Ok(())
+}
+
 /// The untrained triplane encoder of `cfg` on random view features of the cost-volume
 /// branch's shape for `cameras` (inference kernels: its weights are plain tensors, so no
 /// gradient is tracked): median and min milliseconds and its parameter count.
@@ -155,6 +204,9 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
         left_camera: rig.local_camera(pose, pose, Side::Left),
         right_camera: rig.local_camera(pose, pose, Side::Right),
     };
+    if args.preset == "sgm" {
+        return bench_sgm(args, &view);
+    }
     for name in names {
         let cfg = Config::preset(name)?.with_settings(&args.settings)?;
         let path = default_weights(name);

@@ -22,8 +22,8 @@ pub struct MethodArgs {
     /// Weights of a learned method (default: the preset's shipped file).
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// Change a preset setting of a learned method, `KEY=VALUE` (repeatable), e.g.
-    /// `--set pair_fusion_margin=null`.
+    /// Change a preset setting of a learned method, or a setting of `sgm`, `KEY=VALUE`
+    /// (repeatable), e.g. `--set pair_fusion_margin=null`, `--method sgm --set median=false`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub settings: Vec<String>,
 }

@@ -1,10 +1,11 @@
 //! `stereosplat reconstruct`: one rectified stereo pair of image files in (any size, grey
 //! or colour, PNG or JPEG), the calibration from flags or ROS camera-info YAML; a 3DGS PLY,
-//! a 16-bit KITTI-convention depth PNG, a colour-mapped depth PNG, a render and a JSON
+//! a 16-bit KITTI-convention depth PNG, the same depth as 32-bit floats (`depth.npy`, for
+//! scoring without the PNG's 1/256-m steps), a colour-mapped depth PNG, a render and a JSON
 //! summary out (see `node::pair::outputs`). With `--truth-disparity` it also scores the
 //! disparity against a ground truth (bad-1, bad-3, end-point error, density).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::method_args::MethodArgs;
 use super::stream::OnCheckFailArg;
@@ -16,6 +17,7 @@ use crate::pair::truth::{score, TruthDisparity};
 use crate::pair::{images, reconstruct_pair, PairOptions};
 use anyhow::{Context, Result};
 use clap::Args;
+use model::frame::DepthMap;
 
 /// Flags of `reconstruct`.
 #[derive(Args, Clone, Debug)]
@@ -47,7 +49,9 @@ pub struct ReconstructArgs {
     /// The right camera's YAML: its P[0,3] = -fx * baseline gives the baseline.
     #[arg(long)]
     camera_info_right: Option<PathBuf>,
-    /// Output folder.
+    /// Output folder: gaussians.ply, depth.png (16-bit, metres x 256), depth.npy (the same
+    /// z-depth as float32 metres, NumPy .npy, height x width, 0 = no depth), depth_color.png,
+    /// render.png, the error maps and summary.json.
     #[arg(long, default_value = "out/reconstruct")]
     out: PathBuf,
     #[command(flatten)]
@@ -112,9 +116,30 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         .map(|((_, e), t)| (e.as_slice(), (t.width, t.height)));
     write_all(&args.out, &pair, &summary, truth_errors)
         .with_context(|| format!("writing into {}", args.out.display()))?;
+    let npy = args.out.join("depth.npy");
+    save_depth_npy(&npy, &pair.depth).with_context(|| format!("writing {}", npy.display()))?;
     print(&summary);
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// `depth.npy`: the left-camera z-depth in metres as a NumPy array (format 1.0,
+/// little-endian float32, shape height x width), 0 where there is no depth.
+fn save_depth_npy(path: &Path, depth: &DepthMap) -> std::io::Result<()> {
+    let dict = format!(
+        "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {}), }}",
+        depth.height, depth.width
+    );
+    // Magic (6), version (2) and length (2) before the header, padded with spaces to a
+    // multiple of 64 bytes and ended by a newline, as the format asks.
+    let padded = (10 + dict.len() + 1).div_ceil(64) * 64 - 10;
+    let mut bytes = Vec::with_capacity(10 + padded + 4 * depth.data.len());
+    bytes.extend_from_slice(b"\x93NUMPY\x01\x00");
+    bytes.extend_from_slice(&(padded as u16).to_le_bytes());
+    bytes.extend_from_slice(format!("{dict:<width$}\n", width = padded - 1).as_bytes());
+    let finite = |z: f32| if z.is_finite() && z > 0.0 { z } else { 0.0 };
+    bytes.extend(depth.data.iter().flat_map(|&z| finite(z).to_le_bytes()));
+    std::fs::write(path, bytes)
 }
 
 /// Prints the summary's figures, one per line.

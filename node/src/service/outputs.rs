@@ -25,6 +25,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
 
 use glam::DVec2;
+use renderer::GaussianSet;
 
 use super::counters::Counters;
 use super::error::ServiceError;
@@ -157,7 +158,19 @@ impl<'a> Outputs<'a> {
                 if std::mem::take(&mut self.resume_pending) {
                     self.put_update(self.snapshot(header(WORLD))).await?;
                 }
-                let fused = self.map.insert_bin(out.bin_id, &set, out.bin_to_world);
+                // A map that failed its check and was not dimmed (SGM's fallback failed too,
+                // or the policy only flags) is published for what it is but kept out of the
+                // global map: the bin is taken in empty, so the increments stay one per bin.
+                let unfused =
+                    out.check.flagged() && out.check.action != CheckAction::LoweredOpacity;
+                let empty = GaussianSet::default();
+                let to_fuse = if unfused {
+                    self.counters.add("check/unfused", 1);
+                    &empty
+                } else {
+                    &set
+                };
+                let fused = self.map.insert_bin(out.bin_id, to_fuse, out.bin_to_world);
                 self.latest_source_ns = stamps.source_ns;
                 if fused.is_ok() {
                     self.checkpoint_if_due();

@@ -85,6 +85,20 @@ fn swapped(drive: &Drive) -> Vec<(i64, StereoFrame)> {
         .collect()
 }
 
+/// The small drive with the frames `range` replaced by independent uniform noise in both
+/// cameras (a peer sending garbage at the drive's size, which decodes fine).
+fn noise_in(drive: &Drive, range: std::ops::Range<usize>) -> Vec<(i64, StereoFrame)> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut frames = drive.frames.clone();
+    for (_, f) in &mut frames[range] {
+        for img in [&mut f.left, &mut f.right] {
+            img.data.iter_mut().for_each(|v| *v = rng.random::<f32>());
+        }
+    }
+    frames
+}
+
 /// Every bin was published and every bin's latency came out (the last, never closed, when
 /// the node stopped).
 fn assert_complete(r: &Run) {
@@ -168,4 +182,43 @@ async fn swapped_images_fail_and_the_map_is_published_dimmed() {
         assert!(set.opacities.iter().all(|&o| o <= LOWERED_FACTOR + eps));
         assert!(set.confidences.iter().all(|&o| o <= LOWERED_FACTOR + eps));
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_noise_bin_is_published_flagged_but_not_fused() {
+    let drive = Drive::small("selfcheck-noise");
+    let clean = run(
+        "selfcheck_noise_ref",
+        &drive,
+        &drive.frames,
+        OnCheckFail::Sgm,
+    )
+    .await;
+    let n = drive.frames.len();
+    let frames = noise_in(&drive, n / 3..2 * n / 3);
+    let r = run("selfcheck_noise", &drive, &frames, OnCheckFail::Sgm).await;
+    assert_complete(&r);
+    // A bin is unfused exactly when the network's map and SGM's both failed.
+    let both_failed = r
+        .latencies
+        .iter()
+        .filter(|l| (l.check_verdict, l.check_action, l.fallback_verdict) == (2, 3, 2))
+        .count() as u64;
+    let c = &r.summary.counters;
+    assert!(
+        both_failed >= 1,
+        "the noise bins fail both: {:?}",
+        r.latencies
+    );
+    assert_eq!(c.get("check/unfused"), both_failed, "{c:?}");
+    // Every bin is still published; the noise adds nothing to the global map (it holds
+    // fewer Gaussians than the clean drive's, which has those bins' true geometry).
+    assert_eq!(r.maps.len(), clean.maps.len());
+    assert!(
+        r.summary.global_gaussians <= clean.summary.global_gaussians,
+        "noisy {} vs clean {}",
+        r.summary.global_gaussians,
+        clean.summary.global_gaussians
+    );
+    assert_eq!(clean.summary.counters.get("check/unfused"), 0);
 }

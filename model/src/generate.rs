@@ -11,6 +11,12 @@ use crate::synth::{SynthConfig, SynthSequence};
 /// so an evaluation on them measures generalisation to streets never seen.
 pub const HELDOUT_SEED_BASE: u64 = 1_000_000;
 
+/// Seeds from here up are validation sequences: every setting, threshold, blend and
+/// checkpoint is chosen on them, so neither training (seeds below [`HELDOUT_SEED_BASE`]) nor
+/// the held-out evaluation (from [`HELDOUT_SEED_BASE`] up to here) is scored on what it was
+/// tuned on.
+pub const VALIDATION_SEED_BASE: u64 = 2_000_000;
+
 /// The sequence name a seed is written under, shaped like KITTI-360's names.
 pub fn sequence_name(seed: u64) -> String {
     format!("synth_drive_{seed:07}_sync")

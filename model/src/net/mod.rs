@@ -28,7 +28,9 @@ pub(crate) mod transformer;
 pub mod volume;
 mod warm_start;
 
-pub use config::{apply_settings, weights_preset, Config, SettingError, UnknownPreset, PRESETS};
+pub use config::{
+    apply_settings, weights_preset, Config, SettingError, UnknownPreset, PRESETS, RIG_DEPTH_LIMITS,
+};
 pub use cost_volume::candidate_depths;
 pub use depth_head::normalised_inverse;
 pub use reconstructor::{

@@ -11,7 +11,7 @@ use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
 use super::config::weights_preset;
-use super::depth_range::DepthRange;
+use super::depth_range::{rig_range, DepthRange};
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
 use super::warm_start::{frozen, load_matching, WarmStart};
@@ -233,20 +233,20 @@ impl LearnedReconstructor {
         cameras: &[Camera],
     ) -> Result<Reconstruction, ReconstructError> {
         let start = Instant::now();
-        let fitted = self.net.fitted_to_scene(images, cameras);
+        let rigged = self.net.for_rig(cameras);
+        let rig = rig_range(cameras, self.net.config());
+        let fitted = rigged.fitted_to_scene(images, cameras);
         let range_fit_ms = match self.net.config().fits_scene() {
             true => start.elapsed().as_secs_f64() * 1e3,
             false => 0.0,
         };
-        let (out, range) = match fitted {
-            None => (self.reconstruct_over_preset_range(images, cameras), None),
-            Some((fitted, range)) => {
-                let preset = std::mem::replace(&mut self.net, fitted);
-                let out = self.reconstruct_over_preset_range(images, cameras);
-                self.net = preset;
-                (out, range)
-            }
+        let (net, range) = match fitted {
+            None => (rigged, rig),
+            Some((fitted, range)) => (fitted, range.or(rig)),
         };
+        let preset = std::mem::replace(&mut self.net, net);
+        let out = self.reconstruct_over_preset_range(images, cameras);
+        self.net = preset;
         if let Some(last) = &mut self.last {
             last.depth_range = range;
             last.range_fit_ms = range_fit_ms;

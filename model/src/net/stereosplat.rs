@@ -15,7 +15,7 @@ use super::blocks::conv;
 use super::census_volume::census_volume;
 use super::cost_volume::{candidate_depths, cost_volume};
 use super::depth_head::{peak, DepthHead, ExtraCosts};
-use super::depth_range::{fit_scene, DepthRange};
+use super::depth_range::{fit_scene, rig_range, DepthRange};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
 use super::guidance::{hint_volume, snap_targets, GuidanceStrength, SgmHints};
@@ -154,6 +154,15 @@ impl StereoSplat {
         net.cfg.far = range.far;
         net.depths = candidate_depths(&net.cfg);
         net
+    }
+
+    /// The same network with its candidates over the range the rig of `cameras` calls for
+    /// (`rig_disparity_fraction`, [`rig_range`]); itself when that is off or the rig unusable.
+    pub fn for_rig(&self, cameras: &[Camera]) -> Self {
+        match rig_range(cameras, &self.cfg) {
+            Some(range) => self.with_depth_range(range),
+            None => self.clone(),
+        }
     }
 
     /// The same network fitted to the scene the first pair of `images` shows: its depth

@@ -316,11 +316,12 @@ impl Trainer {
             // With `auto_depth_range` the candidates span the sample's own scene, as they
             // will at inference, so the network learns them relative to that range; with
             // `sgm_guidance` the sample's SGM hints join the logits, as at inference.
-            let ranged = self
-                .net
+            // With `rig_disparity_fraction` they follow the sample's rig first.
+            let rigged = self.net.for_rig(&sample.cameras);
+            let ranged = rigged
                 .fitted_to_scene(&sample.images, &sample.cameras)
                 .map(|(net, _)| net);
-            let net = ranged.as_ref().unwrap_or(&self.net);
+            let net = ranged.as_ref().unwrap_or(&rigged);
             let prediction = net.forward(&sample.images, &sample.cameras)?;
             let l = losses(
                 &prediction,

@@ -35,6 +35,7 @@ mod ops_render;
 mod ops_transpose;
 mod pair_fusion;
 mod progressive;
+mod rig_range;
 mod pseudo_mix;
 mod synth;
 mod synth_randomised;

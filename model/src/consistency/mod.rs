@@ -220,9 +220,9 @@ fn nearest_centres(
 fn report(textured: u32, samples: u32, good: u32, s: &CheckSettings) -> CheckReport {
     let ratio = |a: u32, b: u32| if b == 0 { 0.0 } else { a as f32 / b as f32 };
     let (score, coverage) = (ratio(good, samples), ratio(samples, textured));
-    let verdict = if textured < s.min_samples {
-        Verdict::Undetermined
-    } else if samples < s.min_samples && coverage >= s.pass_score {
+    // Too few textured cells, or too few samples on a map that covers them: nothing to judge.
+    let too_few = samples < s.min_samples && coverage >= s.pass_score;
+    let verdict = if textured < s.min_samples || too_few {
         Verdict::Undetermined
     } else if score * coverage < s.pass_score {
         Verdict::Fail

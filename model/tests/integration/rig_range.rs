@@ -23,9 +23,24 @@ fn rigged(fraction: f32) -> Config {
 }
 
 #[test]
-fn off_by_default_and_on_the_preset_metres() {
-    assert_eq!(Config::tiny().rig_disparity_fraction, None);
-    assert_eq!(rig_range(&pair(640, 0.1), &Config::tiny()), None);
+fn tiny_keeps_its_trained_metres_on_the_kitti_rig_and_other_presets_keep_metres() {
+    // KITTI-360's rig at 1408 px (fx 552.554 px, baseline 0.5942 m): 1-100 m as trained.
+    let k = Intrinsics {
+        fx: 552.554,
+        fy: 552.554,
+        cx: 682.0,
+        cy: 238.0,
+        width: 1408,
+        height: 376,
+    };
+    let at = |x: f32| Camera::from_camera_to_world(k, Quat::IDENTITY, Vec3::new(x, 0.0, 0.0));
+    let r = rig_range(&[at(0.0), at(0.5942)], &Config::tiny()).expect("tiny follows the rig");
+    assert!((r.near - 1.0).abs() < 2e-3 && (r.far - 100.0).abs() < 0.2, "{r:?}");
+    // A 10 cm desk rig with the same lens reaches 17 cm.
+    let desk = rig_range(&[at(0.0), at(0.1)], &Config::tiny()).unwrap();
+    assert!((desk.near - 0.168).abs() < 2e-3, "{desk:?}");
+    assert_eq!(Config::small().rig_disparity_fraction, None);
+    assert_eq!(rig_range(&pair(640, 0.1), &Config::small()), None);
 }
 
 #[test]

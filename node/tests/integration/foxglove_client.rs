@@ -153,7 +153,7 @@ impl Client {
         let _ = self.child.wait();
         let errors = summary["errors"].as_array().unwrap();
         assert!(errors.is_empty(), "the client's errors: {errors:?}");
-        (summary, self.seen)
+        (summary, std::mem::take(&mut self.seen))
     }
 }
 
@@ -204,8 +204,7 @@ fn sha256(bytes: &[u8]) -> String {
 fn assert_cloud_is(cloud: &Value, set: &GaussianSet) {
     assert_eq!(cloud["count"].as_u64().unwrap() as usize, set.len());
     let (xyz, rgba) = (f64s(&cloud["xyz"]), f64s(&cloud["rgba"]));
-    for i in 0..set.len() {
-        let mean = set.means[i];
+    for (i, mean) in set.means.iter().enumerate() {
         for (k, want) in [mean.x, mean.y, mean.z].into_iter().enumerate() {
             assert!(
                 xyz[3 * i + k] as f32 == want || (want.is_nan() && xyz[3 * i + k].is_nan()),
@@ -339,7 +338,7 @@ async fn a_foxglove_client_decodes_the_live_node_and_a_stalled_one_costs_no_bin(
         .map(|(p, c)| {
             (
                 bin_of_frame_id(&c.header.frame_id),
-                affine_from_pose(&p.pose),
+                affine_from_pose(p).unwrap(),
             )
         })
         .collect();

@@ -13,7 +13,8 @@
 //!   on a drive (`stereosplat eval-map`).
 //! - [`pair`]: one stereo pair from files reconstructed, checked and scored
 //!   (`stereosplat reconstruct`).
-//! - [`view`]: the live page on loopback (splats, renders, latency charts).
+//! - [`view`]: the live page on loopback (splats, renders, latency charts); [`foxglove`]:
+//!   the node live in Foxglove through the Foxglove SDK's WebSocket server.
 //! - [`pareto`]: operating points measured side by side (`stereosplat bench pareto`).
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
 //! - [`untrusted_input`]: every decoder of outside input as one entry point on raw bytes
@@ -22,6 +23,8 @@
 pub mod bag;
 #[cfg(feature = "runtime")]
 pub mod cli;
+#[cfg(feature = "runtime")]
+pub mod foxglove;
 pub mod fusion;
 pub mod launch;
 #[cfg(feature = "runtime")]

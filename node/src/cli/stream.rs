@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::bag::Rate;
+use crate::foxglove::FoxgloveConfig;
 use crate::fusion::{FusionConfig, Keep, DEFAULT_MAX_RANGE_M};
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
@@ -134,6 +135,12 @@ pub struct RunArgs {
     limits: LimitsArgs,
     #[command(flatten)]
     view: ViewFlags,
+    /// Stream the outputs to Foxglove through a WebSocket server made with Foxglove's SDK
+    /// (docs/foxglove.md), on this address (loopback by default; another prints a warning;
+    /// port 0: any free one, printed).
+    #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1,
+          default_missing_value = crate::foxglove::DEFAULT_ADDR)]
+    foxglove: Option<std::net::SocketAddr>,
 }
 
 impl RunArgs {
@@ -216,6 +223,10 @@ pub fn run(args: &RunArgs) -> Result<()> {
         renders: args.renders.into(),
         snapshot_every: args.snapshot_every,
         limits: args.limits.limits()?,
+        foxglove: args.foxglove.map(|bind| FoxgloveConfig {
+            bind,
+            ..FoxgloveConfig::default()
+        }),
         ..NodeConfig::default()
     });
     let runtime = tokio::runtime::Runtime::new()?;
@@ -386,6 +397,27 @@ mod tests {
             l.max_translation_m,
             InputLimits::default().max_translation_m
         );
+    }
+
+    #[test]
+    fn the_foxglove_flag_is_off_loopback_by_default_or_the_address_given() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            run: RunArgs,
+        }
+        let foxglove = |extra: &[&str]| {
+            let args = std::iter::once("run").chain(extra.iter().copied());
+            <Cli as clap::Parser>::try_parse_from(args).map(|c| c.run.foxglove)
+        };
+        assert_eq!(foxglove(&[]).unwrap(), None);
+        let default = crate::foxglove::DEFAULT_ADDR.parse().ok();
+        assert_eq!(foxglove(&["--foxglove"]).unwrap(), default);
+        assert_eq!(
+            foxglove(&["--foxglove", "[::1]:0"]).unwrap(),
+            "[::1]:0".parse().ok()
+        );
+        assert!(foxglove(&["--foxglove", "localhost"]).is_err());
     }
 
     #[test]

@@ -25,4 +25,7 @@ pub enum ServiceError {
     /// The out folder's checkpoint cannot be resumed.
     #[error(transparent)]
     Restore(#[from] RestoreError),
+    /// The Foxglove server did not start (`run --foxglove`).
+    #[error(transparent)]
+    Foxglove(#[from] crate::foxglove::FoxgloveError),
 }

@@ -15,12 +15,13 @@ use super::limits::InputLimits;
 use super::map_files::{export, start_map, StartMap};
 use super::outputs::{Checkpoints, NodeSummary, Outputs};
 use super::snapshot_gate::SnapshotGate;
+use crate::foxglove::{Foxglove, FoxgloveConfig};
 use crate::fusion::FusionConfig;
 use crate::msg::Message;
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
-use crate::pipeline::worker::{now_ns, RenderWith, Worker, WorkerEvent};
+use crate::pipeline::worker::{RenderWith, Worker, WorkerEvent};
 use crate::transport::{open, Outlet, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
@@ -71,6 +72,8 @@ pub struct NodeConfig {
     pub diagnostics_every: std::time::Duration,
     /// Sizes, poses and calibrations accepted, and the snapshot query rate.
     pub limits: InputLimits,
+    /// A Foxglove WebSocket server streaming the outputs (`None`: none).
+    pub foxglove: Option<FoxgloveConfig>,
 }
 
 impl NodeConfig {
@@ -92,7 +95,7 @@ impl Default for NodeConfig {
     /// Loopback peer, namespace `stereosplat`, the default method (the learned network, with
     /// bins failing the self-check replaced by SGM's), a
     /// snapshot every 10 bins, renders on, nothing exported (with an out folder: resume its
-    /// checkpoint, checkpoint after every bin), diagnostics every second.
+    /// checkpoint, checkpoint after every bin), diagnostics every second, no Foxglove server.
     fn default() -> Self {
         Self {
             transport: TransportConfig::default(),
@@ -114,6 +117,7 @@ impl Default for NodeConfig {
             name: "stereosplat_node".into(),
             diagnostics_every: std::time::Duration::from_secs(1),
             limits: InputLimits::default(),
+            foxglove: None,
         }
     }
 }
@@ -176,6 +180,15 @@ pub async fn run_with(
     if let Some(last) = start.map.last_bin_id() {
         binner.first_bin_id = binner.first_bin_id.max(last + 1);
     }
+    // Bound before the zenoh session opens, so an address in use fails first.
+    let foxglove = match &config.foxglove {
+        Some(c) => {
+            let f = Foxglove::start(c, &config.keys.namespace).await?;
+            eprintln!("foxglove ready: {}", f.url());
+            Some(f)
+        }
+        None => None,
+    };
     let session = open(&config.transport).await?;
     let keys = &config.keys;
     let (inputs, outputs): (Vec<Topic>, Vec<Topic>) =
@@ -215,7 +228,8 @@ pub async fn run_with(
         every: config.checkpoint_every,
     });
     let resumed = start.resumed_from.is_some();
-    let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, checkpoints);
+    let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, checkpoints)
+        .with_foxglove(foxglove.as_ref());
     if resumed {
         outputs.announce_resume();
     }
@@ -223,6 +237,12 @@ pub async fn run_with(
     let exposed = config.transport.exposure_warnings()?.len() as u64;
     if exposed > 0 {
         outputs.counters.set("warning/exposed_listen", exposed);
+    }
+    if foxglove
+        .as_ref()
+        .is_some_and(|f| !f.addr().ip().is_loopback())
+    {
+        outputs.counters.set("warning/exposed_foxglove", 1);
     }
     ready(&session);
     tokio::pin!(stop);
@@ -260,14 +280,20 @@ pub async fn run_with(
             Some(event) = out_rx.recv() => outputs.worker_event(event, worker.drops()).await?,
             _ = diagnostics.tick(), if diagnostics_on => {
                 outputs.counters.set("dropped/worker_queue", worker.drops());
-                let msg = outputs.counters.diagnostics(now_ns());
+                let msg = outputs.diagnostics();
                 outlet.put(DIAGNOSTICS, msg.encode()).await?;
                 outputs.put_static_tf().await?;
+                if let Some(f) = &foxglove {
+                    f.bin_frames_again();
+                }
             },
         }
         for step in todo {
             match step {
                 Step::Submit(job) => {
+                    if let Some(f) = &foxglove {
+                        f.input_image(job.bin_id, job.stamps.source_ns, &job.frame.left);
+                    }
                     worker.submit(*job);
                 }
                 Step::Closed(bin_id) => outputs.bin_closed(bin_id, worker.drops()).await?,
@@ -294,6 +320,11 @@ pub async fn run_with(
     summary.global_gaussians = outputs.map.len();
     summary.counters = std::mem::take(&mut outputs.counters);
     drop(outputs);
+    if let Some(mut f) = foxglove {
+        // What was still queued is logged first, so the counts are final.
+        f.stop().await;
+        f.count_into(&mut summary.counters);
+    }
     drop(outlet);
     // Closing (rather than dropping) the session flushes what is still queued for peers.
     session.close().await.map_err(zenoh_err)?;

@@ -20,6 +20,10 @@
 //! `check/pass`, `check/fail`, `check/undetermined`, and what was done about failures,
 //! `check/flagged`, `check/lowered_opacity`, `check/fallback_sgm` (with
 //! `check/fallback_sgm_failed` when SGM's map failed too).
+//!
+//! With a Foxglove server ([`crate::foxglove`]) the same outputs go to it too, handed over
+//! without blocking: the bin map, its frame, the fused map's new points, the render, the
+//! camera, the latency and the counters (with the server's own).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -32,11 +36,13 @@ use super::error::ServiceError;
 use super::inputs::CameraPose;
 use super::keys::{self, Topic};
 use super::map_files::checkpoint;
+use crate::foxglove::messages::latency_json;
+use crate::foxglove::Foxglove;
 use crate::fusion::{bev_image, increment_message, snapshot_message, BevView, GlobalMap};
 use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::geometry_msgs::TransformStamped;
 use crate::msg::image::image_from_rgb;
-use crate::msg::latency::BinLatency;
+use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
 use crate::msg::pose::pose_from_affine;
 use crate::msg::sensor_msgs::Image;
@@ -74,6 +80,8 @@ pub(super) struct Checkpoints {
 /// The node's outputs and the state they are made from.
 pub(super) struct Outputs<'a> {
     outlet: &'a Outlet,
+    /// The Foxglove server, when the node runs one.
+    foxglove: Option<&'a Foxglove>,
     /// The fused global map.
     pub map: GlobalMap,
     /// Publish the bird's-eye view per bin.
@@ -117,6 +125,7 @@ impl<'a> Outputs<'a> {
         counters.set("map/epoch", map.epoch());
         Self {
             outlet,
+            foxglove: None,
             map,
             bev,
             snapshot_every,
@@ -131,6 +140,12 @@ impl<'a> Outputs<'a> {
             counters,
             summary: NodeSummary::default(),
         }
+    }
+
+    /// Sends the outputs to `foxglove` as well.
+    pub fn with_foxglove(mut self, foxglove: Option<&'a Foxglove>) -> Self {
+        self.foxglove = foxglove;
+        self
     }
 
     /// The map was resumed: publish its snapshot before the first increment.
@@ -180,6 +195,10 @@ impl<'a> Outputs<'a> {
                     Ok(cloud) => self.put(keys::BIN_MAP, cloud.encode()).await?,
                     Err(_) => self.counters.add("error/encode_map", 1),
                 }
+                if let Some(f) = self.foxglove {
+                    f.bin_map(out.bin_id, stamps.source_ns, &set);
+                    f.bin_frame(out.bin_id, &out.bin_to_world, stamps.source_ns);
+                }
                 let placed = world_to(frame, &out.bin_to_world, stamps.source_ns);
                 self.static_tf.push(placed);
                 self.put_static_tf().await?;
@@ -191,6 +210,17 @@ impl<'a> Outputs<'a> {
                 match fused {
                     Ok(inc) => {
                         let sequence = self.map.increments();
+                        if let Some(f) = self.foxglove {
+                            let summary = serde_json::json!({
+                                "bin_id": out.bin_id,
+                                "sequence": sequence,
+                                "added": inc.added.len(),
+                                "removed": inc.removed.len(),
+                                "total": self.map.len(),
+                            });
+                            let origin = out.bin_to_world.translation;
+                            f.map_increment(summary, &inc.added, origin, stamps.source_ns);
+                        }
                         let msg = increment_message(&inc, sequence, header(WORLD));
                         self.put_update(msg).await?;
                         let due = self.snapshot_every > 0
@@ -247,6 +277,9 @@ impl<'a> Outputs<'a> {
         }
         match r.image {
             Ok(img) => {
+                if let Some(f) = self.foxglove {
+                    f.render(r.bin_id, source_ns, &img);
+                }
                 let header = Header::new(source_ns, format!("bin_{}", r.bin_id));
                 let msg = image_from_rgb(&img, header);
                 self.put(keys::BIN_RENDER, msg.encode()).await?;
@@ -287,6 +320,9 @@ impl<'a> Outputs<'a> {
 
     /// Publishes world -> the left camera of a frame that entered the binner on `/tf`.
     pub async fn camera_moved(&mut self, camera: CameraPose) -> Result<(), ServiceError> {
+        if let Some(f) = self.foxglove {
+            f.camera(&camera.frame_id, &camera.left_to_world, camera.stamp_ns);
+        }
         let msg = TfMessage {
             transforms: vec![world_to(
                 camera.frame_id,
@@ -406,10 +442,24 @@ impl<'a> Outputs<'a> {
                 fuse_end_ns: s.stage_end_ns[4],
             };
             self.put(keys::LATENCY, msg.encode()).await?;
-            let diagnostics = self.counters.diagnostics(now_ns());
+            if let Some(f) = self.foxglove {
+                f.latency(latency_json(&msg));
+            }
+            let diagnostics = self.diagnostics();
             self.put(keys::DIAGNOSTICS, diagnostics.encode()).await?;
         }
         Ok(())
+    }
+
+    /// The counters as a Diagnostics message stamped now, with the Foxglove server's own
+    /// counters taken in first and the counters sent to it too.
+    pub fn diagnostics(&mut self) -> Diagnostics {
+        let now = now_ns();
+        if let Some(f) = self.foxglove {
+            f.count_into(&mut self.counters);
+            f.counters(&self.counters, now);
+        }
+        self.counters.diagnostics(now)
     }
 
     async fn put(&self, topic: Topic, payload: Vec<u8>) -> Result<(), ServiceError> {

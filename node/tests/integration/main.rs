@@ -31,6 +31,7 @@ mod cli_replay;
 mod decoders_mutated;
 #[cfg(unix)]
 mod doc_blocks;
+mod foxglove_client;
 mod fusion;
 mod fusion_keep;
 #[cfg(unix)]

@@ -61,7 +61,7 @@ window.__result = null;
     const scene = new BABYLON.Scene(engine);
     scene.clearColor = new BABYLON.Color4(0, 0, 0, 1);
     const camera = new BABYLON.FreeCamera('pinhole', BABYLON.Vector3.Zero(), scene);
-    camera.rotation = new BABYLON.Vector3(0, ${Number(arg('yaw', String(Math.PI)))}, 0);
+    camera.rotation = new BABYLON.Vector3(0, Math.PI, 0);
     camera.minZ = ${near};
     camera.maxZ = ${far};
     camera.freezeProjectionMatrix(BABYLON.Matrix.FromArray(${JSON.stringify(projection)}));
@@ -69,22 +69,11 @@ window.__result = null;
     const splats = result.meshes.filter((m) => m.getClassName() === 'GaussianSplattingMesh');
     const mesh = splats[0];
     const count = mesh ? (mesh.splatCount ?? mesh._vertexCount ?? 0) : 0;
-    const data = mesh && mesh.splatsData ? new Float32Array(mesh.splatsData) : null;
-    const bytes = mesh && mesh.splatsData ? new Uint8Array(mesh.splatsData) : null;
-    const first = [];
-    for (let i = 0; data && i < Math.min(4, count); i++) {
-      first.push({
-        position: Array.from(data.subarray(8 * i, 8 * i + 3)),
-        scale: Array.from(data.subarray(8 * i + 3, 8 * i + 6)),
-        rgba: Array.from(bytes.subarray(32 * i + 24, 32 * i + 28)),
-        wxyz: Array.from(bytes.subarray(32 * i + 28, 32 * i + 32)),
-      });
-    }
     let frames = 0;
     engine.runRenderLoop(() => { scene.render(); frames++; });
     // Splats are sorted in a worker; render until the sort has settled.
     await new Promise((r) => setTimeout(r, 4000));
-    window.__result = { ok: true, meshes: splats.length, count, first, frames };
+    window.__result = { ok: true, meshes: splats.length, count, frames };
   } catch (e) {
     window.__result = { ok: false, error: String(e && e.stack || e) };
   }

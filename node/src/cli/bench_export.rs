@@ -49,7 +49,11 @@ pub fn run(args: &BenchExportArgs) -> Result<()> {
             let t = Instant::now();
             let (_, back) = read_map(out.as_slice())?;
             read_s.push(t.elapsed().as_secs_f64());
-            anyhow::ensure!(back.len() == exported.gaussians, "{format}: read back {}", back.len());
+            anyhow::ensure!(
+                back.len() == exported.gaussians,
+                "{format}: read back {}",
+                back.len()
+            );
         }
         if format == MapFormat::Ply {
             ply_bytes = bytes.len();

@@ -167,7 +167,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     )?;
     writeln!(out, "{}", stats.summary())?;
     writeln!(out, "per-bin maps:  {}", bins_dir.display())?;
-    for f in [format!("global_map.{}", args.format), "global_map_bev.png".into()] {
+    for f in [
+        format!("global_map.{}", args.format),
+        "global_map_bev.png".into(),
+    ] {
         writeln!(
             out,
             "global map:    {}",

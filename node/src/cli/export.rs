@@ -53,7 +53,10 @@ pub fn load_input(path: &Path) -> Result<MapInput> {
     if head == CHECKPOINT_MAGIC {
         let map = GlobalMap::load(path).with_context(|| format!("reading {}", path.display()))?;
         let origin = map.latest_origin().unwrap_or(DVec3::ZERO);
-        let set = local_set(map.gaussians().map(|(_, g)| g), DAffine3::from_translation(origin))?;
+        let set = local_set(
+            map.gaussians().map(|(_, g)| g),
+            DAffine3::from_translation(origin),
+        )?;
         return Ok(MapInput {
             set,
             origin: Some(origin),

@@ -4,10 +4,11 @@
 //!   every value it decoded equals what was written within SPZ's quantisation, per field (see
 //!   [`spz_tolerances`]);
 //! - Babylon.js's own glTF loader (`KHR_gaussian_splatting`), in Debian's headless Chromium
-//!   through playwright-core (`interop/glb_render.mjs`), loads a bin map that `stereosplat demo
-//!   --format glb` wrote and renders it from the bin's camera; the render matches the CPU
-//!   rasterizer's render of the same map at [`MIN_PSNR_DB`] or more, as `view_page` asks of the
-//!   live view.
+//!   through playwright-core (`interop/render.mjs`), loads a bin map that `stereosplat demo
+//!   --format glb` wrote, and Spark (`@sparkjsdev/spark` on three.js) loads the same bin
+//!   exported to SPZ by `stereosplat export`; each renders it from the bin's camera, and the
+//!   render matches the CPU rasterizer's render of the same map (as read back from that file)
+//!   at [`MIN_PSNR_DB`] or more, as `view_page` asks of the live view.
 //!
 //! Without Node.js, Chromium or `interop/node_modules` these tests fail and say what to
 //! install; they never pass silently.
@@ -24,11 +25,11 @@ use renderer::{scene, Camera, GaussianSet, Intrinsics};
 use crate::cli_support::{stereosplat, temp_dir};
 use crate::view_page::{psnr_and_mean_abs, render_rgb8};
 
-/// Least PSNR (dB, 8-bit RGB) between Babylon's render of the glTF and the CPU reference's
+/// Least PSNR (dB, 8-bit RGB) between a viewer's render of the map file and the CPU reference's
 /// render of the same map and camera; the same bar as the live view's check (`view_page`),
 /// for the same reasons (8-bit colours in the viewer, its own cut-off and sort order).
 const MIN_PSNR_DB: f64 = 30.0;
-/// Least fraction of Babylon's canvas that must be lit (any channel above 8/255).
+/// Least fraction of a viewer's canvas that must be lit (any channel above 8/255).
 const MIN_LIT: f64 = 0.2;
 
 fn interop() -> PathBuf {
@@ -139,71 +140,133 @@ fn splat_transform_decodes_our_spz_to_the_values_we_wrote() {
 }
 
 #[test]
-fn babylon_renders_a_glb_bin_map_like_the_cpu_rasterizer() {
+fn babylon_and_spark_render_a_bin_map_like_the_cpu_rasterizer() {
     require_interop("babylonjs-loaders");
+    require_interop("@sparkjsdev/spark");
     require_interop("playwright-core");
     assert!(
         Path::new("/usr/bin/chromium").is_file(),
         "Chromium is missing: apt `chromium` (`bash .ci/setup`)"
     );
-    let out = temp_dir("glb-interop");
+    let out = temp_dir("viewers-interop");
     let (w, h) = ("192", "56");
     let demo = stereosplat(
         &[
-            "demo", "--frames", "20", "--width", w, "--height", h, "--method", "sgm",
-            "--renders", "off", "--rate", "0", "--format", "glb", "--out",
+            "demo",
+            "--frames",
+            "20",
+            "--width",
+            w,
+            "--height",
+            h,
+            "--method",
+            "sgm",
+            "--renders",
+            "off",
+            "--rate",
+            "0",
+            "--format",
+            "glb",
+            "--out",
         ],
         &[&out],
     );
     assert!(demo.contains("global_map.glb"), "{demo}");
+    assert!(out.join("map/global_map.glb").is_file());
     let glb = out.join("bins/bin_0000.glb");
-    let (format, set) = renderer::formats::load_map(&glb).expect("the bin's glb reads back");
-    assert_eq!(format, MapFormat::Glb);
-    assert!(set.len() > 1000, "{} Gaussians", set.len());
+    // The same bin as SPZ, through `export`.
+    let spz = out.join("bins/bin_0000.spz");
+    let exported = stereosplat(&["export", "--format", "spz", "--map"], &[&glb]);
+    let exported: serde_json::Value = serde_json::from_str(exported.trim()).unwrap();
+    assert_eq!(exported["out"].as_str(), spz.to_str(), "{exported}");
     // The bin frame is its first camera's: the camera is the identity there.
-    let root = out.join("drive");
-    let k = Calibration::read(&root).unwrap().rig().unwrap().intrinsics;
+    let k = Calibration::read(&out.join("drive"))
+        .unwrap()
+        .rig()
+        .unwrap()
+        .intrinsics;
     let camera = Camera::identity(k);
-    let shots = out.join("babylon");
-    let pinhole = format!("{},{},{},{},{},{}", k.fx, k.fy, k.cx, k.cy, k.width, k.height);
+    for (viewer, file, format) in [
+        ("babylon", &glb, MapFormat::Glb),
+        ("spark", &spz, MapFormat::Spz),
+    ] {
+        let (seen, set) = renderer::formats::load_map(file).expect("the bin map reads back");
+        assert_eq!(seen, format);
+        assert!(set.len() > 1000, "{} Gaussians", set.len());
+        assert_eq!(exported["gaussians"].as_u64(), Some(set.len() as u64));
+        let (psnr, psnr_off) = viewer_psnr(viewer, file, &set, &camera, &out.join(viewer));
+        assert!(
+            psnr >= MIN_PSNR_DB,
+            "{viewer}: PSNR {psnr:.2} dB < {MIN_PSNR_DB}"
+        );
+        assert!(
+            psnr > psnr_off,
+            "{viewer}: the true camera ({psnr:.2} dB) is no better than one a pixel off ({psnr_off:.2} dB)"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Renders `file` in `viewer` (`interop/render.mjs`) from `camera` and returns the PSNR of its
+/// canvas against the CPU rasterizer's render of `set`, at the camera and at the camera one
+/// pixel off; checks the viewer loaded every Gaussian, asked for nothing but its own files, and
+/// drew a canvas that is not blank.
+fn viewer_psnr(
+    viewer: &str,
+    file: &Path,
+    set: &GaussianSet,
+    camera: &Camera,
+    shots: &Path,
+) -> (f64, f64) {
+    let k = camera.intrinsics;
+    let pinhole = format!(
+        "{},{},{},{},{},{}",
+        k.fx, k.fy, k.cx, k.cy, k.width, k.height
+    );
     let run = Command::new("node")
-        .arg(interop().join("glb_render.mjs"))
-        .arg("--glb")
-        .arg(&glb)
+        .arg(interop().join("render.mjs"))
+        .args(["--viewer", viewer, "--map"])
+        .arg(file)
         .arg("--out")
-        .arg(&shots)
+        .arg(shots)
         .args(["--pinhole", &pinhole])
         .output()
         .expect("node runs");
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(
         run.status.success(),
-        "glb_render.mjs failed:\n{stdout}\n{}",
+        "render.mjs --viewer {viewer} failed:\n{stdout}\n{}",
         String::from_utf8_lossy(&run.stderr)
     );
     let summary: serde_json::Value =
         serde_json::from_str(stdout.lines().last().unwrap()).expect("one JSON line");
-    // Babylon's loader made one Gaussian splatting mesh with every Gaussian, and the page
-    // asked for nothing but its own files.
     assert_eq!(summary["meshes"], 1, "{summary}");
-    assert_eq!(summary["count"].as_u64(), Some(set.len() as u64), "{summary}");
+    // Babylon reports its splat count rounded up to whole rows of 16 (its data textures).
+    let count = summary["count"].as_u64().unwrap_or(0) as usize;
+    let want = match viewer {
+        "babylon" => set.len().next_multiple_of(16),
+        _ => set.len(),
+    };
+    assert_eq!(count, want, "{summary}");
     assert_eq!(summary["outside"], serde_json::json!([]), "{summary}");
 
-    let shot = image::open(shots.join("babylon.png")).unwrap().to_rgb8();
+    let shot = image::open(shots.join(format!("{viewer}.png")))
+        .unwrap()
+        .to_rgb8();
     assert_eq!((shot.width(), shot.height()), (k.width, k.height));
     let shot = shot.into_raw();
     let lit = shot.chunks(3).filter(|p| p.iter().any(|&c| c > 8)).count() as f64
         / (k.width * k.height) as f64;
-    assert!(lit >= MIN_LIT, "Babylon's canvas is nearly blank: {lit:.3} lit");
-    let reference = render_rgb8(&set, &camera);
-    let (psnr, mad) = psnr_and_mean_abs(&shot, &reference);
-    let mut shifted = camera;
-    shifted.intrinsics.cx += 1.0;
-    let (psnr_off, _) = psnr_and_mean_abs(&shot, &render_rgb8(&set, &shifted));
-    println!(
-        "Babylon.js glTF vs CPU reference: PSNR {psnr:.2} dB, mean abs {mad:.2}/255, lit {lit:.3}; one pixel off: {psnr_off:.2} dB"
+    assert!(
+        lit >= MIN_LIT,
+        "{viewer}'s canvas is nearly blank: {lit:.3} lit"
     );
-    assert!(psnr >= MIN_PSNR_DB, "PSNR {psnr:.2} dB < {MIN_PSNR_DB}");
-    assert!(psnr > psnr_off, "the true camera is no better than one a pixel off");
-    let _ = std::fs::remove_dir_all(&out);
+    let (psnr, mad) = psnr_and_mean_abs(&shot, &render_rgb8(set, camera));
+    let mut shifted = *camera;
+    shifted.intrinsics.cx += 1.0;
+    let (psnr_off, _) = psnr_and_mean_abs(&shot, &render_rgb8(set, &shifted));
+    println!(
+        "{viewer} vs CPU reference: PSNR {psnr:.2} dB, mean abs {mad:.2}/255, lit {lit:.3}; one pixel off: {psnr_off:.2} dB"
+    );
+    (psnr, psnr_off)
 }

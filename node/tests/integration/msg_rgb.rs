@@ -20,10 +20,7 @@ use node::msg::Message;
 use renderer::{Gaussian, GaussianSet};
 use serde_json::{json, Value};
 
-const SCRIPT: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../scripts/pointcloud2_rgb.py"
-);
+const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/pointcloud2_rgb.py");
 
 /// Gaussians whose colours cover the clamping and rounding cases: in range, either side of a
 /// rounding half, below 0, above 1, NaN.
@@ -81,11 +78,19 @@ fn ros2_read_points_unpacks_the_colours_we_pack() {
             .iter()
             .map(|f| f.as_str().unwrap())
             .collect();
-        assert_eq!(fields, names, "cloud {k}: the 3DGS fields stay, rgb comes last");
+        assert_eq!(
+            fields, names,
+            "cloud {k}: the 3DGS fields stay, rgb comes last"
+        );
         let points = reply["points"][k].as_array().expect("points");
         assert_eq!(points.len(), set.len());
         for (i, p) in points.iter().enumerate() {
-            let p: Vec<f64> = p.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+            let p: Vec<f64> = p
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
             let m = origin + set.means[i].as_dvec3();
             // FLOAT32 positions in the bin frame are the f32 means; FLOAT64 world ones exact.
             for (axis, (got, want)) in p[..3].iter().zip(m.to_array()).enumerate() {

@@ -97,7 +97,8 @@ pub fn write_glb(set: &GaussianSet, mut w: impl Write) -> Result<(), GlbError> {
     let mut sh0 = Vec::with_capacity(n * 12);
     let mut confidence = Vec::with_capacity(n * 4);
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    let floats = |out: &mut Vec<u8>, vs: &[f32]| vs.iter().for_each(|v| out.extend(v.to_le_bytes()));
+    let floats =
+        |out: &mut Vec<u8>, vs: &[f32]| vs.iter().for_each(|v| out.extend(v.to_le_bytes()));
     for i in 0..n {
         let g = set.get(i);
         let sigma = g.log_scale.exp();
@@ -118,7 +119,10 @@ pub fn write_glb(set: &GaussianSet, mut w: impl Write) -> Result<(), GlbError> {
         let a = g.opacity.clamp(0.0, 1.0);
         floats(&mut position, &p.to_array());
         colour.extend((c.extend(a).to_array()).map(|v| (v * 255.0).round() as u8));
-        floats(&mut rotation, &rotation_to_exchange(unit_rotation(g.rotation)).to_array());
+        floats(
+            &mut rotation,
+            &rotation_to_exchange(unit_rotation(g.rotation)).to_array(),
+        );
         floats(&mut scale, &sigma.to_array());
         floats(&mut opacity, &[a]);
         let dc = (c.as_dvec3() - 0.5) / SH_C0;
@@ -145,7 +149,12 @@ pub fn write_glb(set: &GaussianSet, mut w: impl Write) -> Result<(), GlbError> {
             ("KHR_gaussian_splatting:ROTATION", "VEC4", FLOAT, rotation),
             ("KHR_gaussian_splatting:SCALE", "VEC3", FLOAT, scale),
             ("KHR_gaussian_splatting:OPACITY", "SCALAR", FLOAT, opacity),
-            ("KHR_gaussian_splatting:SH_DEGREE_0_COEF_0", "VEC3", FLOAT, sh0),
+            (
+                "KHR_gaussian_splatting:SH_DEGREE_0_COEF_0",
+                "VEC3",
+                FLOAT,
+                sh0,
+            ),
             ("_CONFIDENCE", "SCALAR", FLOAT, confidence),
         ];
         let (mut attributes, mut buffer_views, mut accessors) =
@@ -215,7 +224,10 @@ pub fn read_glb(mut r: impl Read) -> Result<GaussianSet, GlbError> {
         return Err(GlbError::NotGlb("no `glTF` magic".into()));
     }
     if word(&header, 4) != 2 {
-        return Err(GlbError::NotGlb(format!("version {}, 2 expected", word(&header, 4))));
+        return Err(GlbError::NotGlb(format!(
+            "version {}, 2 expected",
+            word(&header, 4)
+        )));
     }
     let total = u64::from(word(&header, 8));
     // The chunks, read no further than the declared length and grown only as data arrives.
@@ -226,9 +238,12 @@ pub fn read_glb(mut r: impl Read) -> Result<GaussianSet, GlbError> {
         let len = word(head, 0) as usize;
         Some((word(head, 4), body.get(at + 8..(at + 8).checked_add(len)?)?))
     };
-    let (kind, json_bytes) = chunk(0).ok_or_else(|| GlbError::NotGlb("truncated JSON chunk".into()))?;
+    let (kind, json_bytes) =
+        chunk(0).ok_or_else(|| GlbError::NotGlb("truncated JSON chunk".into()))?;
     if kind != CHUNK_JSON || json_bytes.len() > MAX_JSON_BYTES as usize {
-        return Err(GlbError::NotGlb("the first chunk is not a JSON chunk".into()));
+        return Err(GlbError::NotGlb(
+            "the first chunk is not a JSON chunk".into(),
+        ));
     }
     let doc: Value = serde_json::from_slice(json_bytes).map_err(GlbError::Json)?;
     let bin = match chunk(8 + json_bytes.len()) {
@@ -270,7 +285,9 @@ fn read_primitive(
     if [q.len() / 4, s.len() / 3, a.len(), dc.len() / 3] != [n; 4]
         || conf.as_ref().is_some_and(|c| c.len() != n)
     {
-        return Err(GlbError::Unsupported("attributes of different counts".into()));
+        return Err(GlbError::Unsupported(
+            "attributes of different counts".into(),
+        ));
     }
     for i in 0..n {
         let v3 = |v: &[f32]| Vec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
@@ -303,8 +320,12 @@ fn float_accessor(doc: &Value, bin: &[u8], index: u64, k: usize) -> Result<Vec<f
     if acc.get("sparse").is_some() {
         return Err(bad("sparse storage is not read here".into()));
     }
-    let count = acc["count"].as_u64().ok_or_else(|| bad("no count".into()))?;
-    let view_index = acc["bufferView"].as_u64().ok_or_else(|| bad("no buffer view".into()))?;
+    let count = acc["count"]
+        .as_u64()
+        .ok_or_else(|| bad("no count".into()))?;
+    let view_index = acc["bufferView"]
+        .as_u64()
+        .ok_or_else(|| bad("no buffer view".into()))?;
     let view = doc["bufferViews"]
         .get(view_index as usize)
         .ok_or_else(|| bad("missing buffer view".into()))?;
@@ -316,10 +337,17 @@ fn float_accessor(doc: &Value, bin: &[u8], index: u64, k: usize) -> Result<Vec<f
         return Err(bad("interleaved data is not read here".into()));
     }
     let start = view["byteOffset"].as_u64().unwrap_or(0) + acc["byteOffset"].as_u64().unwrap_or(0);
-    let len = count.checked_mul(stride).ok_or_else(|| bad("too large".into()))?;
+    let len = count
+        .checked_mul(stride)
+        .ok_or_else(|| bad("too large".into()))?;
     let view_len = view["byteLength"].as_u64().unwrap_or(0);
-    let end = start.checked_add(len).ok_or_else(|| bad("too large".into()))?;
-    let view_end = view["byteOffset"].as_u64().unwrap_or(0).saturating_add(view_len);
+    let end = start
+        .checked_add(len)
+        .ok_or_else(|| bad("too large".into()))?;
+    let view_end = view["byteOffset"]
+        .as_u64()
+        .unwrap_or(0)
+        .saturating_add(view_len);
     if end > view_end || end > bin.len() as u64 {
         return Err(bad(format!(
             "bytes {start}..{end} outside its view or the {} bytes of data",

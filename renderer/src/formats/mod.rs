@@ -164,11 +164,15 @@ pub fn write_map(
 ) -> Result<Exported, MapFileError> {
     let (clean, skipped, clamped) = sanitise(set)?;
     let max_position_error_m = match format {
-        MapFormat::Ply => ply::write_ply(&clean, w).map(|()| 0.0).map_err(MapFileError::Ply)?,
+        MapFormat::Ply => ply::write_ply(&clean, w)
+            .map(|()| 0.0)
+            .map_err(MapFileError::Ply)?,
         MapFormat::Spz => spz::write_spz(&clean, w)
             .map(|s| s.max_position_error_m)
             .map_err(MapFileError::Spz)?,
-        MapFormat::Glb => glb::write_glb(&clean, w).map(|()| 0.0).map_err(MapFileError::Glb)?,
+        MapFormat::Glb => glb::write_glb(&clean, w)
+            .map(|()| 0.0)
+            .map_err(MapFileError::Glb)?,
     };
     Ok(Exported {
         format,
@@ -198,7 +202,8 @@ pub fn save_map(
 pub fn read_map(mut r: impl Read) -> Result<(MapFormat, GaussianSet), MapFileError> {
     let mut head = Vec::with_capacity(4);
     (&mut r).take(4).read_to_end(&mut head)?;
-    let format = MapFormat::sniff(&head).ok_or_else(|| MapFileError::UnknownFormat(head.clone()))?;
+    let format =
+        MapFormat::sniff(&head).ok_or_else(|| MapFileError::UnknownFormat(head.clone()))?;
     let r = head.as_slice().chain(r);
     let set = match format {
         MapFormat::Ply => ply::read_ply(r).map_err(MapFileError::Ply)?,

@@ -189,7 +189,8 @@ pub fn read_spz(r: impl Read) -> Result<GaussianSet, SpzError> {
     let mut gz = GzDecoder::new(r);
     let mut header = [0u8; HEADER_BYTES];
     let got = read_up_to(&mut gz, &mut header)?;
-    let word = |i: usize| u32::from_le_bytes([header[i], header[i + 1], header[i + 2], header[i + 3]]);
+    let word =
+        |i: usize| u32::from_le_bytes([header[i], header[i + 1], header[i + 2], header[i + 3]]);
     if got >= 4 && word(0) != MAGIC {
         return Err(SpzError::NotSpz { found: word(0) });
     }
@@ -219,7 +220,9 @@ pub fn read_spz(r: impl Read) -> Result<GaussianSet, SpzError> {
         return Err(SpzError::BadHeader(format!("{bits} fractional bits of 24")));
     }
     if flags & FLAG_EXTENSIONS != 0 {
-        return Err(SpzError::BadHeader("extension records are not read here".into()));
+        return Err(SpzError::BadHeader(
+            "extension records are not read here".into(),
+        ));
     }
     let rotation_bytes: u64 = if version >= 3 { 4 } else { 3 };
     let n = u64::from(count);
@@ -397,7 +400,13 @@ mod tests {
         header.extend_from_slice(&[0, 12, 0, 0]);
         let err = read_spz(gz(&header).as_slice()).unwrap_err();
         assert!(
-            matches!(err, SpzError::Truncated { expected: 40, got: 0 }),
+            matches!(
+                err,
+                SpzError::Truncated {
+                    expected: 40,
+                    got: 0
+                }
+            ),
             "{err}"
         );
         let mut v4 = header.clone();

@@ -58,7 +58,10 @@ fn every_format_round_trips_within_its_stated_precision() {
             // Float32 throughout; colours through f_dc in f32.
             MapFormat::Ply | MapFormat::Glb => {
                 assert_eq!(p, 0.0, "{format}");
-                assert!(s < 1e-5 && q < 1e-6 && a < 1e-6 && c < 1e-6, "{format}: {s} {q} {a} {c}");
+                assert!(
+                    s < 1e-5 && q < 1e-6 && a < 1e-6 && c < 1e-6,
+                    "{format}: {s} {q} {a} {c}"
+                );
             }
             MapFormat::Spz => {
                 // Positions: half a step of 12 fractional bits. Log-scales: half of 1/16.
@@ -69,7 +72,10 @@ fn every_format_round_trips_within_its_stated_precision() {
                 assert!(q < 5e-6, "rotation {q}");
                 assert!(a <= 0.5 / 255.0 + 1e-6, "opacity {a}");
                 let colour_step = (SH_C0 / (spz::COLOR_SCALE * 255.0)) as f32;
-                assert!(c <= colour_step / 2.0 + 1e-6, "colour {c} vs step {colour_step}");
+                assert!(
+                    c <= colour_step / 2.0 + 1e-6,
+                    "colour {c} vs step {colour_step}"
+                );
                 assert_eq!(e.max_position_error_m, 0.5 / 4096.0);
             }
         }
@@ -93,7 +99,10 @@ fn the_format_is_told_by_content_not_name() {
         load_map(dir.join("x")),
         Err(MapFileError::UnknownFormat(h)) if h == [0, 1, b'j', b'u']
     ));
-    assert!(matches!(read_map(&b""[..]), Err(MapFileError::UnknownFormat(_))));
+    assert!(matches!(
+        read_map(&b""[..]),
+        Err(MapFileError::UnknownFormat(_))
+    ));
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!("SPZ".parse::<MapFormat>(), Ok(MapFormat::Spz));
     assert!("obj".parse::<MapFormat>().is_err());
@@ -123,12 +132,19 @@ fn non_finite_gaussians_are_skipped_and_counted_and_colours_clamped() {
     set.opacities[5] = 1.25;
     for format in MapFormat::ALL {
         let (e, data) = bytes(&set, format);
-        assert_eq!((e.gaussians, e.skipped_non_finite, e.clamped), (2, 4, 2), "{format}");
+        assert_eq!(
+            (e.gaussians, e.skipped_non_finite, e.clamped),
+            (2, 4, 2),
+            "{format}"
+        );
         let (_, back) = read_map(data.as_slice()).unwrap();
         assert_eq!(back.len(), 2);
         assert!(back.means.iter().all(|m| m.is_finite()));
         let c = back.colors[0];
-        assert!(c.x.abs() < 0.004 && (c.y - 1.0).abs() < 0.004, "{format}: {c}");
+        assert!(
+            c.x.abs() < 0.004 && (c.y - 1.0).abs() < 0.004,
+            "{format}: {c}"
+        );
         assert!((back.opacities[1] - 1.0).abs() < 0.002, "{format}");
     }
     // The raw writers refuse what sanitise would skip.
@@ -136,11 +152,17 @@ fn non_finite_gaussians_are_skipped_and_counted_and_colours_clamped() {
     bad.opacities[1] = f32::NAN;
     assert!(matches!(
         spz::write_spz(&bad, Vec::new()),
-        Err(spz::SpzError::NonFinite { index: 1, what: "opacity" })
+        Err(spz::SpzError::NonFinite {
+            index: 1,
+            what: "opacity"
+        })
     ));
     assert!(matches!(
         glb::write_glb(&bad, Vec::new()),
-        Err(glb::GlbError::NonFinite { index: 1, what: "opacity" })
+        Err(glb::GlbError::NonFinite {
+            index: 1,
+            what: "opacity"
+        })
     ));
 }
 
@@ -183,7 +205,11 @@ fn two_million_gaussians_round_trip() {
     for i in 0..n {
         let f = i as f32;
         set.push(Gaussian {
-            mean: Vec3::new((f * 0.618).fract() * 100.0 - 50.0, (f * 0.414).fract() * 10.0, f * 1e-4),
+            mean: Vec3::new(
+                (f * 0.618).fract() * 100.0 - 50.0,
+                (f * 0.414).fract() * 10.0,
+                f * 1e-4,
+            ),
             log_scale: Vec3::splat(-3.0 + (i % 5) as f32 * 0.1),
             rotation: Quat::from_rotation_y(f * 1e-3),
             opacity: (i % 251) as f32 / 250.0,
@@ -197,7 +223,10 @@ fn two_million_gaussians_round_trip() {
         let (_, back) = read_map(data.as_slice()).unwrap();
         assert_eq!(back.len(), n);
         let last = back.get(n - 1);
-        assert!((last.mean - set.means[n - 1]).abs().max_element() < 1e-3, "{format}");
+        assert!(
+            (last.mean - set.means[n - 1]).abs().max_element() < 1e-3,
+            "{format}"
+        );
         if format == MapFormat::Spz {
             // About 6 bytes per Gaussian once gzipped, against PLY's 72.
             assert!(data.len() < n * 14, "{} bytes", data.len());

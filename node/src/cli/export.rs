@@ -44,7 +44,7 @@ pub struct MapInput {
     pub kind: String,
 }
 
-/// Reads `path` as a map file or a node checkpoint (see [`ExportArgs::map`]).
+/// Reads `path` as a map file (PLY, SPZ or glTF binary) or a node checkpoint.
 pub fn load_input(path: &Path) -> Result<MapInput> {
     let mut head = Vec::new();
     std::fs::File::open(path)

@@ -4,9 +4,9 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_model, bench_node, bench_pareto, demo, enhancer_data, eval,
-    eval_enhancer, eval_map, interpolate_weights, launch, logs, reconstruct, render, stream, synth,
-    train, train_enhancer, view,
+    bench, bench_check, bench_export, bench_model, bench_node, bench_pareto, demo, enhancer_data,
+    eval, eval_enhancer, eval_map, export, interpolate_weights, launch, logs, reconstruct, render,
+    stream, synth, train, train_enhancer, view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -22,8 +22,12 @@ enum Command {
     /// The main job: a generated drive replayed through the node on loopback; per-bin maps,
     /// the fused global map and a latency summary in one folder.
     Demo(demo::DemoArgs),
-    /// Render a PLY map, or a generated scene, to PNG pictures (RGB, depth, alpha).
+    /// Render a map (PLY, SPZ or glTF binary), or a generated scene, to PNG pictures (RGB,
+    /// depth, alpha).
     Render(render::RenderArgs),
+    /// A map (PLY, SPZ, glTF binary or the node's checkpoint) in another format: PLY, SPZ
+    /// or glTF binary with KHR_gaussian_splatting.
+    Export(export::ExportArgs),
     /// Write a synthetic drive in the KITTI-360 layout (training seeds).
     Synth(synth::SynthArgs),
     /// Write held-out synthetic drives (seeds training never uses) for evaluation.
@@ -76,6 +80,8 @@ enum BenchCommand {
     Model(bench_model::BenchModelArgs),
     /// The per-bin self-check on generated drives and bad pairs: scores, verdicts, cost.
     Check(bench_check::BenchCheckArgs),
+    /// Each map format (PLY, SPZ, glTF binary) on one map: bytes, write and read time.
+    Export(bench_export::BenchExportArgs),
     /// Operating points from a TOML list on the same held-out bins: latency, memory,
     /// Gaussians and quality side by side, the Pareto front, a chart.
     Pareto(bench_pareto::BenchParetoArgs),
@@ -99,6 +105,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Render(args) => render::run(&args),
+        Command::Export(args) => export::run(&args),
         Command::Synth(args) => synth::run(&args),
         Command::SynthHeldout(args) => synth::run_heldout(&args),
         Command::Eval(args) => eval::run(&args),
@@ -120,5 +127,6 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
         Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),
         Command::Bench(BenchCommand::Pareto(args)) => bench_pareto::run(&args),
+        Command::Bench(BenchCommand::Export(args)) => bench_export::run(&args),
     }
 }

@@ -1,5 +1,5 @@
 //! Every decoder of outside input as one entry point taking raw bytes: the CDR messages the
-//! node subscribes to, MCAP logs, the fused map's checkpoint, PLY files, the KITTI-360 text
+//! node subscribes to, MCAP logs, the fused map's checkpoint, map files (PLY, SPZ, glTF binary), the KITTI-360 text
 //! files and launch files. Each entry decodes as the product does and then walks what it
 //! decoded (conversions, iterations), so a malformed input reaches the code a real one would.
 //!
@@ -36,7 +36,7 @@ use crate::msg::Message;
 pub type Entry = fn(&[u8]);
 
 /// Every entry by its name (the fuzz target of the same name calls it).
-pub const ENTRIES: [(&str, Entry); 14] = [
+pub const ENTRIES: [(&str, Entry); 16] = [
     ("cdr_camera_info", cdr_camera_info),
     ("cdr_image", cdr_image),
     ("cdr_latency", cdr_latency),
@@ -44,6 +44,7 @@ pub const ENTRIES: [(&str, Entry); 14] = [
     ("cdr_point_cloud", cdr_point_cloud),
     ("cdr_pose", cdr_pose),
     ("cdr_tf", cdr_tf),
+    ("glb", glb),
     ("global_map", global_map),
     ("kitti_calibration", kitti_calibration),
     ("kitti_poses", kitti_poses),
@@ -51,6 +52,7 @@ pub const ENTRIES: [(&str, Entry); 14] = [
     ("launch", launch),
     ("mcap", mcap),
     ("ply", ply),
+    ("spz", spz),
 ];
 
 /// `sensor_msgs/CameraInfo`, then the intrinsics the node takes from it.
@@ -178,6 +180,17 @@ pub fn mcap(data: &[u8]) {
 /// A 3DGS PLY file (binary or ASCII).
 pub fn ply(data: &[u8]) {
     let _ = renderer::ply::read_ply(data);
+}
+
+/// An SPZ file (gzip), as `render --map` and `export --map` read it.
+pub fn spz(data: &[u8]) {
+    let _ = renderer::formats::spz::read_spz(data);
+}
+
+/// A binary glTF file with `KHR_gaussian_splatting`, as `render --map` and `export --map`
+/// read it.
+pub fn glb(data: &[u8]) {
+    let _ = renderer::formats::glb::read_glb(data);
 }
 
 /// This thread's scratch folder (under the system temporary folder, one per process and

@@ -4,7 +4,8 @@
 //! [`RenderOutput`]), the CPU reference rasterizer ([`cpu`], forward and backward, the oracle
 //! that training differentiates through), the wgpu rasterizer ([`gpu`], forward, what the node
 //! draws with), the one entry point that picks between them ([`raster`]), and file formats
-//! ([`ply`] for maps, [`picture`] for PNG), written crash-safely through [`atomic`]. The wgpu half (`gpu`, `raster`) is the default feature `gpu`; without
+//! ([`ply`] for 3DGS PLY, [`formats`] for the choice between PLY, SPZ and glTF binary with
+//! `KHR_gaussian_splatting`, [`picture`] for PNG), written crash-safely through [`atomic`]. The wgpu half (`gpu`, `raster`) is the default feature `gpu`; without
 //! it the crate builds without wgpu (the fuzz targets' build).
 //!
 //! It must not know about networks, data sets or transport: those live in `model` and `node`,
@@ -13,6 +14,7 @@
 pub mod atomic;
 pub mod camera;
 pub mod cpu;
+pub mod formats;
 pub mod gaussians;
 #[cfg(feature = "gpu")]
 pub mod gpu;

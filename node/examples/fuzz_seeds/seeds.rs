@@ -21,6 +21,7 @@ use node::msg::schema::ros2msg;
 use node::msg::std_msgs::Header;
 use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::{Message, MessageKind};
+use renderer::formats::{write_map, MapFormat};
 use renderer::{scene, GaussianSet, Intrinsics};
 
 /// A stamp in 2023, nanoseconds.
@@ -81,6 +82,14 @@ pub fn write_all(out: &Path) -> anyhow::Result<()> {
         &bag(&seeds.0, &[&image.encode(), &pose_msg.encode()])?,
     )?;
     seeds.put("ply", "binary", &ply(&gaussians)?)?;
+    for format in [MapFormat::Spz, MapFormat::Glb] {
+        let mut bytes = Vec::new();
+        write_map(&gaussians, format, &mut bytes)?;
+        seeds.put(format.extension(), "two", &bytes)?;
+        bytes.clear();
+        write_map(&GaussianSet::default(), format, &mut bytes)?;
+        seeds.put(format.extension(), "empty", &bytes)?;
+    }
     let mut map = GlobalMap::new(FusionConfig::default())?;
     map.insert_bin(2, &gaussians, pose)?;
     let path = seeds.0.join("scratch").join("global_map.ssgmap");

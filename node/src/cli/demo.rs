@@ -1,7 +1,7 @@
 //! `stereosplat demo`: the main job on the embedded default. It generates a short synthetic
 //! drive, runs the node and a replay on loopback zenoh, and leaves in one folder what a user
-//! would look at: per-bin maps (3DGS PLY, pose, render), the fused global map (PLY,
-//! bird's-eye PNG) and a latency summary.
+//! would look at: per-bin maps (3DGS PLY, SPZ or glTF binary; pose, render), the fused global
+//! map (the same format, bird's-eye PNG) and a latency summary.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -12,6 +12,7 @@ use clap::Args;
 use model::kitti360::images::write_png;
 use model::kitti360::Sequence;
 use model::synth::SynthConfig;
+use renderer::formats::MapFormat;
 
 use super::method_args::MethodArgs;
 use super::progress;
@@ -56,6 +57,10 @@ pub struct DemoArgs {
     /// Rasterizer of the per-bin renders.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
+    /// Format of the per-bin maps and the global map: `ply` (3DGS PLY), `spz` (Niantic's
+    /// compressed SPZ) or `glb` (binary glTF with KHR_gaussian_splatting); docs/formats.md.
+    #[arg(long, default_value_t = MapFormat::Ply)]
+    format: MapFormat,
     #[command(flatten)]
     view: ViewFlags,
 }
@@ -92,6 +97,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         on_check_fail: args.on_check_fail.into(),
         renders: args.renders.into(),
         out_dir: Some(args.out.join("map")),
+        map_format: args.format,
         // Each demo is a run of its own: an earlier demo's map is kept aside, not resumed.
         start_map: StartMap::Fresh,
         checkpoint_every: 0,
@@ -102,7 +108,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let mut write_error = None;
     let mut on_bin = |received: Received| {
         let written = match received {
-            Received::Bin(bin) => write_bin(&bins_dir, &bin),
+            Received::Bin(bin) => write_bin(&bins_dir, &bin, args.format),
             Received::Render { bin_id, image } => {
                 let path = bins_dir.join(format!("bin_{bin_id:04}_render.png"));
                 write_png(&path, &image).map_err(Into::into)
@@ -161,7 +167,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     )?;
     writeln!(out, "{}", stats.summary())?;
     writeln!(out, "per-bin maps:  {}", bins_dir.display())?;
-    for f in ["global_map.ply", "global_map_bev.png"] {
+    for f in [
+        format!("global_map.{}", args.format),
+        "global_map_bev.png".into(),
+    ] {
         writeln!(
             out,
             "global map:    {}",
@@ -180,13 +189,13 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     Ok(())
 }
 
-/// Writes one bin: `bin_<id>.ply` (bin frame) and `bin_<id>_pose.json` (bin frame to
-/// world, f64).
-fn write_bin(dir: &Path, bin: &ReceivedBin) -> Result<()> {
+/// Writes one bin: `bin_<id>.<ply|spz|glb>` (bin frame) and `bin_<id>_pose.json` (bin frame
+/// to world, f64).
+fn write_bin(dir: &Path, bin: &ReceivedBin, format: MapFormat) -> Result<()> {
     let stem = dir.join(format!("bin_{:04}", bin.bin_id));
-    let ply = stem.with_extension("ply");
-    renderer::ply::save_ply(&bin.gaussians, &ply)
-        .with_context(|| format!("writing {}", ply.display()))?;
+    let map = stem.with_extension(format.extension());
+    renderer::formats::save_map(&bin.gaussians, &map, format)
+        .with_context(|| format!("writing {}", map.display()))?;
     let m = bin.bin_to_world;
     let pose = serde_json::json!({
         "bin_id": bin.bin_id,

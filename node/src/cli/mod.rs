@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod bench_check;
+pub mod bench_export;
 pub mod bench_model;
 pub mod bench_node;
 pub mod bench_pareto;
@@ -10,6 +11,7 @@ pub mod enhancer_data;
 pub mod eval;
 pub mod eval_enhancer;
 pub mod eval_map;
+pub mod export;
 pub mod interpolate_weights;
 pub mod launch;
 pub mod logs;

@@ -1,4 +1,4 @@
-//! `stereosplat render`: a map (or a generated scene) to PNG pictures.
+//! `stereosplat render`: a map (PLY, SPZ or glTF binary, or a generated scene) to PNG pictures.
 //!
 //! The main job of the project until the streaming node exists: with no flags it generates
 //! the seeded street scene, writes it as a 3DGS PLY, and renders RGB, depth and alpha on the
@@ -33,7 +33,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let set = args.scene.gaussians(&cam)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    if args.scene.ply.is_none() {
+    if args.scene.map.is_none() {
         let ply = args.out.join("scene.ply");
         renderer::ply::save_ply(&set, &ply)
             .with_context(|| format!("writing {}", ply.display()))?;

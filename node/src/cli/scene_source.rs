@@ -1,4 +1,5 @@
-//! Where a command's Gaussians and camera come from: a PLY file or a seeded generated scene,
+//! Where a command's Gaussians and camera come from: a map file (PLY, SPZ or glTF binary, told
+//! apart by content) or a seeded generated scene,
 //! seen by a camera at the origin looking down +z unless told otherwise.
 
 use anyhow::{bail, Context, Result};
@@ -18,10 +19,11 @@ pub enum GeneratedScene {
 /// Flags that choose the scene and the camera.
 #[derive(Args, Clone, Debug)]
 pub struct SceneArgs {
-    /// A 3DGS PLY map to load instead of generating a scene.
-    #[arg(long)]
-    pub ply: Option<std::path::PathBuf>,
-    /// Which scene to generate when no `--ply` is given.
+    /// A map to load instead of generating a scene: 3DGS PLY, SPZ or glTF binary with
+    /// KHR_gaussian_splatting, told apart by content (`--ply` is the same flag).
+    #[arg(long, visible_alias = "ply")]
+    pub map: Option<std::path::PathBuf>,
+    /// Which scene to generate when no `--map` is given.
     #[arg(long, value_enum, default_value = "pixel-aligned")]
     pub scene: GeneratedScene,
     /// Number of Gaussians for `--scene random`.
@@ -64,10 +66,11 @@ impl SceneArgs {
         )))
     }
 
-    /// The Gaussians: loaded from `--ply`, or generated.
+    /// The Gaussians: loaded from `--map` (any of the three formats), or generated.
     pub fn gaussians(&self, cam: &Camera) -> Result<GaussianSet> {
-        if let Some(path) = &self.ply {
-            return renderer::ply::load_ply(path)
+        if let Some(path) = &self.map {
+            return renderer::formats::load_map(path)
+                .map(|(_, set)| set)
                 .with_context(|| format!("reading {}", path.display()));
         }
         Ok(match self.scene {

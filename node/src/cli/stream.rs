@@ -15,6 +15,7 @@ use crate::transport::open;
 use anyhow::{Context, Result};
 use clap::Args;
 use model::kitti360::Sequence;
+use renderer::formats::MapFormat;
 
 use super::logs::{self, BagReplayArgs};
 use super::method_args::MethodArgs;
@@ -101,6 +102,11 @@ pub struct RunArgs {
     /// (map, bin ids, sequence numbers); a checkpoint that does not load stops the node.
     #[arg(long, default_value = "out/node")]
     out: PathBuf,
+    /// Format of the global map file written to `--out` when the node stops
+    /// (`global_map.<ply|spz|glb>`): 3DGS PLY, Niantic's compressed SPZ, or binary glTF with
+    /// KHR_gaussian_splatting (docs/formats.md).
+    #[arg(long, default_value_t = MapFormat::Ply)]
+    format: MapFormat,
     /// Start a new, empty map even if `--out` holds a checkpoint (it is kept, renamed to
     /// `global_map.ssgmap.replaced-<unix seconds>`).
     #[arg(long)]
@@ -215,6 +221,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             ..FusionConfig::default()
         },
         out_dir: Some(args.out.clone()),
+        map_format: args.format,
         start_map: match args.fresh {
             true => StartMap::Fresh,
             false => StartMap::Resume,

@@ -6,19 +6,28 @@
 //! `rot_0..3` = quaternion `(w, x, y, z)`; `confidence`. All FLOAT32, except positions in
 //! world-frame clouds.
 //!
+//! Then `rgb`, the packed colour of the PCL / ROS convention that RViz2's and Foxglove's
+//! point-cloud displays colour by: a FLOAT32 channel whose 32 bits are the integer
+//! `0x00RRGGBB`, each channel the SH DC colour `0.5 + SH_C0 * f_dc` clamped to [0, 1] and
+//! rounded to 8 bits (NaN as 0). Read it as a `uint32` (`struct.unpack('<I',
+//! struct.pack('<f', rgb))` in Python, `reinterpret_cast` in C++); as a float it is a tiny
+//! number (below 1e-37) and means nothing. It is derived from `f_dc_0..2`, so the reader below
+//! does not need it and clouds without it (written before it existed) decode the same.
+//!
 //! Positions: a bin map lives in its bin frame (the header's `frame_id` names it) and its
 //! positions are FLOAT32 as they are. The global map lives in the world frame, where f32
 //! loses centimetres 100 km out; its positions are written as FLOAT64 `x y z` (an `origin`
 //! given in f64 plus the set's f32 offsets from it), so any PointCloud2 reader gets exact
-//! world coordinates without a side channel. Records are 60 bytes (f32 positions) or 72
-//! bytes (f64 positions, then the 12 f32 channels at offset 24); `height = 1`, little endian,
-//! `is_dense = true`.
+//! world coordinates without a side channel. Records are 64 bytes (f32 positions, `rgb` at
+//! offset 60) or 76 bytes (f64 positions, then the 12 f32 channels at offset 24 and `rgb` at
+//! offset 72); `height = 1`, little endian, `is_dense = true`.
 //!
 //! The reader takes any record layout: the named channels anywhere in the record, FLOAT32 or
 //! FLOAT64, either byte order, `confidence` optional (1 when absent), extra channels ignored.
 //! Rotations are read as stored, not normalised, as the PLY reader does.
 
 use glam::{DVec3, Quat, Vec3};
+use renderer::picture::unit_to_u8;
 use renderer::ply::{opacity_from_logit, opacity_logit, SH_C0};
 use renderer::GaussianSet;
 
@@ -44,6 +53,17 @@ pub const FIELD_NAMES: [&str; 15] = [
     "rot_3",
     "confidence",
 ];
+
+/// The packed-colour channel written after [`FIELD_NAMES`] (see the module documentation).
+pub const RGB_FIELD: &str = "rgb";
+
+/// The PCL / ROS packed colour of an SH DC coefficient triple: `0x00RRGGBB` with each channel
+/// `0.5 + SH_C0 * f_dc` clamped to [0, 1] and rounded to 8 bits (NaN as 0), as the FLOAT32 whose
+/// bits those are.
+pub fn packed_rgb(f_dc: [f64; 3]) -> f32 {
+    let [r, g, b] = f_dc.map(|dc| u32::from(unit_to_u8((0.5 + SH_C0 * dc) as f32)));
+    f32::from_bits((r << 16) | (g << 8) | b)
+}
 
 /// One Gaussian's stored values, in [`FIELD_NAMES`] order and the PLY conventions.
 pub type Record = [f64; 15];
@@ -118,6 +138,7 @@ pub fn cloud_from_records(
     };
     let fields: Vec<PointField> = FIELD_NAMES
         .iter()
+        .chain(&[RGB_FIELD])
         .enumerate()
         .map(|(i, name)| PointField {
             name: (*name).to_owned(),
@@ -130,7 +151,7 @@ pub fn cloud_from_records(
             count: 1,
         })
         .collect();
-    let point_step = 3 * pos_size + 4 * 12;
+    let point_step = 3 * pos_size + 4 * 13;
     let too_large = || ConvertError::TooLarge("the Gaussian cloud");
     let width = u32::try_from(records.len()).map_err(|_| too_large())?;
     let row_step = width.checked_mul(point_step).ok_or_else(too_large)?;
@@ -143,6 +164,7 @@ pub fn cloud_from_records(
                 data.extend_from_slice(&(*x as f32).to_le_bytes());
             }
         }
+        data.extend_from_slice(&packed_rgb([v[3], v[4], v[5]]).to_le_bytes());
     }
     Ok(PointCloud2 {
         header,

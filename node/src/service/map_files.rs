@@ -9,12 +9,15 @@
 //! [`RestoreError::Unreadable`], naming the file and why, and the file is left as it is; a
 //! fresh start moves an existing checkpoint aside (to `global_map.ssgmap.replaced-<unix
 //! seconds>`) rather than overwriting it, so no saved map is ever replaced by an empty one.
+//! The exported map file is in the format `run --format` names (PLY by default).
 //! Every file is replaced atomically ([`renderer::atomic`]).
 
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use glam::{DAffine3, DVec2};
+
+use renderer::formats::MapFormat;
 
 use crate::fusion::{bev_image, local_set, save_bev_png, BevView, GlobalMap, StoreError};
 
@@ -59,6 +62,17 @@ pub enum RestoreError {
 #[derive(Debug, thiserror::Error)]
 #[error("exporting the global map: {0}")]
 pub struct ExportError(String);
+
+/// `e` and its sources, joined by `: ` (the export error keeps only text).
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text += &format!(": {s}");
+        source = s.source();
+    }
+    text
+}
 
 /// The map a node starts with, and where it came from.
 #[derive(Debug)]
@@ -122,9 +136,10 @@ pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
     map.save(dir.join(CHECKPOINT))
 }
 
-/// Writes the checkpoint, the global map as 3DGS PLY (positions relative to the latest bin's
-/// origin, which `global_map_origin.json` records) and a bird's-eye PNG, each atomically.
-pub fn export(map: &GlobalMap, dir: &Path) -> Result<(), ExportError> {
+/// Writes the checkpoint, the global map as `global_map.<ply|spz|glb>` in `format` (positions
+/// relative to the latest bin's origin, which `global_map_origin.json` records; see
+/// [`renderer::formats`]) and a bird's-eye PNG, each atomically.
+pub fn export(map: &GlobalMap, dir: &Path, format: MapFormat) -> Result<(), ExportError> {
     let err = |e: &dyn std::fmt::Display| ExportError(e.to_string());
     checkpoint(map, dir).map_err(|e| err(&e))?;
     let Some(origin) = map.latest_origin() else {
@@ -132,8 +147,9 @@ pub fn export(map: &GlobalMap, dir: &Path) -> Result<(), ExportError> {
     };
     let frame = DAffine3::from_translation(origin);
     let set = local_set(map.gaussians().map(|(_, g)| g), frame).map_err(|e| err(&e))?;
-    let ply = dir.join("global_map.ply");
-    renderer::ply::save_ply(&set, &ply).map_err(|e| err(&format!("{}: {e}", ply.display())))?;
+    let file = dir.join(format!("global_map.{format}"));
+    renderer::formats::save_map(&set, &file, format)
+        .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
     let json = format!(
         "{{\"x\": {}, \"y\": {}, \"z\": {}}}\n",
         origin.x, origin.y, origin.z

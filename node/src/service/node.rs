@@ -5,6 +5,7 @@ use std::future::Future;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use renderer::formats::MapFormat;
 use tokio::sync::mpsc;
 use zenoh::sample::Locality;
 
@@ -54,6 +55,8 @@ pub struct NodeConfig {
     /// Where the fused map (PLY, bird's-eye PNG, saved map) goes when the node stops, and
     /// where its checkpoint is kept and resumed from (see [`super::map_files`]).
     pub out_dir: Option<PathBuf>,
+    /// The format of the global map file written to `out_dir` when the node stops.
+    pub map_format: MapFormat,
     /// Resume the checkpoint in `out_dir` or start fresh.
     pub start_map: StartMap,
     /// The map is checkpointed to `out_dir` after every this many fused bins, before they
@@ -95,7 +98,8 @@ impl Default for NodeConfig {
     /// Loopback peer, namespace `stereosplat`, the default method (the learned network, with
     /// bins failing the self-check replaced by SGM's), a
     /// snapshot every 10 bins, renders on, nothing exported (with an out folder: resume its
-    /// checkpoint, checkpoint after every bin), diagnostics every second, no Foxglove server.
+    /// checkpoint, checkpoint after every bin, export PLY), diagnostics every second, no
+    /// Foxglove server.
     fn default() -> Self {
         Self {
             transport: TransportConfig::default(),
@@ -110,6 +114,7 @@ impl Default for NodeConfig {
             on_check_fail: OnCheckFail::default(),
             fusion: FusionConfig::default(),
             out_dir: None,
+            map_format: MapFormat::Ply,
             start_map: StartMap::Resume,
             checkpoint_every: 1,
             snapshot_every: 10,
@@ -314,7 +319,7 @@ pub async fn run_with(
     // A map that never held a bin (nothing arrived, nothing was resumed) leaves no files:
     // an empty checkpoint would only shadow a later run's start.
     if let (Some(dir), Some(_)) = (&config.out_dir, outputs.map.last_bin_id()) {
-        export(&outputs.map, dir)?;
+        export(&outputs.map, dir, config.map_format)?;
     }
     let mut summary = std::mem::take(&mut outputs.summary);
     summary.global_gaussians = outputs.map.len();

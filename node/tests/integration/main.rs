@@ -31,6 +31,7 @@ mod cli_replay;
 mod decoders_mutated;
 #[cfg(unix)]
 mod doc_blocks;
+mod formats_interop;
 mod foxglove_client;
 mod fusion;
 mod fusion_keep;
@@ -39,6 +40,7 @@ mod launch;
 mod msg_codec;
 mod msg_interop;
 mod msg_rclpy;
+mod msg_rgb;
 mod node_bad_input;
 mod node_crash;
 mod node_far;

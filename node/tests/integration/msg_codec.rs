@@ -195,16 +195,16 @@ fn gaussians_round_trip_through_a_bin_frame_cloud() {
     let cloud = PointCloud2::decode(&samples().cloud.encode()).unwrap();
     assert_eq!(
         (cloud.point_step, cloud.row_step, cloud.width),
-        (60, 180, 3)
+        (64, 192, 3)
     );
     assert_eq!(cloud.header.frame_id, "bin_7");
     let names: Vec<_> = cloud.fields.iter().map(|f| f.name.as_str()).collect();
     assert_eq!(names[..4], ["x", "y", "z", "f_dc_0"]);
-    assert_eq!(names[14], "confidence");
+    assert_eq!(names[14..], ["confidence", "rgb"]);
     // Stored values follow the PLY convention: opacity 0.2 -> logit, rot_0 = w.
     let f32_at = |i: usize, off: usize| {
         f32::from_le_bytes(
-            cloud.data[60 * i + off..60 * i + off + 4]
+            cloud.data[64 * i + off..64 * i + off + 4]
                 .try_into()
                 .unwrap(),
         )
@@ -224,10 +224,32 @@ fn gaussians_round_trip_through_a_bin_frame_cloud() {
 }
 
 #[test]
+fn clouds_without_rgb_as_written_before_it_decode_the_same() {
+    for cloud in [samples().cloud, samples().world_cloud] {
+        let step = cloud.point_step as usize;
+        let mut old = cloud.clone();
+        old.fields.retain(|f| f.name != "rgb");
+        old.point_step -= 4;
+        old.row_step = old.point_step * old.width;
+        old.data = cloud
+            .data
+            .chunks_exact(step)
+            .flat_map(|r| r[..step - 4].to_vec())
+            .collect();
+        let old = PointCloud2::decode(&old.encode()).unwrap();
+        assert_eq!(old.point_step, if step == 64 { 60 } else { 72 });
+        assert_eq!(
+            gaussians_from_cloud(&old, FAR).unwrap(),
+            gaussians_from_cloud(&cloud, FAR).unwrap()
+        );
+    }
+}
+
+#[test]
 fn world_clouds_store_f64_positions_exact_100_km_out() {
     let set = gaussians();
     let cloud = samples().world_cloud;
-    assert_eq!(cloud.point_step, 72);
+    assert_eq!(cloud.point_step, 76);
     assert_eq!(cloud.fields[0].datatype, datatype::FLOAT64);
     let x0 = f64::from_le_bytes(cloud.data[0..8].try_into().unwrap());
     assert_eq!(x0, FAR.x + set.means[0].x as f64);
@@ -261,7 +283,7 @@ fn malformed_clouds_are_typed_errors() {
         Err(ConvertError::BadField { .. })
     ));
     let mut c = good.clone();
-    c.fields[14].offset = 58;
+    c.fields[14].offset = 62; // 4 bytes from 62 pass the 64-byte record
     assert!(matches!(
         gaussians_from_cloud(&c, DVec3::ZERO),
         Err(ConvertError::BadField { .. })

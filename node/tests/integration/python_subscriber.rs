@@ -8,7 +8,7 @@
 //!
 //! Checked: both saw the same output keys with the same message counts and Python decoded
 //! every sample; the bin maps have the same widths, frames and fields (the 3DGS PLY names
-//! plus `confidence`, 60-byte points) and the same first point; the bin poses are the same
+//! plus `confidence` and the packed `rgb`, 64-byte points) and the same first point; the bin poses are the same
 //! f64 bits; latency arrived for every closed bin with the same values; the diagnostics
 //! counters and any map updates and images agree.
 //!
@@ -25,7 +25,7 @@ use std::process::{Child, ChildStdout, Command, Stdio};
 use drive_support::{Collector, Drive, Player, RunningNode};
 use model::synth::SynthConfig;
 use node::bag::Rate;
-use node::msg::gaussians::{records_from_cloud, FIELD_NAMES};
+use node::msg::gaussians::{records_from_cloud, FIELD_NAMES, RGB_FIELD};
 use node::msg::geometry_msgs::PoseStamped;
 use node::msg::latency::{BinLatency, Diagnostics};
 use node::msg::map_update::MapUpdate;
@@ -217,15 +217,15 @@ async fn a_python_zenoh_subscriber_decodes_with_rosbags_what_a_rust_subscriber_d
         assert_eq!(p["width"].as_u64(), Some(m.width as u64));
         assert!(m.width > 500, "{} Gaussians", m.width);
         assert_eq!(p["height"], 1);
-        assert_eq!(p["point_step"], 60);
+        assert_eq!(p["point_step"], 64);
         let fields: Vec<&str> = p["fields"]
             .as_array()
             .unwrap()
             .iter()
             .map(|f| f.as_str().unwrap())
             .collect();
-        assert_eq!(fields, FIELD_NAMES);
-        assert_eq!(fields.last(), Some(&"confidence"));
+        assert_eq!(fields[..FIELD_NAMES.len()], FIELD_NAMES);
+        assert_eq!(fields[FIELD_NAMES.len()..], [RGB_FIELD]);
         let first = records_from_cloud(m).unwrap()[0];
         for (name, value) in FIELD_NAMES.iter().zip(first) {
             assert_eq!(p["first_point"][name].as_f64(), Some(value), "{name}");

@@ -341,7 +341,7 @@ fn http_json(port: u16, path: &str) -> Option<Value> {
 }
 
 /// The CPU reference render of `set` from `camera`, as RGB8.
-fn render_rgb8(set: &renderer::GaussianSet, camera: &Camera) -> Vec<u8> {
+pub(crate) fn render_rgb8(set: &renderer::GaussianSet, camera: &Camera) -> Vec<u8> {
     let out = cpu::render(
         &set.view().unwrap(),
         &camera.params::<f32>(),
@@ -352,7 +352,7 @@ fn render_rgb8(set: &renderer::GaussianSet, camera: &Camera) -> Vec<u8> {
 }
 
 /// PSNR (dB, peak 255) and mean absolute difference (levels) of two RGB8 images.
-fn psnr_and_mean_abs(a: &[u8], b: &[u8]) -> (f64, f64) {
+pub(crate) fn psnr_and_mean_abs(a: &[u8], b: &[u8]) -> (f64, f64) {
     assert_eq!(a.len(), b.len());
     let (mut se, mut ae) = (0.0f64, 0.0f64);
     for (&x, &y) in a.iter().zip(b) {

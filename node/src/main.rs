@@ -24,7 +24,8 @@ enum Command {
     Demo(demo::DemoArgs),
     /// Render a PLY map, or a generated scene, to PNG pictures (RGB, depth, alpha).
     Render(render::RenderArgs),
-    /// Write a synthetic drive in the KITTI-360 layout (training seeds).
+    /// Write a synthetic street, desk or room sequence in the KITTI-360 layout (training and
+    /// validation seeds).
     Synth(synth::SynthArgs),
     /// Write held-out synthetic drives (seeds training never uses) for evaluation.
     SynthHeldout(synth::HeldoutArgs),

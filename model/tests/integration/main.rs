@@ -38,6 +38,7 @@ mod progressive;
 mod pseudo_mix;
 mod synth;
 mod synth_randomised;
+mod synth_scenes;
 mod tiny_3d_weights;
 mod tiny_weights_unchanged;
 mod train;

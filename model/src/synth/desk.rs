@@ -136,13 +136,15 @@ pub fn build(rng: &mut ChaCha8Rng, config: &SynthConfig, k: &Intrinsics) -> Indo
         tan_half_h: half_h.tan(),
     };
     let items = rng.random_range(6..16);
+    // An object's top stays at least 0.2 m from the camera: tall ones stand farther away.
+    let tallest_at = |at: DVec3| (0.5 * (at.y.hypot(lift) - 0.2)).clamp(0.02, tallest);
     for _ in 0..items {
         let at = area.draw(rng);
-        objects.push(item(rng, &finishes, at, tallest));
+        objects.push(item(rng, &finishes, at, tallest_at(at)));
     }
     for _ in 0..rng.random_range(0..3) {
         let at = area.draw(rng);
-        hand(rng, at, tallest, &mut objects);
+        hand(rng, at, tallest_at(at), &mut objects);
     }
     IndoorScene { objects, path }
 }

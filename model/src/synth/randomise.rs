@@ -266,7 +266,7 @@ mod tests {
             (a.min(l.baseline_m), b.max(l.baseline_m))
         });
         assert!(
-            lo >= 0.05 && lo < 0.06 && hi <= 0.5 && hi > 0.45,
+            (0.05..0.06).contains(&lo) && hi <= 0.5 && hi > 0.45,
             "{lo}..{hi}"
         );
         // Log-uniform: about as many rigs under 15.8 cm (the geometric mean) as over.

@@ -1,10 +1,10 @@
-//! The StereoSplat model side: the data it learns from and is judged on (KITTI-360 layout
-//! reader, the synthetic street generator, bins, metrics), the reconstructors that turn stereo
-//! frames into Gaussian sets (the classical SGM baseline, [`baseline`], and the candle
+//! The StereoSplat model side: the data it learns from and is judged on (KITTI-360 layout reader,
+//! the synthetic street, desk and room generator, bins, metrics), the reconstructors that turn
+//! stereo frames into Gaussian sets (the classical SGM baseline, [`baseline`], and the candle
 //! network, [`net`], with its training, [`train`]), the differentiable candle ops the network
-//! trains through ([`ops`]), the LPIPS loss and metric ([`lpips`]), the evaluation protocol of
-//! the paper's section 4, loss-curve charts ([`curve`]), and the one-step enhancer of
-//! StereoSplat+ with its training pairs, training and scores ([`enhance`]).
+//! trains through ([`ops`]), the LPIPS loss and metric ([`lpips`]), the evaluation protocol of the
+//! paper's section 4, loss-curve charts ([`curve`]), and the one-step enhancer of StereoSplat+ with
+//! its training pairs, training and scores ([`enhance`]).
 //!
 //! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
 //! about transport (`node`).

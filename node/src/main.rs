@@ -28,7 +28,8 @@ enum Command {
     /// A map (PLY, SPZ, glTF binary or the node's checkpoint) in another format: PLY, SPZ
     /// or glTF binary with KHR_gaussian_splatting.
     Export(export::ExportArgs),
-    /// Write a synthetic drive in the KITTI-360 layout (training seeds).
+    /// Write a synthetic street, desk or room sequence in the KITTI-360 layout (training and
+    /// validation seeds).
     Synth(synth::SynthArgs),
     /// Write held-out synthetic drives (seeds training never uses) for evaluation.
     SynthHeldout(synth::HeldoutArgs),

@@ -1,10 +1,105 @@
-//! Settings of a synthetic sequence. The rig and LiDAR mounting come from
-//! [`crate::kitti360::Calibration::synthetic`], KITTI-360's own calibration scaled, unless
-//! the drive is randomised ([`Randomisation`]): then it draws its own rig and image size.
+//! Settings of a synthetic sequence: the kind of scene, its size and rig. A street's rig and
+//! LiDAR mounting come from [`crate::kitti360::Calibration::synthetic`], KITTI-360's own
+//! calibration scaled; a desk or a room has a handheld rig of its own ([`SceneKind::rig`]);
+//! a randomised drive ([`Randomisation`]) draws its rig and image size from its seed.
 
 use super::randomise::{DriveLook, Randomisation};
 
-/// What to generate. Everything else (layout, palette, sun, trajectory) follows from `seed`.
+/// What a sequence shows, and so the scale of its depths.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SceneKind {
+    /// A car rig driving down a procedural street: surfaces at 1-100 m.
+    #[default]
+    Street,
+    /// A handheld or arm-mounted rig over a table with objects and hands on it: the table
+    /// top 0.2-1 m away, a backdrop behind at 1-3 m.
+    Desk,
+    /// A handheld rig walking through a furnished room: floor, walls and ceiling 1-10 m away.
+    Room,
+}
+
+impl SceneKind {
+    /// Every kind, in the order the docs list them.
+    pub const ALL: [SceneKind; 3] = [SceneKind::Street, SceneKind::Desk, SceneKind::Room];
+
+    /// The lower-case name the command line and sequence names use.
+    pub fn name(self) -> &'static str {
+        match self {
+            SceneKind::Street => "street",
+            SceneKind::Desk => "desk",
+            SceneKind::Room => "room",
+        }
+    }
+
+    /// The kind called `name` ([`SceneKind::name`]), if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// The rig of an unrandomised sequence of this kind: `None` for a street (KITTI-360's
+    /// own), a 10 cm, 70 degree rig for a desk (a stereo webcam or OAK-D class camera) and
+    /// a 12 cm, 75 degree one for a room.
+    pub fn rig(self) -> Option<RigChoice> {
+        match self {
+            SceneKind::Street => None,
+            SceneKind::Desk => Some(RigChoice {
+                hfov_deg: 70.0,
+                baseline_m: 0.10,
+            }),
+            SceneKind::Room => Some(RigChoice {
+                hfov_deg: 75.0,
+                baseline_m: 0.12,
+            }),
+        }
+    }
+}
+
+/// A stereo rig chosen by hand: square pixels, principal point at the image centre.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigChoice {
+    /// Horizontal field of view, degrees (the focal length follows from the image width).
+    pub hfov_deg: f64,
+    /// Distance between the two cameras, metres.
+    pub baseline_m: f64,
+}
+
+impl RigChoice {
+    /// The focal length in pixels of this field of view at `width` pixels.
+    pub fn focal_px(&self, width: u32) -> f64 {
+        0.5 * width as f64 / (0.5 * self.hfov_deg.to_radians()).tan()
+    }
+}
+
+/// Why a configuration cannot be generated.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SynthConfigError {
+    /// The image has no pixels, or more than the generator renders.
+    #[error("image size {width}x{height}: each side must be 1-16384 pixels")]
+    Size {
+        /// Width asked for.
+        width: u32,
+        /// Height asked for.
+        height: u32,
+    },
+    /// The baseline is not a positive finite length of at most 10 m.
+    #[error("baseline {0} m: it must be finite, positive and at most 10 m")]
+    Baseline(f64),
+    /// The field of view is not strictly between 1 and 170 degrees.
+    #[error("horizontal field of view {0} degrees: it must lie in [1, 170]")]
+    FieldOfView(f64),
+    /// The viewing distance is not a positive finite length of at most 50 m.
+    #[error("viewing distance {0} m: it must be finite, in [0.01, 50]")]
+    Distance(f64),
+    /// The exposure is negative or not finite.
+    #[error("exposure {0}: it must be finite and at least 0")]
+    Exposure(f64),
+    /// Supersampling of zero samples.
+    #[error("supersample 0: at least one sample per pixel")]
+    Supersample,
+}
+
+/// What to generate. Everything else (layout, palette, light, trajectory) follows from
+/// `seed` and `scene`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SynthConfig {
     /// Seed of the whole sequence: equal seeds give bit-identical output.
@@ -25,6 +120,18 @@ pub struct SynthConfig {
     /// objects); `None`: the plain generator. A randomised drive draws its own image size,
     /// so `width` and `height` are then unused.
     pub randomise: Option<Randomisation>,
+    /// The kind of scene.
+    pub scene: SceneKind,
+    /// The rig, when not randomised: `None` takes the kind's own ([`SceneKind::rig`]).
+    /// Ignored by randomised drives, which draw theirs.
+    pub rig: Option<RigChoice>,
+    /// Desk and room: the distance from the camera to what it looks at (the table top along
+    /// the optical axis; the far wall), metres; `None` draws it from the kind's range.
+    /// Streets ignore it.
+    pub view_distance_m: Option<f64>,
+    /// Gain on the rendered radiance before it is clipped to [0, 1]: 1 is the scene as lit,
+    /// 0 a black (flat) pair, large values a saturated one.
+    pub exposure: f64,
 }
 
 impl SynthConfig {
@@ -39,10 +146,49 @@ impl SynthConfig {
     pub fn size(&self) -> (u32, u32) {
         self.look().map_or((self.width, self.height), |l| l.size)
     }
+
+    /// The rig the drive is seen by, as (focal length px, baseline m), when it is not
+    /// KITTI-360's (an unrandomised street without [`SynthConfig::rig`] is).
+    pub fn chosen_rig(&self) -> Option<(f64, f64)> {
+        if let Some(look) = self.look() {
+            return Some((look.focal_px, look.baseline_m));
+        }
+        let rig = self.rig.or(self.scene.rig())?;
+        Some((rig.focal_px(self.width), rig.baseline_m))
+    }
+
+    /// Checks that the configuration can be generated: a typed error for sizes, rigs,
+    /// distances or exposures no camera has.
+    pub fn validate(&self) -> Result<(), SynthConfigError> {
+        let (width, height) = self.size();
+        if !(1..=16384).contains(&width) || !(1..=16384).contains(&height) {
+            return Err(SynthConfigError::Size { width, height });
+        }
+        if self.supersample == 0 {
+            return Err(SynthConfigError::Supersample);
+        }
+        if let Some(rig) = self.rig.filter(|_| self.randomise.is_none()) {
+            if !(rig.baseline_m.is_finite() && rig.baseline_m > 0.0 && rig.baseline_m <= 10.0) {
+                return Err(SynthConfigError::Baseline(rig.baseline_m));
+            }
+            if !(1.0..=170.0).contains(&rig.hfov_deg) {
+                return Err(SynthConfigError::FieldOfView(rig.hfov_deg));
+            }
+        }
+        if let Some(d) = self.view_distance_m {
+            if !(0.01..=50.0).contains(&d) {
+                return Err(SynthConfigError::Distance(d));
+            }
+        }
+        if !(self.exposure.is_finite() && self.exposure >= 0.0) {
+            return Err(SynthConfigError::Exposure(self.exposure));
+        }
+        Ok(())
+    }
 }
 
 impl Default for SynthConfig {
-    /// A tiny sequence: 40 frames at 272 x 72 (KITTI-360's 1408 x 376 scaled by ~0.19).
+    /// A tiny street: 40 frames at 272 x 72 (KITTI-360's 1408 x 376 scaled by ~0.19).
     fn default() -> Self {
         Self {
             seed: 0,
@@ -53,6 +199,10 @@ impl Default for SynthConfig {
             lidar_azimuth_steps: 1024,
             lidar_max_range: 120.0,
             randomise: None,
+            scene: SceneKind::Street,
+            rig: None,
+            view_distance_m: None,
+            exposure: 1.0,
         }
     }
 }

@@ -1,7 +1,9 @@
-//! The synthetic street generator: deterministic forward-driving stereo sequences of a
-//! procedural street (road with lane marks, kerbs, sidewalks, facades with windows, plain
-//! walls, parked and oncoming cars, poles, trees, sky) with exact left depth and
-//! HDL-64E-like LiDAR sweeps, rendered by ray casting analytic primitives.
+//! The synthetic scene generator: deterministic stereo sequences with exact depth of both
+//! cameras and HDL-64E-like LiDAR sweeps, rendered by ray casting analytic primitives, of
+//! three kinds ([`SceneKind`]): a car driving down a procedural street (road with lane
+//! marks, kerbs, sidewalks, facades with windows, plain walls, parked and oncoming cars,
+//! poles, trees, sky; 1-100 m), a handheld camera over a desk (objects and hands on a
+//! table 0.2-1 m away) and one walking through a furnished room (1-10 m).
 //!
 //! World frame: x, y on the ground, z up (as KITTI-360's world). Camera poses are OpenCV
 //! camera-to-world (x right, y down, z forward). The same seed gives bit-identical output:
@@ -11,10 +13,13 @@
 mod camera_effects;
 mod camera_render;
 mod config;
+mod desk;
+mod indoor;
 mod lidar;
 mod photos;
 mod primitives;
 mod randomise;
+mod room;
 mod scene;
 mod shading;
 mod textures;
@@ -26,16 +31,19 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 pub use camera_render::camera_ray;
-pub use config::SynthConfig;
+pub use config::{RigChoice, SceneKind, SynthConfig, SynthConfigError};
+pub use desk::{TABLE_HEIGHT, VIEW_DISTANCE_M as DESK_VIEW_DISTANCE_M};
 pub use lidar::{BOTTOM_ELEVATION, RINGS, TOP_ELEVATION};
 pub use photos::PhotoBank;
 pub use primitives::Ray;
-pub use randomise::{CameraLook, DriveLook, Randomisation};
+pub use randomise::{CameraLook, DriveLook, Randomisation, HANDHELD_SIZES};
+pub use room::VIEW_DISTANCE_M as ROOM_VIEW_DISTANCE_M;
 pub use shading::SurfaceClass;
 pub use trace::KERB_HEIGHT;
 pub use trajectory::{CAMERA_HEIGHT, FRAME_DT};
 
-use crate::frame::{DepthMap, Side, StereoFrame, StereoRig};
+use crate::frame::{DepthMap, RgbImage, Side, StereoFrame, StereoRig};
+use indoor::IndoorScene;
 use scene::{Street, ONCOMING_SPEED};
 use shading::Palette;
 use textures::mix64;
@@ -65,11 +73,22 @@ pub struct SynthSequence {
     config: SynthConfig,
     rig: StereoRig,
     cam_to_velo: DAffine3,
-    road: Road,
-    street: Street,
-    trajectory: Trajectory,
+    layout: Layout,
     palette: Palette,
     look: Option<DriveLook>,
+}
+
+/// Where the camera is and what surrounds it.
+#[derive(Clone, Debug)]
+enum Layout {
+    /// A road, its furniture and the car's motion along it.
+    Street {
+        road: Road,
+        street: Street,
+        trajectory: Trajectory,
+    },
+    /// A desk or a room with its handheld path.
+    Indoor(IndoorScene),
 }
 
 fn stream(seed: u64, purpose: u64) -> ChaCha8Rng {
@@ -80,6 +99,32 @@ impl SynthSequence {
     /// A sequence for `config`, seen by `rig`, with the velodyne at `cam_to_velo` (maps left
     /// camera coordinates to velodyne coordinates).
     pub fn new(config: SynthConfig, rig: StereoRig, cam_to_velo: DAffine3) -> Self {
+        let (layout, palette) = match config.scene {
+            SceneKind::Street => Self::street(&config),
+            kind => {
+                // Streams 1-6 belong to the street and the camera look.
+                let palette =
+                    indoor::lighting(&mut stream(config.seed, 8), config.randomise.as_ref());
+                let rng = &mut stream(config.seed, 7);
+                let scene = match kind {
+                    SceneKind::Desk => desk::build(rng, &config, &rig.intrinsics),
+                    _ => room::build(rng, &config),
+                };
+                (Layout::Indoor(scene), palette)
+            }
+        };
+        Self {
+            config,
+            rig,
+            cam_to_velo,
+            layout,
+            palette,
+            look: config.look(),
+        }
+    }
+
+    /// The street of `config`, and its light.
+    fn street(config: &SynthConfig) -> (Layout, Palette) {
         let trajectory = Trajectory::new(&mut stream(config.seed, 1), config.frames);
         let duration = config.frames as f64 * FRAME_DT;
         let length = trajectory.end_arc() + ONCOMING_SPEED * duration + 2.0 * OBJECT_RANGE;
@@ -87,16 +132,12 @@ impl SynthSequence {
         if let Some(r) = &config.randomise {
             palette.randomise(&mut stream(config.seed, 5), r);
         }
-        Self {
-            config,
-            rig,
-            cam_to_velo,
+        let layout = Layout::Street {
             road: Road::new(&mut stream(config.seed, 2), length),
             street: Street::new(config.seed, config.randomise),
             trajectory,
-            palette,
-            look: config.look(),
-        }
+        };
+        (layout, palette)
     }
 
     /// The configuration.
@@ -122,7 +163,12 @@ impl SynthSequence {
     /// Left camera to world at frame `i` (cheap: no rendering). Indices past `len()` continue
     /// the same drive.
     pub fn pose(&self, i: usize) -> DAffine3 {
-        self.trajectory.pose(&self.road, i)
+        match &self.layout {
+            Layout::Street {
+                road, trajectory, ..
+            } => trajectory.pose(road, i),
+            Layout::Indoor(scene) => scene.path.pose(i),
+        }
     }
 
     /// Timestamp of frame `i` in nanoseconds (10 Hz from 0).
@@ -131,18 +177,47 @@ impl SynthSequence {
     }
 
     fn world(&self, i: usize) -> World<'_> {
-        let arc = self.trajectory.arc(i);
-        let time = i as f64 * FRAME_DT;
-        let objects = self
-            .street
-            .objects_near(&self.road, &self.palette, arc, OBJECT_RANGE, time);
-        World::new(
-            &self.road,
-            &self.palette,
-            objects,
-            arc,
-            self.pose(i).translation,
-        )
+        let anchor = self.pose(i).translation;
+        match &self.layout {
+            Layout::Street {
+                road,
+                street,
+                trajectory,
+            } => {
+                let arc = trajectory.arc(i);
+                let time = i as f64 * FRAME_DT;
+                let objects = street.objects_near(road, &self.palette, arc, OBJECT_RANGE, time);
+                World::new(road, &self.palette, objects, arc, anchor)
+            }
+            Layout::Indoor(scene) => World::indoor(
+                &self.palette,
+                scene.objects.clone(),
+                anchor,
+                scene.path.tangent(),
+            ),
+        }
+    }
+
+    /// The image of one camera: rendered, exposed, then spoiled by the drive's look.
+    fn image(
+        &self,
+        world: &World,
+        pose: &DAffine3,
+        gain: impl Fn(&DriveLook) -> glam::DVec3,
+        rng: &mut ChaCha8Rng,
+    ) -> RgbImage {
+        let k = &self.rig.intrinsics;
+        let mut image = camera_render::render_image(world, pose, k, self.config.supersample);
+        if self.config.exposure != 1.0 {
+            let exposure = self.config.exposure as f32;
+            for v in &mut image.data {
+                *v = (*v * exposure).clamp(0.0, 1.0);
+            }
+        }
+        if let Some(look) = &self.look {
+            camera_effects::apply(&mut image, &look.camera, gain(look), rng);
+        }
+        image
     }
 
     /// Renders frame `i`: both images, both depths and the LiDAR sweep.
@@ -151,15 +226,10 @@ impl SynthSequence {
         let left_pose = self.pose(i);
         let right_pose = self.rig.camera_to_world(left_pose, Side::Right);
         let k = &self.rig.intrinsics;
-        let ss = self.config.supersample;
-        let mut left = camera_render::render_image(&world, &left_pose, k, ss);
-        let mut right = camera_render::render_image(&world, &right_pose, k, ss);
-        if let Some(look) = &self.look {
-            // Per-frame noise: its own stream per (seed, frame).
-            let mut rng = stream(self.config.seed ^ mix64(i as u64), 6);
-            camera_effects::apply(&mut left, &look.camera, look.camera.gain_left, &mut rng);
-            camera_effects::apply(&mut right, &look.camera, look.camera.gain_right, &mut rng);
-        }
+        // Per-frame noise: its own stream per (seed, frame).
+        let mut rng = stream(self.config.seed ^ mix64(i as u64), 6);
+        let left = self.image(&world, &left_pose, |l| l.camera.gain_left, &mut rng);
+        let right = self.image(&world, &right_pose, |l| l.camera.gain_right, &mut rng);
         let (left_depth, _) = camera_render::render_centres(&world, &left_pose, k);
         let (right_depth, _) = camera_render::render_centres(&world, &right_pose, k);
         let velo_to_world = left_pose * self.cam_to_velo.inverse();

@@ -12,6 +12,8 @@ use glam::DVec3;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+use super::config::SceneKind;
+
 /// The ranges the randomisation draws from. `Default` holds the documented ranges
 /// (docs/evaluation.md, "Synthetic drives"); every drive draws its own values.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -90,6 +92,43 @@ impl Default for Randomisation {
     }
 }
 
+/// Image sizes of handheld rigs (desks, rooms): widths 320-1408 at 4:3, 16:10, 16:9 and
+/// wide (KITTI-360 and the node's working) aspects, heights multiples of 8.
+pub const HANDHELD_SIZES: &[(u32, u32)] = &[
+    (320, 240),
+    (384, 240),
+    (448, 256),
+    (544, 112),
+    (544, 144),
+    (640, 360),
+    (640, 480),
+    (768, 480),
+    (800, 600),
+    (960, 544),
+    (1024, 768),
+    (1152, 720),
+    (1280, 720),
+    (1408, 376),
+    (1408, 792),
+];
+
+impl Randomisation {
+    /// The ranges a drive of `kind` draws from: the street's are [`Randomisation::default`];
+    /// desks and rooms draw handheld rigs ([`HANDHELD_SIZES`], 55-100 degrees, 5-50 cm
+    /// baselines log-uniformly) and keep the default looks.
+    pub fn for_scene(kind: SceneKind) -> Self {
+        match kind {
+            SceneKind::Street => Self::default(),
+            SceneKind::Desk | SceneKind::Room => Self {
+                sizes: HANDHELD_SIZES,
+                hfov_deg: (55.0, 100.0),
+                baseline_m: (0.05, 0.5),
+                ..Self::default()
+            },
+        }
+    }
+}
+
 /// One drive's draw: its rig and its camera's look.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveLook {
@@ -124,7 +163,8 @@ pub struct CameraLook {
     pub grey: bool,
 }
 
-fn range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
+/// A uniform draw from `[lo, hi)` (`lo` when the range is empty).
+pub(super) fn range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
     if hi > lo {
         rng.random_range(lo..hi)
     } else {
@@ -132,7 +172,8 @@ fn range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
     }
 }
 
-fn log_range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
+/// A log-uniform draw from `[lo, hi)`.
+pub(super) fn log_range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
     range(rng, (lo.ln(), hi.ln())).exp()
 }
 
@@ -199,6 +240,42 @@ mod tests {
         assert!(looks.iter().any(|l| l.camera.jpeg_quality.is_some()));
         assert!(
             looks.iter().any(|l| l.baseline_m < 0.1) && looks.iter().any(|l| l.baseline_m > 0.4)
+        );
+    }
+
+    #[test]
+    fn handheld_rigs_span_their_ranges() {
+        let r = Randomisation::for_scene(SceneKind::Desk);
+        assert_eq!(r, Randomisation::for_scene(SceneKind::Room));
+        assert_eq!(
+            Randomisation::for_scene(SceneKind::Street),
+            Randomisation::default()
+        );
+        for &(w, h) in HANDHELD_SIZES {
+            assert!(
+                (320..=1408).contains(&w) && w % 8 == 0 && h % 8 == 0,
+                "{w}x{h}"
+            );
+            let aspect = w as f64 / h as f64;
+            assert!((1.3..=4.9).contains(&aspect), "{w}x{h}");
+        }
+        let looks: Vec<DriveLook> = (0..400)
+            .map(|s| r.draw(&mut ChaCha8Rng::seed_from_u64(s)))
+            .collect();
+        let (lo, hi) = looks.iter().fold((f64::MAX, 0.0f64), |(a, b), l| {
+            (a.min(l.baseline_m), b.max(l.baseline_m))
+        });
+        assert!(
+            (0.05..0.06).contains(&lo) && hi <= 0.5 && hi > 0.45,
+            "{lo}..{hi}"
+        );
+        // Log-uniform: about as many rigs under 15.8 cm (the geometric mean) as over.
+        let under = looks.iter().filter(|l| l.baseline_m < 0.158).count();
+        assert!((160..240).contains(&under), "{under} of 400 under 15.8 cm");
+        let widths: std::collections::BTreeSet<u32> = looks.iter().map(|l| l.size.0).collect();
+        assert!(
+            widths.contains(&320) && widths.contains(&1408),
+            "{widths:?}"
         );
     }
 }

@@ -30,16 +30,29 @@ pub struct Object {
     pub centre: DVec3,
     /// Bounding sphere radius.
     pub radius: f64,
+    /// Whether it can hide the light from other surfaces (an enclosure's walls and ceiling
+    /// do not: the light is inside the room).
+    pub casts_shadow: bool,
 }
 
 impl Object {
-    fn new(shape: Shape, material: Material) -> Self {
+    /// A solid that casts shadows.
+    pub(super) fn new(shape: Shape, material: Material) -> Self {
         let (centre, radius) = shape.bounds();
         Self {
             shape,
             material,
             centre,
             radius,
+            casts_shadow: true,
+        }
+    }
+
+    /// A solid that never hides the light (walls, ceilings, backdrops).
+    pub(super) fn backdrop(shape: Shape, material: Material) -> Self {
+        Self {
+            casts_shadow: false,
+            ..Self::new(shape, material)
         }
     }
 }

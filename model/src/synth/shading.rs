@@ -41,6 +41,22 @@ pub enum SurfaceClass {
     Canopy,
     /// A floating object of the domain randomisation.
     Floater,
+    /// An indoor floor.
+    Floor,
+    /// An indoor wall (or a desk's backdrop).
+    Wall,
+    /// A room's ceiling.
+    Ceiling,
+    /// A table: its top and legs.
+    Table,
+    /// A room's furniture: cabinets, shelves, sofas, lamps.
+    Furniture,
+    /// An object on a desk: a box, a can, a ball.
+    Item,
+    /// A hand (palm and fingers) resting on a desk.
+    Hand,
+    /// A picture hanging on a wall.
+    Picture,
 }
 
 /// A photo texture on a surface (domain randomisation, [`super::photos`]).
@@ -72,6 +88,35 @@ impl PhotoSurface {
     pub fn albedo(&self, u: f64, v: f64, w: f64) -> DVec3 {
         (PhotoBank::get().sample(self.tile, u, v, self.period, w) * self.tint)
             .clamp(DVec3::ZERO, DVec3::splat(0.95))
+    }
+}
+
+/// An indoor surface: a base colour with value-noise grain, or a photo texture, and the
+/// class it reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Finish {
+    /// What the surface is.
+    pub class: SurfaceClass,
+    /// Albedo the grain varies around.
+    pub base: DVec3,
+    /// Relative amplitude of the grain (0: a flat colour).
+    pub grain: f64,
+    /// Largest noise cell of the grain, metres (finer octaves halve it).
+    pub cell: f64,
+    /// Noise seed.
+    pub seed: u64,
+    /// A photo texture replacing the grain, when set.
+    pub photo: Option<PhotoSurface>,
+}
+
+impl Finish {
+    /// Albedo at surface coordinates (u, v) metres for a footprint of `w` metres.
+    pub fn albedo(&self, u: f64, v: f64, w: f64) -> DVec3 {
+        match self.photo {
+            Some(photo) => photo.albedo(u, v, w),
+            None => (self.base * (1.0 + self.grain * fbm(self.seed, u, v, self.cell, 6, w)))
+                .clamp(DVec3::splat(0.01), DVec3::splat(0.95)),
+        }
     }
 }
 
@@ -120,6 +165,8 @@ pub enum Material {
     Canopy(DVec3),
     /// A photo-textured floating object (domain randomisation).
     Photo(PhotoSurface),
+    /// An indoor surface.
+    Finish(Finish),
 }
 
 /// Per-sequence colours and light.
@@ -330,15 +377,16 @@ impl Palette {
 }
 
 /// Albedo and class of a material at shape-local point `local`, with `horizontal_u` the
-/// texture coordinate running around the shape, `top` set on upward faces, for a filter
-/// footprint `w` metres.
+/// texture coordinate running around the shape, `normal_z` the world normal's z (upward
+/// faces have it near 1, downward ones near -1), for a filter footprint `w` metres.
 pub fn material_albedo(
     material: &Material,
     local: DVec3,
     horizontal_u: f64,
-    top: bool,
+    normal_z: f64,
     w: f64,
 ) -> (DVec3, SurfaceClass) {
+    let top = normal_z > 0.5;
     match *material {
         Material::Facade(style) => facade(&style, horizontal_u, local.z, top, w),
         Material::CarBody(paint) => {
@@ -374,6 +422,13 @@ pub fn material_albedo(
                 false => photo.albedo(horizontal_u, local.z, w),
             };
             (albedo, SurfaceClass::Floater)
+        }
+        Material::Finish(finish) => {
+            let albedo = match normal_z.abs() > 0.5 {
+                true => finish.albedo(local.x, local.y, w),
+                false => finish.albedo(horizontal_u, local.z, w),
+            };
+            (albedo, finish.class)
         }
     }
 }

@@ -42,7 +42,8 @@ pub struct Surface {
 
 /// One frame's world: road, palette and the objects near the vehicle.
 pub struct World<'a> {
-    road: &'a Road,
+    /// The street's road (its ground); `None` indoors, where every surface is an object.
+    road: Option<&'a Road>,
     palette: &'a Palette,
     objects: Vec<Object>,
     arc: f64,
@@ -52,7 +53,7 @@ pub struct World<'a> {
     by_along: Vec<(f64, u32)>,
     /// Largest bounding radius.
     max_radius: f64,
-    /// Highest point of any object.
+    /// Highest point of any object that casts a shadow.
     top: f64,
 }
 
@@ -71,7 +72,28 @@ impl<'a> World<'a> {
         arc: f64,
         anchor: DVec3,
     ) -> Self {
-        let tangent = road.tangent(arc);
+        Self::build(Some(road), palette, objects, arc, anchor, road.tangent(arc))
+    }
+
+    /// A world without a road: only `objects` (an enclosure and what it holds), with
+    /// shadow culling along the horizontal unit direction `tangent` from `anchor`.
+    pub fn indoor(
+        palette: &'a Palette,
+        objects: Vec<Object>,
+        anchor: DVec3,
+        tangent: DVec2,
+    ) -> Self {
+        Self::build(None, palette, objects, 0.0, anchor, tangent)
+    }
+
+    fn build(
+        road: Option<&'a Road>,
+        palette: &'a Palette,
+        objects: Vec<Object>,
+        arc: f64,
+        anchor: DVec3,
+        tangent: DVec2,
+    ) -> Self {
         let along = |p: DVec3| (p - anchor).truncate().dot(tangent);
         let mut by_along: Vec<(f64, u32)> = objects
             .iter()
@@ -82,6 +104,7 @@ impl<'a> World<'a> {
         let max_radius = objects.iter().map(|o| o.radius).fold(0.0, f64::max);
         let top = objects
             .iter()
+            .filter(|o| o.casts_shadow)
             .map(|o| o.centre.z + o.radius)
             .fold(0.0, f64::max);
         Self {
@@ -154,8 +177,7 @@ impl<'a> World<'a> {
                 Shape::Cylinder { radius, .. } => hit.local.y.atan2(hit.local.x) * radius,
                 _ => hit.local.x + hit.local.y,
             };
-            let (albedo, class) =
-                material_albedo(&object.material, hit.local, u, hit.normal.z > 0.5, w);
+            let (albedo, class) = material_albedo(&object.material, hit.local, u, hit.normal.z, w);
             return Some(Surface {
                 t: hit.t,
                 point: ray.at(hit.t),
@@ -180,16 +202,17 @@ impl<'a> World<'a> {
     }
 
     /// Road coordinates of a ground point.
-    fn road_coords(&self, p: DVec3) -> (f64, f64) {
-        self.road.project(p.truncate(), self.arc + self.along(p))
+    fn road_coords(&self, road: &Road, p: DVec3) -> (f64, f64) {
+        road.project(p.truncate(), self.arc + self.along(p))
     }
 
     /// The ground a ray meets first: the raised level (|lateral| >= ROAD_HALF) at kerb
     /// height, else the road at z = 0, else the kerb's vertical face between them (found by
     /// bisection on the lateral offset, which the ray crosses once between the two planes).
     fn ground(&self, ray: &Ray) -> Option<GroundHit> {
+        let road = self.road?;
         let upper = plane_hit(ray, KERB_HEIGHT)?;
-        let up = self.road_coords(ray.at(upper));
+        let up = self.road_coords(road, ray.at(upper));
         if up.1.abs() >= ROAD_HALF {
             return Some(GroundHit {
                 t: upper,
@@ -198,7 +221,7 @@ impl<'a> World<'a> {
             });
         }
         let lower = plane_hit(ray, 0.0)?;
-        let low = self.road_coords(ray.at(lower));
+        let low = self.road_coords(road, ray.at(lower));
         if low.1.abs() < ROAD_HALF {
             return Some(GroundHit {
                 t: lower,
@@ -210,14 +233,14 @@ impl<'a> World<'a> {
         let (mut a, mut b) = (upper, lower);
         for _ in 0..40 {
             let mid = 0.5 * (a + b);
-            if self.road_coords(ray.at(mid)).1.abs() < ROAD_HALF {
+            if self.road_coords(road, ray.at(mid)).1.abs() < ROAD_HALF {
                 a = mid;
             } else {
                 b = mid;
             }
         }
-        let (s, _) = self.road_coords(ray.at(b));
-        let tangent = self.road.tangent(s);
+        let (s, _) = self.road_coords(road, ray.at(b));
+        let tangent = road.tangent(s);
         let towards_road = DVec2::new(tangent.y, -tangent.x) * side;
         Some(GroundHit {
             t: b,
@@ -249,7 +272,8 @@ impl<'a> World<'a> {
             .take_while(|&&(a, _)| a <= hi)
             .any(|&(_, i)| {
                 let o = &self.objects[i as usize];
-                may_hit_sphere(&ray, o.centre, o.radius, reach)
+                o.casts_shadow
+                    && may_hit_sphere(&ray, o.centre, o.radius, reach)
                     && o.shape.intersect(&ray, reach).is_some()
             })
     }

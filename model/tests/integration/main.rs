@@ -39,6 +39,7 @@ mod rig_range;
 mod pseudo_mix;
 mod synth;
 mod synth_randomised;
+mod synth_scenes;
 mod tiny_3d_weights;
 mod tiny_weights_unchanged;
 mod train;

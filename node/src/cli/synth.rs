@@ -1,14 +1,17 @@
-//! `stereosplat synth` and `stereosplat synth-heldout`: synthetic drives in the KITTI-360
-//! layout, for training (any seed below the held-out range) and for evaluation (seeds from
-//! [`HELDOUT_SEED_BASE`] up, which training never uses).
+//! `stereosplat synth` and `stereosplat synth-heldout`: synthetic sequences (streets, desks,
+//! rooms) in the KITTI-360 layout, for training (seeds below [`HELDOUT_SEED_BASE`]), for
+//! validation (seeds from [`VALIDATION_SEED_BASE`] up, where settings and checkpoints are
+//! chosen) and for evaluation (the held-out seeds in between, which nothing else uses).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use model::generate::{write_synthetic, HELDOUT_SEED_BASE};
+use model::generate::{
+    scene_sequence_name, write_synthetic, HELDOUT_SEED_BASE, VALIDATION_SEED_BASE,
+};
 use model::kitti360::Sequence;
-use model::synth::{Randomisation, SynthConfig};
+use model::synth::{Randomisation, RigChoice, SceneKind, SynthConfig};
 
 use super::progress;
 
@@ -35,6 +38,38 @@ pub struct DriveArgs {
     /// floating objects, all drawn from the seed.
     #[arg(long)]
     randomise: bool,
+    /// What the sequence shows: `street` (a car rig, 1-100 m), `desk` (a handheld rig over
+    /// a table, 0.2-1 m) or `room` (walking through a room, 1-10 m).
+    #[arg(long, default_value = "street", value_parser = parse_scene)]
+    scene: SceneKind,
+    /// Stereo baseline in metres (unrandomised sequences; default: the scene's own, KITTI-360's
+    /// 0.59 m for streets, 0.10 m for desks, 0.12 m for rooms).
+    #[arg(long)]
+    baseline: Option<f64>,
+    /// Horizontal field of view in degrees, with `--baseline` (default: the scene's own; 70
+    /// for desks, 75 for rooms, KITTI-360's for streets).
+    #[arg(long, requires = "baseline")]
+    hfov: Option<f64>,
+    /// Desks and rooms: distance from the camera to what it looks at (the table top along
+    /// the optical axis; the wall it faces), metres (default: drawn, 0.3-0.6 for desks,
+    /// 2.5-8.5 for rooms).
+    #[arg(long)]
+    distance: Option<f64>,
+}
+
+/// KITTI-360's horizontal field of view, degrees: a street's with `--baseline` but no
+/// `--hfov`.
+fn kitti360_hfov_deg() -> f64 {
+    use model::kitti360::calibration::{KITTI360_FOCAL, KITTI360_SIZE};
+    2.0 * (0.5 * KITTI360_SIZE.0 as f64 / KITTI360_FOCAL)
+        .atan()
+        .to_degrees()
+}
+
+/// A `--scene` value.
+fn parse_scene(name: &str) -> Result<SceneKind, String> {
+    SceneKind::from_name(name)
+        .ok_or_else(|| format!("unknown scene `{name}`: street, desk or room"))
 }
 
 impl DriveArgs {
@@ -45,7 +80,16 @@ impl DriveArgs {
             width: self.width,
             height: self.height,
             supersample: self.supersample,
-            randomise: self.randomise.then(Randomisation::default),
+            randomise: self.randomise.then(|| Randomisation::for_scene(self.scene)),
+            scene: self.scene,
+            rig: self.baseline.map(|baseline_m| RigChoice {
+                hfov_deg: self
+                    .hfov
+                    .or(self.scene.rig().map(|r| r.hfov_deg))
+                    .unwrap_or_else(kitti360_hfov_deg),
+                baseline_m,
+            }),
+            view_distance_m: self.distance,
             ..SynthConfig::default()
         }
     }
@@ -56,7 +100,8 @@ impl DriveArgs {
 pub struct SynthArgs {
     #[command(flatten)]
     drive: DriveArgs,
-    /// Seed of the street and the drive (below the held-out range).
+    /// Seed of the scene and the camera's path: training seeds lie below 1000000, validation
+    /// seeds from 2000000 up (the held-out ones between are `synth-heldout`'s).
     #[arg(long, default_value_t = 0)]
     seed: u64,
 }
@@ -73,14 +118,23 @@ pub struct HeldoutArgs {
 
 /// Writes one training drive.
 pub fn run(args: &SynthArgs) -> Result<()> {
-    if args.seed >= HELDOUT_SEED_BASE {
-        bail!("seeds from {HELDOUT_SEED_BASE} up are held out; use `synth-heldout` for them");
+    if (HELDOUT_SEED_BASE..VALIDATION_SEED_BASE).contains(&args.seed) {
+        bail!(
+            "seeds {HELDOUT_SEED_BASE}-{} are held out; use `synth-heldout` for them",
+            VALIDATION_SEED_BASE - 1
+        );
     }
     write(&args.drive, args.seed)
 }
 
 /// Writes the held-out drives.
 pub fn run_heldout(args: &HeldoutArgs) -> Result<()> {
+    if args.sequences > VALIDATION_SEED_BASE - HELDOUT_SEED_BASE {
+        bail!(
+            "at most {} held-out sequences",
+            VALIDATION_SEED_BASE - HELDOUT_SEED_BASE
+        );
+    }
     for k in 0..args.sequences {
         write(&args.drive, HELDOUT_SEED_BASE + k)?;
     }
@@ -104,7 +158,7 @@ fn write(drive: &DriveArgs, seed: u64) -> Result<()> {
 /// The generated drive of `config` under `root`, written (with a progress bar) unless a
 /// sequence of that seed, length and size is already there; returns its name.
 pub fn cached_drive(root: &Path, config: &SynthConfig) -> Result<String> {
-    let name = model::generate::sequence_name(config.seed);
+    let name = scene_sequence_name(config.scene, config.seed);
     let ready = Sequence::open(root, &name).is_ok_and(|s| {
         let k = s.rig().intrinsics;
         s.frames().len() == config.frames as usize && (k.width, k.height) == config.size()

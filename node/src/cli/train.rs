@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use model::bins::BinConfig;
 use model::net::Config;
@@ -67,6 +67,11 @@ pub struct TrainArgs {
     /// the same as `--set view_subsampling=false`).
     #[arg(long)]
     no_subsample: bool,
+    /// Distance between a bin's first and last frames, metres: 8 for streets; handheld
+    /// desks and rooms move centimetres per frame, so their bins are shorter (0.1 for desks,
+    /// 0.5 for rooms: docs/training.md).
+    #[arg(long, default_value_t = BinConfig::default().length_m)]
+    bin_length: f64,
     /// Read frames at this size (intrinsics scaled), e.g. real KITTI-360 at 544x144.
     #[arg(long, num_args = 2, value_names = ["WIDTH", "HEIGHT"])]
     resize: Option<Vec<u32>>,
@@ -113,6 +118,12 @@ fn loss_weights(args: &TrainArgs) -> LossWeights {
 
 /// Runs `train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
+    if !(args.bin_length.is_finite() && args.bin_length > 0.0) {
+        bail!(
+            "--bin-length {}: a bin must span a positive distance",
+            args.bin_length
+        );
+    }
     let net = Config::preset(&args.preset)?.with_settings(&args.settings)?;
     let cfg = TrainConfig {
         steps: args.steps,
@@ -129,7 +140,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
             volume: None,
         },
         loss: loss_weights(args),
-        bins: BinConfig::default(),
+        bins: BinConfig {
+            length_m: args.bin_length,
+            ..BinConfig::default()
+        },
         adamw: AdamWConfig::default(),
         resize: args.resize.as_ref().map(|s| (s[0], s[1])),
     };

@@ -74,3 +74,69 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
     let _ = std::fs::remove_dir_all(&data);
     let _ = std::fs::remove_dir_all(&out);
 }
+
+#[test]
+fn a_desk_validation_sequence_is_written_and_evaluated_with_short_bins() {
+    let data = temp_dir("eval-desk");
+    let out = temp_dir("eval-desk-out");
+    let args = [
+        "synth",
+        "--scene",
+        "desk",
+        "--seed",
+        "2000000",
+        "--frames",
+        "16",
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--supersample",
+        "1",
+        "--out",
+    ];
+    let said = stereosplat(&args, &[&data]);
+    assert!(said.contains("synth_desk_2000000_sync (160x120)"), "{said}");
+    let table = stereosplat(
+        &[
+            "eval",
+            "--method",
+            "sgm",
+            "--no-lpips",
+            "--bin-length",
+            "0.1",
+            "--max-bins",
+            "2",
+            "--pictures",
+            "0",
+            "--data",
+        ],
+        &[&data, Path::new("--out"), &out],
+    );
+    assert!(table.contains("| sgm |"), "{table}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(json["bins"].as_array().unwrap().len(), 2, "{json}");
+    let psnr = json["summary"]["first"]["psnr"].as_f64().unwrap();
+    assert!(psnr.is_finite() && psnr > 10.0, "{json}");
+
+    // Held-out seeds belong to `synth-heldout`; a bad rig is refused with its reason.
+    let refused = |extra: &[&str]| {
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_stereosplat"))
+            .args(["synth", "--frames", "1", "--width", "32", "--height", "24"])
+            .args(extra)
+            .arg("--out")
+            .arg(&data)
+            .output()
+            .unwrap();
+        assert!(!run.status.success(), "{extra:?}");
+        String::from_utf8_lossy(&run.stderr).into_owned()
+    };
+    assert!(refused(&["--seed", "1500000"]).contains("held out"));
+    let bad = refused(&["--scene", "room", "--seed", "2000001", "--baseline", "0"]);
+    assert!(bad.contains("baseline 0 m"), "{bad}");
+    assert!(refused(&["--scene", "kitchen"]).contains("street, desk or room"));
+    for dir in [data, out] {
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+}

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Writes the generated validation set: every setting, threshold, weight blend and checkpoint
+# is chosen on it, never on real pairs and never on the held-out drives it is reported on.
+# Seeds start at 2,000,000 (training seeds lie below 1,000,000, held-out evaluation seeds
+# from 1,000,000 to 1,999,999): per kind, desk 2000000-2000003, room 2000100-2000103 and
+# street 2000200-2000203, each a 40-frame sequence with a randomised rig (5-50 cm baselines
+# and 320-1408 px widths for desks and rooms; the street's randomisation for streets), each
+# in its own KITTI-360 root DATA/KIND_SEED (its own rig). Sequences already written are kept,
+# so an interrupted run goes on where it stopped; run it in the background with nohup.
+#   bash scripts/validation_data.sh [DATA_DIR]
+# VALIDATION_SEQUENCES (default 4) sets how many sequences per kind, VALIDATION_FRAMES
+# (default 40) their length.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+data="${1:-data/validation}"
+count="${VALIDATION_SEQUENCES:-4}"
+frames="${VALIDATION_FRAMES:-40}"
+# STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
+bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
+[ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
+base=2000000
+for kind in desk room street; do
+  case "$kind" in
+    desk) first=$base; word=desk ;;
+    room) first=$((base + 100)); word=room ;;
+    street) first=$((base + 200)); word=drive ;;
+  esac
+  for ((k = 0; k < count; k++)); do
+    seed=$((first + k))
+    root="$data/${kind}_$seed"
+    name=$(printf "synth_%s_%07d_sync" "$word" "$seed")
+    if [ ! -f "$root/data_poses/$name/poses.txt" ]; then
+      "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise
+    fi
+  done
+done
+echo "validation set under $data"

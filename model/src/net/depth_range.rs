@@ -8,8 +8,8 @@
 use candle_core::Tensor;
 use renderer::Camera;
 
-use super::guidance::SgmHints;
 use super::config::RIG_DEPTH_LIMITS;
+use super::guidance::SgmHints;
 use super::Config;
 use crate::baseline::{rectified_baseline, SgmConfig, SgmReconstructor};
 use crate::frame::RgbImage;

@@ -23,7 +23,7 @@ fn rigged(fraction: f32) -> Config {
 }
 
 #[test]
-fn tiny_keeps_its_trained_metres_on_the_kitti_rig_and_other_presets_keep_metres() {
+fn kitti360s_share_gives_the_trained_metres_on_its_rig_and_presets_keep_metres() {
     // KITTI-360's rig at 1408 px (fx 552.554 px, baseline 0.5942 m): 1-100 m as trained.
     let k = Intrinsics {
         fx: 552.554,
@@ -34,13 +34,19 @@ fn tiny_keeps_its_trained_metres_on_the_kitti_rig_and_other_presets_keep_metres(
         height: 376,
     };
     let at = |x: f32| Camera::from_camera_to_world(k, Quat::IDENTITY, Vec3::new(x, 0.0, 0.0));
-    let r = rig_range(&[at(0.0), at(0.5942)], &Config::tiny()).expect("tiny follows the rig");
-    assert!((r.near - 1.0).abs() < 2e-3 && (r.far - 100.0).abs() < 0.2, "{r:?}");
+    let cfg = rigged(0.233_181);
+    let r = rig_range(&[at(0.0), at(0.5942)], &cfg).expect("a usable rig");
+    assert!(
+        (r.near - 1.0).abs() < 2e-3 && (r.far - 100.0).abs() < 0.2,
+        "{r:?}"
+    );
     // A 10 cm desk rig with the same lens reaches 17 cm.
-    let desk = rig_range(&[at(0.0), at(0.1)], &Config::tiny()).unwrap();
+    let desk = rig_range(&[at(0.0), at(0.1)], &cfg).unwrap();
     assert!((desk.near - 0.168).abs() < 2e-3, "{desk:?}");
-    assert_eq!(Config::small().rig_disparity_fraction, None);
-    assert_eq!(rig_range(&pair(640, 0.1), &Config::small()), None);
+    for preset in [Config::tiny(), Config::small()] {
+        assert_eq!(preset.rig_disparity_fraction, None);
+        assert_eq!(rig_range(&pair(640, 0.1), &preset), None);
+    }
 }
 
 #[test]
@@ -53,7 +59,10 @@ fn the_nearest_candidate_has_a_third_of_the_width_in_disparity_at_5_cm_and_50_cm
             let fx = cams[0].intrinsics.fx;
             let d_near = fx * baseline / r.near;
             let d_far = fx * baseline / r.far;
-            assert!((d_near - width as f32 / 3.0).abs() < 1e-3 * width as f32, "{d_near}");
+            assert!(
+                (d_near - width as f32 / 3.0).abs() < 1e-3 * width as f32,
+                "{d_near}"
+            );
             // The preset's span (1..100 m) is kept: far is 100 times near.
             assert!((r.far / r.near - 100.0).abs() < 1e-3, "{r:?}");
             assert!(d_far > 0.0 && d_far < d_near);
@@ -78,7 +87,10 @@ fn absurd_rigs_stay_finite_within_the_limits_or_keep_the_preset() {
     for baseline in [0.001f32, 2.0, 1e6] {
         let r = rig_range(&pair(640, baseline), &cfg).expect("finite rig");
         assert!(r.near.is_finite() && r.far.is_finite(), "{r:?}");
-        assert!(r.near >= lo && r.far <= hi * 1.0001 && r.near < r.far, "{r:?}");
+        assert!(
+            r.near >= lo && r.far <= hi * 1.0001 && r.near < r.far,
+            "{r:?}"
+        );
     }
     // No baseline, a NaN camera, a single camera, a zero fraction: the preset's metres.
     assert_eq!(rig_range(&pair(640, 0.0), &cfg), None);

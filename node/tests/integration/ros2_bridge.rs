@@ -42,8 +42,8 @@ use serde_json::Value;
 
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
 
-/// The 3DGS field names of a bin map, in order.
-const FIELDS: [&str; 15] = [
+/// The field names of a bin map, in order: the 3DGS fields, then the packed colour.
+const FIELDS: [&str; 16] = [
     "x",
     "y",
     "z",
@@ -59,6 +59,7 @@ const FIELDS: [&str; 15] = [
     "rot_2",
     "rot_3",
     "confidence",
+    "rgb",
 ];
 
 /// A child process killed (and reaped) when dropped, so a failing test leaves none behind.

@@ -368,7 +368,7 @@ async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
         assert_eq!(map["fields"], serde_json::json!(FIELDS), "{frame}");
         assert_eq!(map["width"], ours.width, "{frame}");
         assert_eq!(map["height"], 1);
-        assert_eq!(map["point_step"], 60);
+        assert_eq!(map["point_step"], 64, "15 f32 fields and the packed rgb");
         assert_eq!(map["bytes"], ours.data.len(), "{frame}");
         assert!(ours.width > 0, "{frame} is empty");
         assert_eq!(pose["frame_id"], "world");

@@ -233,20 +233,30 @@ impl LearnedReconstructor {
         cameras: &[Camera],
     ) -> Result<Reconstruction, ReconstructError> {
         let start = Instant::now();
-        let rigged = self.net.for_rig(cameras);
+        // The rig's range once; the network is only copied when a range or fit changes it.
         let rig = rig_range(cameras, self.net.config());
-        let fitted = rigged.fitted_to_scene(images, cameras);
+        let rigged = rig.map(|r| self.net.with_depth_range(r));
+        let fitted = rigged
+            .as_ref()
+            .unwrap_or(&self.net)
+            .fitted_to_scene(images, cameras);
         let range_fit_ms = match self.net.config().fits_scene() {
             true => start.elapsed().as_secs_f64() * 1e3,
             false => 0.0,
         };
         let (net, range) = match fitted {
+            Some((fitted, range)) => (Some(fitted), range.or(rig)),
             None => (rigged, rig),
-            Some((fitted, range)) => (fitted, range.or(rig)),
         };
-        let preset = std::mem::replace(&mut self.net, net);
-        let out = self.reconstruct_over_preset_range(images, cameras);
-        self.net = preset;
+        let out = match net {
+            Some(net) => {
+                let preset = std::mem::replace(&mut self.net, net);
+                let out = self.reconstruct_over_preset_range(images, cameras);
+                self.net = preset;
+                out
+            }
+            None => self.reconstruct_over_preset_range(images, cameras),
+        };
         if let Some(last) = &mut self.last {
             last.depth_range = range;
             last.range_fit_ms = range_fit_ms;

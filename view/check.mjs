@@ -44,7 +44,7 @@ const isLocal = (u) => {
   if (url.protocol === 'data:' || url.protocol === 'blob:') return true;
   return ['127.0.0.1', 'localhost', '[::1]'].includes(url.hostname);
 };
-const context = await browser.newContext({ viewport: { width: 1400, height: 980 }, deviceScaleFactor: 1 });
+const context = await browser.newContext({ viewport: { width: 960, height: 640 }, deviceScaleFactor: 1 });
 context.on('request', (r) => requests.push(r.url()));
 context.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(m.text()); });
 

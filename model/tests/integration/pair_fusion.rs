@@ -31,7 +31,10 @@ fn quality_does_not_fall_as_pairs_are_added() {
         )
     };
     eprintln!("1 pair: {}", report(&one));
-    for pairs in [2, 3] {
+    // Three pairs (the two-pair case sits between: it was checked when the fusion was
+    // written, and costs a quarter of this test).
+    {
+        let pairs = 3;
         let more = table(&sequence, &fused, pairs);
         eprintln!("{pairs} pairs, fused: {}", report(&more));
         // The first frame keeps its render: the first pair's Gaussians decide it.

@@ -3,8 +3,8 @@
 //! Each test binary links its own copy of everything it uses from zenoh, tokio, candle and
 //! wgpu, and compiles its own instances of their generic code: 29 binaries took 6 min 45 s
 //! (12 min 50 s of CPU) to build on the 2-core CI machine, each streaming test about 40 s of it.
-//! Four tests stay binaries of their own, since they measure the whole process: the resident
-//! memory (`node_burst`, `node_limits`, `node_overload`) and every allocation (`msg_fuzz`).
+//! Two binaries stay apart, since they measure the whole process: the resident memory
+//! (`whole_process`, its tests one at a time) and every allocation (`msg_fuzz`).
 //!
 //! Run one file's tests with `cargo test --release -p node --test integration MODULE::`.
 

@@ -7,14 +7,12 @@
 //! Probes: one 2000x2000 frame (worked at the working size, not refused), 16 left images of
 //! 8000x8000 `rgb8` (192 MB each), an 8000x8000 header with no pixels, a `0 x 4e9` image, a
 //! pose 1e30 m from the origin, camera infos with fx = 1e39, a snapshot query on a
-//! wildcard, and 20 snapshot queries in a row. The tests run one at a time (a lock) so each
-//! one's memory is its own.
-
-mod drive_support;
+//! wildcard, and 20 snapshot queries in a row. The tests run one at a time (the binary's
+//! lock) so each one's memory is its own.
 
 use std::time::{Duration, Instant};
 
-use drive_support::{rss_bytes, Collector, Drive, Player, RunningNode};
+use crate::drive_support::{rss_bytes, Collector, Drive, Player, RunningNode};
 use glam::{DAffine3, DVec3};
 use model::kitti360::resample::resample_area;
 use model::synth::SynthConfig;
@@ -31,9 +29,6 @@ use node::service::{InputLimits, Keys, NodeConfig, NodeSummary};
 /// its drive. A 2000x2000 frame worked at full size rather than the working size would take
 /// the worker to about 5.7 GB.
 const RSS_BOUND: u64 = 1536 << 20;
-
-/// One test at a time: memory and the worker's time are each test's own.
-static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
 
 /// A node, a drive for it, a player and a collector of its bin maps.
 struct Bench {
@@ -143,7 +138,7 @@ impl Bench {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_2000x2000_frame_is_reconstructed_at_the_working_size() {
-    let _serial = SERIAL.lock().await;
+    let _serial = crate::SERIAL.lock().await;
     let bench = Bench::start("limbig", InputLimits::default()).await;
     // 2 s before the drive, 10 m behind its first pose along the view: a bin of its own.
     let (t0, f0) = &bench.drive.frames[0];
@@ -179,7 +174,7 @@ async fn a_2000x2000_frame_is_reconstructed_at_the_working_size() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn oversized_and_empty_images_are_refused_before_decoding() {
-    let _serial = SERIAL.lock().await;
+    let _serial = crate::SERIAL.lock().await;
     let bench = Bench::start("limhuge", InputLimits::default()).await;
     let header = Header::new(bench.drive.frames[0].0 - 1_000_000_000, "left");
     let huge = |w: u32, h: u32, data: Vec<u8>| Image {
@@ -220,7 +215,7 @@ async fn oversized_and_empty_images_are_refused_before_decoding() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_pose_1e30_m_away_is_refused_and_the_map_keeps_its_shape() {
-    let _serial = SERIAL.lock().await;
+    let _serial = crate::SERIAL.lock().await;
     let bench = Bench::start("limpose", InputLimits::default()).await;
     let (t0, f0) = &bench.drive.frames[0];
     let far = DAffine3::from_mat3_translation(f0.left_to_world.matrix3, DVec3::splat(1e30));
@@ -241,7 +236,7 @@ async fn a_pose_1e30_m_away_is_refused_and_the_map_keeps_its_shape() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn camera_infos_with_fx_1e39_are_refused() {
-    let _serial = SERIAL.lock().await;
+    let _serial = crate::SERIAL.lock().await;
     let bench = Bench::start("limfx", InputLimits::default()).await;
     let rig = bench.drive.rig;
     let stamp = bench.drive.frames[0].0 - 1_000_000_000;
@@ -280,7 +275,7 @@ async fn query(session: &zenoh::Session, key: &str) -> Vec<Result<Vec<u8>, Strin
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_wildcard_snapshot_query_gets_an_error_not_the_map() {
-    let _serial = SERIAL.lock().await;
+    let _serial = crate::SERIAL.lock().await;
     let bench = Bench::start("limwild", InputLimits::default()).await;
     bench.play(0).await;
     let session = &bench.player.session;
@@ -298,7 +293,7 @@ async fn a_wildcard_snapshot_query_gets_an_error_not_the_map() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn rapid_snapshot_queries_get_one_answer_per_interval() {
-    let _serial = SERIAL.lock().await;
+    let _serial = crate::SERIAL.lock().await;
     let limits = InputLimits {
         // Long enough that the 20 queries below all fall in one interval on any machine.
         snapshot_interval: Duration::from_secs(600),

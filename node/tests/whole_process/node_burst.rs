@@ -15,11 +15,11 @@
 //! the process's resident memory (the node runs in the test process) grows by less than a
 //! stated bound that a queue without a bound would exceed.
 
-mod drive_support;
-
 use std::time::Duration;
 
-use drive_support::{bin_of_frame_id, rss_bytes, wait_for, Collector, Drive, Player, RunningNode};
+use crate::drive_support::{
+    bin_of_frame_id, rss_bytes, wait_for, Collector, Drive, Player, RunningNode,
+};
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use node::bag::Rate;
@@ -177,6 +177,7 @@ async fn burst(tag: &str) -> Burst {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_burst_drops_the_oldest_waiting_bins_counts_them_and_keeps_memory_bounded() {
+    let _serial = crate::SERIAL.lock().await;
     let b = burst("burst").await;
     let s = &b.summary;
     let drops = s.counters.get("dropped/worker_queue");
@@ -293,6 +294,7 @@ async fn a_burst_drops_the_oldest_waiting_bins_counts_them_and_keeps_memory_boun
 /// `dropped/worker_queue` is one of them in the summary.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn diagnostics_carry_the_worker_queue_drops() {
+    let _serial = crate::SERIAL.lock().await;
     let b = burst("burstdiag").await;
     let drops = b.summary.counters.get("dropped/worker_queue");
     assert!(drops > 0);

@@ -11,13 +11,11 @@
 //! back in time resets the synchroniser), each with arrival-to-publish under a generous guard.
 //! The figures are printed.
 
-mod drive_support;
-
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use drive_support::{bin_of_frame_id, net_support, wait_for, Drive, Received};
+use crate::drive_support::{bin_of_frame_id, net_support, wait_for, Drive, Received};
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use node::bag::Rate;
@@ -170,6 +168,7 @@ fn counter(d: &Diagnostics, kind: &str) -> u64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn twenty_times_the_frame_rate_keeps_memory_bounded_and_the_node_recovers() {
+    let _serial = crate::SERIAL.lock().await;
     let drive = Drive::small("overload");
     let keys = Keys::new("overload");
     let node = NodeProcess::start(&keys.namespace, &drive.dir("out"));

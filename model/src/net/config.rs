@@ -112,12 +112,6 @@ pub struct Config {
     pub sgm_guidance_width: f32,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
-    /// Take the depth head's expectation over the `2 r + 1` candidates about the softmax's
-    /// peak only (sub-pixel MAP), not over all: a cell the softmax splits between a near and
-    /// a far surface gets the stronger one's depth, not a depth between them. Inference
-    /// setting (training always takes the full expectation); `None`: the full expectation.
-    #[serde(default)]
-    pub depth_window: Option<usize>,
     /// With `sgm_guidance`'s hints present (near scenes): each Gaussian of the first pair
     /// whose pixels SGM matched consistently takes SGM's depth instead of the network's; the
     /// network's depth fills the rest and the network sets every Gaussian's colour, opacity,
@@ -125,16 +119,6 @@ pub struct Config {
     /// it draws them over their background), inference only.
     #[serde(default)]
     pub sgm_snap: bool,
-    /// Scale factor for the Gaussians on a foreground edge: those with a neighbour within
-    /// `EDGE_RADIUS` cells over `EDGE_RATIO`
-    /// times farther get their scales multiplied by it, so a near surface's footprints do
-    /// not spill over the background beside it (a thin leaf drawn fat). As `sgm_snap`,
-    /// only where SGM's hints are (the first pair of a near scene): on the streets the
-    /// ground's depth grows over 10% per two cells near the horizon, so most of the road
-    /// would count as an edge and open holes. Inference only; `None`: every Gaussian
-    /// keeps its predicted scale.
-    #[serde(default)]
-    pub edge_shrink: Option<f32>,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
     pub gaussian_stride: usize,
     /// Gaussians below this opacity are not emitted.
@@ -328,23 +312,23 @@ impl Config {
 
     /// Real time on a 2-core CPU: small channels, 32 candidates, Gaussians at 1/2 resolution.
     /// The matching term adds the census correlation, which a real camera's gain and texture
-    /// cannot move. Scenes whose SGM-fitted far end lies under 50 m (rooms, objects) get aids
-    /// on top: the candidates span the fitted range, SGM's confident matches guide the depth
-    /// head (`sgm_guidance` 10, width 2 candidates, chosen on both real pairs with ground
-    /// truth, Aloe and Motorcycle, so their scores below are not independent), the first
-    /// pair's Gaussians take SGM's depth where SGM matched consistently (`sgm_snap`), and
-    /// Gaussians on foreground edges shrink to a tenth (`edge_shrink`). Streets reach beyond
-    /// 50 m, so they keep the full range and none of these aids, and run exactly as the
-    /// weights learned them. The depth is the softmax's expectation within 2 candidates of its
-    /// peak (`depth_window`), so a cell split between a near and a far surface takes one of
-    /// them. The shipped weights learned the census on the generated transfer mix (plain
-    /// streets, domain-randomised drives, near objects: `scripts/transfer_data.sh`), first
-    /// without the near-scene aids (`scripts/train_tiny_census.sh`), then with the fitted
-    /// range and SGM's hints on every sample (`scripts/train_tiny_guided.sh`;
-    /// `results/stereosplat_tiny/`). On real pairs (`bash scripts/real_pairs.sh`,
-    /// `results/real_pairs/`, reported, not chosen on): Aloe 27.9% and Motorcycle 20.8% bad-3
-    /// pixels against SGM's 17.6% and 13.0%, the OAK-D rooms' photometric error 0.0398
-    /// against SGM's 0.0227.
+    /// cannot move. The candidates follow the rig: the nearest at the depth whose disparity
+    /// is 0.233181 of the width (KITTI-360's `fx * baseline / width` at 1 m, so on the rig
+    /// the weights learned they are exactly its 1-100 m, and a desk seen by a 10 cm rig gets
+    /// candidates at its own disparities). One SGM run on the first pair, at the network's
+    /// input size, then serves three aids on scenes whose fitted far end lies under 50 m
+    /// (rooms, desks): the candidates span the disparities SGM found, SGM's confident matches
+    /// guide the depth head (`sgm_guidance` 10, width 2 candidates), and the first pair's
+    /// Gaussians take SGM's depth where it matched consistently (`sgm_snap`); the network
+    /// fills the rest and sets every Gaussian's appearance. Streets reach beyond 50 m and run
+    /// exactly as the weights learned them. Each setting was kept, changed or removed on
+    /// generated validation drives (`bash scripts/setting_choices.sh`,
+    /// `results/setting_choices/`; real pairs are only reported, `results/real_pairs/`). The
+    /// shipped weights learned the census on the generated transfer mix (plain streets,
+    /// domain-randomised drives, near objects: `scripts/transfer_data.sh`), first without
+    /// the near-scene aids (`scripts/train_tiny_census.sh`), then with the fitted range and
+    /// SGM's hints on every sample (`scripts/train_tiny_guided.sh`;
+    /// `results/stereosplat_tiny/`).
     pub fn tiny() -> Self {
         Self {
             name: "tiny".into(),
@@ -359,12 +343,9 @@ impl Config {
             candidates: 32,
             near: 1.0,
             far: 100.0,
-            // Off until the weights learn it: 0.233181 (KITTI-360's fx * baseline / width at
-            // 1 m, where the candidates are exactly the 1-100 m these weights learned) brings
-            // generated validation desks from AbsRel 2.23 to 0.38 with streets and rooms
-            // unchanged (`results/rig_range/`), but it also moves the SGM range fit on real
-            // pairs and leaves float noise in the candidates far from the world origin.
-            rig_disparity_fraction: None,
+            // On validation desks AbsRel 2.23 with metres, 0.20 with these candidates;
+            // rooms and streets unchanged (`results/setting_choices/`).
+            rig_disparity_fraction: Some(0.233181),
             match_views: 2,
             joint_pairs: false,
             pair_fusion_margin: Some(1.0),
@@ -377,9 +358,7 @@ impl Config {
             sgm_guidance: Some(10.0),
             sgm_guidance_width: 2.0,
             head_channels: 24,
-            depth_window: Some(2),
             sgm_snap: true,
-            edge_shrink: Some(0.1),
             gaussian_stride: 2,
             opacity_floor: 0.02,
             max_gaussians: 200_000,
@@ -462,9 +441,6 @@ impl Config {
             name: "tiny-plus".into(),
             progressive: true,
             pseudo_poses: vec![8.0],
-            // The enhancer learned on renders of the full expectation: with the window its
-            // gain where the pair saw nothing fell from 2.0 to 0.65 dB (enhance_train's test).
-            depth_window: None,
             ..Self::tiny()
         }
     }
@@ -479,7 +455,7 @@ impl Config {
     /// (`volume_fusion_margin` 0.5). Its weights start from `tiny` weights trained without
     /// the census correlation, so it runs without it and without the depth window. On near
     /// scenes it takes `tiny`'s aids that need no census (the depth range fitted under 50 m,
-    /// SGM's hints, `sgm_snap`, `edge_shrink`) and leaves its street-sized volume branch out
+    /// SGM's hints, `sgm_snap`) and leaves its street-sized volume branch out
     /// (`volume_branch_far_only`). The script trains in two phases, the second with these
     /// near-scene settings, and ships the blend 0.15 x first + 0.85 x second
     /// (`interpolate-weights`): on the held-out streets (`stereosplat eval --data
@@ -509,12 +485,10 @@ impl Config {
     }
 
     /// These settings without what only `tiny`'s own weights were trained with or measured
-    /// with (the census correlation, the fitted depth range, SGM's hints, the depth window,
-    /// the rig-derived candidates),
-    /// for the presets built on `tiny` that have other weights or none.
+    /// with (the census correlation, the fitted depth range, SGM's hints, the rig-derived
+    /// candidates), for the presets built on `tiny` that have other weights or none.
     fn without_tiny_extras(self) -> Self {
         Self {
-            depth_window: None,
             sgm_snap: false,
             census_matching: false,
             auto_depth_range: false,

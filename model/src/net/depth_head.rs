@@ -62,9 +62,6 @@ pub struct DepthHead {
     backbone_weight: Option<Tensor>,
     /// With `census_matching`: the same for the census correlation.
     census_weight: Option<Tensor>,
-    /// The preset's `depth_window` and each candidate's index `(1, D, 1, 1)` (the window is
-    /// counted in indices).
-    window: Option<(usize, Tensor)>,
 }
 
 /// The variable `name`, starting at zero, when `on`.
@@ -101,10 +98,6 @@ impl DepthHead {
             logit_bound: cfg.depth_logit_bound,
             backbone_weight: extra_weight(&vb, cfg.backbone_matching, "zero_backbone_weight")?,
             census_weight: extra_weight(&vb, cfg.census_matching, "zero_census_weight")?,
-            window: cfg
-                .depth_window
-                .map(|r| Ok::<_, candle_core::Error>((r, candidate_indices(d, vb.device())?)))
-                .transpose()?,
         })
     }
 
@@ -144,54 +137,15 @@ impl DepthHead {
         };
         let logits = (unet + &sharpened)?;
         let probabilities = candle_nn::ops::softmax(&logits, 1)?;
-        let inverse = match &self.window {
-            Some((r, indices)) => {
-                windowed_expectation(&probabilities, &self.candidates, indices, *r)?
-            }
-            None => probabilities
-                .broadcast_mul(&self.candidates)?
-                .sum_keepdim(1)?,
-        };
+        let inverse = probabilities
+            .broadcast_mul(&self.candidates)?
+            .sum_keepdim(1)?;
         Ok(CoarseDepth {
             probabilities,
             inverse,
             matching: sharpened,
         })
     }
-}
-
-/// The expectation of the candidates `(1, D, 1, 1)` under `probabilities` `(V, D, h, w)`
-/// taken over the `2 r + 1` candidates about each pixel's most probable one only (Tulyakov
-/// et al.'s sub-pixel MAP, NeurIPS 2018): where the softmax has two modes (a near and a far
-/// surface in one cell) it keeps the stronger instead of averaging them into a depth
-/// between, nearer than the background and farther than the foreground.
-/// `indices` are the candidates' indices `(1, D, 1, 1)` ([`candidate_indices`]).
-fn windowed_expectation(
-    probabilities: &Tensor,
-    candidates: &Tensor,
-    indices: &Tensor,
-    r: usize,
-) -> Result<Tensor> {
-    let best = probabilities
-        .argmax_keepdim(1)?
-        .to_dtype(probabilities.dtype())?;
-    let inside = indices
-        .broadcast_sub(&best)?
-        .abs()?
-        .le(r as f64)?
-        .to_dtype(probabilities.dtype())?;
-    let kept = (probabilities * inside)?;
-    // The peak itself is always kept, so the sum is at least 1 / D.
-    let mass = kept.sum_keepdim(1)?;
-    kept.broadcast_mul(candidates)?
-        .sum_keepdim(1)?
-        .broadcast_div(&mass)
-}
-
-/// `0, 1, ..., d - 1` as `(1, d, 1, 1)` floats: what [`windowed_expectation`] measures the
-/// distance to the peak in.
-fn candidate_indices(d: usize, device: &candle_core::Device) -> Result<Tensor> {
-    Tensor::arange(0f32, d as f32, device)?.reshape((1, d, 1, 1))
 }
 
 /// Normalised inverse depth of a metric `depth` (1 at `near`, 0 at `far`, outside `[0, 1]`
@@ -235,53 +189,6 @@ mod tests {
         let backbone =
             (Tensor::rand(-1f32, 1.0, (2, d, 4, 8), &Device::Cpu).unwrap() * scale).unwrap();
         (cost, features, backbone)
-    }
-
-    #[test]
-    fn the_window_keeps_the_stronger_of_two_modes_and_one_mode_unchanged() {
-        let d = 11;
-        let candidates: Vec<f32> = (0..d).map(|k| 1.0 - k as f32 / (d - 1) as f32).collect();
-        let candidates = Tensor::from_vec(candidates, (1, d, 1, 1), &Device::Cpu).unwrap();
-        let column = |p: Vec<f32>| Tensor::from_vec(p, (1, d, 1, 1), &Device::Cpu).unwrap();
-        let at = |p: &Tensor, r| -> f32 {
-            windowed_expectation(
-                p,
-                &candidates,
-                &candidate_indices(d, &Device::Cpu).unwrap(),
-                r,
-            )
-            .unwrap()
-            .flatten_all()
-            .unwrap()
-            .to_vec1::<f32>()
-            .unwrap()[0]
-        };
-        // 0.65 about candidate 2 (inverse 0.8), 0.35 on candidate 8 (0.2): the full
-        // expectation is 0.595, a depth neither surface has; the window keeps the first
-        // mode's 0.525 / 0.65 = 0.8077.
-        let mut p = vec![0f32; d];
-        (p[1], p[2], p[3], p[8]) = (0.15, 0.4, 0.1, 0.35);
-        let two = column(p);
-        let full: f32 = (two.broadcast_mul(&candidates).unwrap().sum_all().unwrap())
-            .to_scalar()
-            .unwrap();
-        assert!((full - 0.595).abs() < 1e-5, "{full}");
-        assert!((at(&two, 2) - 0.8077).abs() < 1e-4);
-        // One mode inside the window: the full expectation.
-        let mut p = vec![0f32; d];
-        (p[4], p[5], p[6]) = (0.2, 0.5, 0.3);
-        assert!((at(&column(p), 2) - 0.49).abs() < 1e-5);
-        // One-hot and uniform columns stay in [0, 1] and finite, the window 0 and wider
-        // than the candidates alike.
-        for p in [
-            vec![1.0 / d as f32; d],
-            (0..d).map(|k| f32::from(k == 0)).collect(),
-        ] {
-            for r in [0, 3, 100] {
-                let x = at(&column(p.clone()), r);
-                assert!(x.is_finite() && (0.0..=1.0).contains(&x), "{x}");
-            }
-        }
     }
 
     #[test]

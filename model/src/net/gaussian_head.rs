@@ -31,13 +31,6 @@ const MAX_OFFSET: f64 = 2.0;
 const MAX_LOG_SCALE: f64 = 2.0;
 /// Largest change of colour from the image's.
 const MAX_COLOR_SHIFT: f64 = 0.5;
-/// With `edge_shrink`: how far (in Gaussian cells) a farther neighbour makes a Gaussian an
-/// edge's, about the reach of a footprint (on real pairs a footprint's sigma is about 1.5 cells).
-pub const EDGE_RADIUS: usize = 2;
-/// With `edge_shrink`: how many times farther that neighbour is (10%: a depth step, not a
-/// slanted surface's change over two cells).
-pub const EDGE_RATIO: f64 = 1.1;
-
 /// What the heads read, all at the Gaussians' resolution `(V, k, Hg, Wg)` except the softmax.
 pub struct HeadInputs<'a> {
     /// Per-pixel context (image, upsampled features), `(V, k, Hg, Wg)`.
@@ -56,9 +49,6 @@ pub struct HeadInputs<'a> {
     /// With `sgm_snap` and hints: SGM's depth for the Gaussians it matched, which replaces
     /// the refined depth there.
     pub snap: Option<&'a SnapTargets>,
-    /// `edge_shrink` where it applies (with SGM's hints, as `snap`): the scale factor of
-    /// the Gaussians on a foreground edge.
-    pub edge_shrink: Option<f32>,
 }
 
 /// What the heads predict.
@@ -128,14 +118,6 @@ impl GaussianHead {
         let log_scales = footprint
             .log()?
             .broadcast_add(&(part(3, 3)?.tanh()? * MAX_LOG_SCALE)?)?;
-        let log_scales = match x.edge_shrink {
-            Some(factor) => {
-                let shrink =
-                    (on_foreground_edge(&depth_map)?.reshape((v, 1, p))? * f64::from(factor).ln())?;
-                log_scales.broadcast_add(&shrink)?
-            }
-            None => log_scales,
-        };
         let identity = Tensor::new(&[1f32, 0., 0., 0.], device)?.reshape((1, 4, 1))?;
         let local_rot = part(6, 4)?.broadcast_add(&identity)?;
         let rotations = orientations(x.cameras, device)?.matmul(&local_rot)?;
@@ -164,16 +146,6 @@ impl GaussianHead {
             depth: depth_map,
         })
     }
-}
-
-/// 1 where a Gaussian of `depth` `(V, 1, Hg, Wg)` has a neighbour within [`EDGE_RADIUS`]
-/// cells over [`EDGE_RATIO`] times farther (it lies on a foreground edge), else 0; same
-/// shape. The border repeats the edge cells, so it makes no edge of its own.
-fn on_foreground_edge(depth: &Tensor) -> Result<Tensor> {
-    let r = EDGE_RADIUS;
-    let padded = depth.pad_with_same(2, r, r)?.pad_with_same(3, r, r)?;
-    let farthest = padded.max_pool2d_with_stride(2 * r + 1, 1)?;
-    farthest.gt(&(depth * EDGE_RATIO)?)?.to_dtype(depth.dtype())
 }
 
 /// One value per view as `(V, 1, 1)`.
@@ -207,47 +179,4 @@ fn orientations(cameras: &[Camera], device: &Device) -> Result<Tensor> {
         .flat_map(|c| orientation_matrix(c).into_iter().flatten())
         .collect();
     Tensor::from_vec(data, (cameras.len(), 4, 4), device)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The edge mask of one `h x w` depth map given row by row.
-    fn edges(depth: Vec<f32>, h: usize, w: usize) -> Vec<f32> {
-        let t = Tensor::from_vec(depth, (1, 1, h, w), &Device::Cpu).unwrap();
-        let mask = on_foreground_edge(&t).unwrap();
-        assert_eq!(mask.dims4().unwrap(), (1, 1, h, w));
-        mask.flatten_all().unwrap().to_vec1().unwrap()
-    }
-
-    #[test]
-    fn only_the_near_side_of_a_depth_step_within_reach_is_an_edge() {
-        // Columns 0..4 a near surface, 4..10 one five times farther, at every scale of depth:
-        // near 0, street-like and very far (the test is a ratio, so all agree).
-        for near in [1e-6f32, 2.0, 1e6] {
-            let row: Vec<f32> = (0..10)
-                .map(|x| if x < 4 { near } else { 5.0 * near })
-                .collect();
-            let mask = edges(row.repeat(3), 3, 10);
-            for y in 0..3 {
-                let got = &mask[y * 10..(y + 1) * 10];
-                // Columns 2 and 3 see the far side within EDGE_RADIUS = 2 cells; 0 and 1 do
-                // not; the far side never does.
-                assert_eq!(
-                    got,
-                    &[0., 0., 1., 1., 0., 0., 0., 0., 0., 0.],
-                    "near {near}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn a_gentle_slope_and_a_flat_map_have_no_edge() {
-        // 4% farther per cell: 8% over the reach, under EDGE_RATIO's 10%.
-        let slope: Vec<f32> = (0..8).map(|x| 3.0 * 1.04f32.powi(x)).collect();
-        assert!(edges(slope.repeat(2), 2, 8).iter().all(|&m| m == 0.0));
-        assert!(edges(vec![7.0; 12], 3, 4).iter().all(|&m| m == 0.0));
-    }
 }

@@ -18,18 +18,16 @@ const MIN_VALID: f32 = 0.5;
 /// hinted: cells across a depth edge or with scattered matches are left to the network.
 const MAX_SPREAD: f32 = 2.0;
 
-/// SGM's disparities of the first pair at the fit's size (the pair's full width, its rows
-/// averaged in groups of `row_group`), with what turns them into depths.
+/// SGM's disparities of the first pair at the network's input size, with what turns them
+/// into depths.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SgmHints {
     /// Left-view disparity in pixels, row major, NaN where SGM rejected the match.
     pub disparity: Vec<f32>,
     /// Width of the map (the pair's width).
     pub width: usize,
-    /// Rows of the map (the pair's rows over `row_group`).
+    /// Rows of the map (the pair's rows).
     pub height: usize,
-    /// The pair's rows per row of the map.
-    pub row_group: usize,
     /// Focal length times baseline (pixel metres): depth = `fx_baseline / disparity`.
     pub fx_baseline: f32,
 }
@@ -200,8 +198,7 @@ fn candidate_index(depths: &[f64], fx_baseline: f32) -> impl Fn(f32) -> Option<f
 /// [`MAX_SPREAD`] pixels.
 fn cell_hint(hints: &SgmHints, map: &[f32], i: usize, j: usize, stride: usize) -> Option<f32> {
     let r = stride / 2;
-    let group = hints.row_group.max(1);
-    let rows = (stride * i).saturating_sub(r) / group..=((stride * i + r) / group);
+    let rows = (stride * i).saturating_sub(r)..=(stride * i + r);
     let cols = (stride * j).saturating_sub(r)..=(stride * j + r);
     let mut values = Vec::with_capacity(2 * (stride + 1) * (stride + 1));
     let mut total = 0usize;
@@ -232,7 +229,6 @@ mod tests {
             disparity: vec![d; width * height],
             width,
             height,
-            row_group: 1,
             fx_baseline: 100.0,
         }
     }
@@ -250,7 +246,7 @@ mod tests {
     };
 
     fn volume(hints: &SgmHints, views: usize, depths: &[f64]) -> Vec<f32> {
-        let grid = (hints.height * hints.row_group / 4, hints.width / 4);
+        let grid = (hints.height / 4, hints.width / 4);
         hint_volume(hints, depths, views, grid, 4, STRENGTH, &Device::Cpu)
             .unwrap()
             .flatten_all()
@@ -381,27 +377,5 @@ mod tests {
             assert!(mask.iter().all(|&m| m == 0), "disparity {d}");
             assert!(inverse.iter().all(|&t| t == 0.0), "disparity {d}");
         }
-    }
-
-    #[test]
-    fn grouped_rows_are_read_at_their_group() {
-        // 16 rows of the pair averaged in groups of 4: 4 map rows, the last two at 20 px.
-        let mut hints = flat_map(16, 4, 50.0);
-        hints.row_group = 4;
-        for d in &mut hints.disparity[32..] {
-            *d = 20.0;
-        }
-        let depths = depths(11);
-        let v = hint_volume(&hints, &depths, 1, (4, 4), 4, STRENGTH, &Device::Cpu).unwrap();
-        let v: Vec<f32> = v.flatten_all().unwrap().to_vec1().unwrap();
-        let at = |k: usize, i: usize, j: usize| v[(k * 4 + i) * 4 + j];
-        let best =
-            |i: usize, j: usize| (0..11).max_by(|&a, &b| at(a, i, j).total_cmp(&at(b, i, j)));
-        // Cell row 0 is pixel rows 0..=2 (map row 0, 50 px: candidate 5); cell row 3 is
-        // pixel rows 10..=14 (map rows 2 and 3, 20 px: 5 m, inverse 0.2, candidate 8.08);
-        // cell row 2 (pixel rows 6..=10) straddles 50 and 20 px and gets no hint.
-        assert_eq!(best(0, 1), Some(5));
-        assert_eq!(best(3, 1), Some(8));
-        assert!((0..11).all(|k| at(k, 2, 1) == 0.0));
     }
 }

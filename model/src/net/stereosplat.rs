@@ -319,7 +319,6 @@ impl StereoSplat {
             cameras,
             net: &self.cfg,
             snap: snap.as_ref(),
-            edge_shrink: hints.and(self.cfg.edge_shrink),
         })?;
         Ok(Prediction {
             splats: heads.splats,

@@ -168,8 +168,8 @@ struct State {
 }
 
 /// Whether two presets build the same network and train it alike: the settings of inference
-/// alone (opacity floor, budget, pair fusion, joint pairs, merging, pruning, the depth
-/// window, SGM's snap, the progressive pass) do not count, nor the schedule-like view subsampling and pseudo-view mixing (a run
+/// alone (opacity floor, budget, pair fusion, joint pairs, merging, pruning, SGM's snap,
+/// the progressive pass) do not count, nor the schedule-like view subsampling and pseudo-view mixing (a run
 /// may change them when it resumes), nor the device it runs on, nor the volume branch's sizes while the branch is off (checkpoints from before the branch
 /// existed read them as `tiny`'s).
 fn same_network(a: &Config, b: &Config) -> bool {
@@ -179,9 +179,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         pair_fusion_margin: None,
         merge_tolerance: None,
         min_view_weight: None,
-        depth_window: None,
         sgm_snap: false,
-        edge_shrink: None,
         joint_pairs: false,
         view_subsampling: true,
         volume_fusion_margin: None,
@@ -228,12 +226,10 @@ impl Trainer {
         out: &Path,
         resume: bool,
     ) -> Result<Self, TrainError> {
-        // `depth_window`, `sgm_snap` and `edge_shrink` are inference settings: training
-        // takes the full expectation, the network's own depth and its own scales everywhere.
+        // `sgm_snap` is an inference setting: training takes the network's own depth
+        // everywhere.
         let net_cfg = &Config {
-            depth_window: None,
             sgm_snap: false,
-            edge_shrink: None,
             ..net_cfg.clone()
         };
         cfg.sample.volume = net_cfg.volume_branch.then(|| net_cfg.volume.clone());

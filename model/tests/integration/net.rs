@@ -209,13 +209,6 @@ fn census_matching_stays_finite_at_the_extremes() {
     );
 }
 
-#[test]
-fn a_depth_window_stays_finite_at_the_extremes() {
-    for window in ["depth_window=0", "depth_window=2", "depth_window=1000"] {
-        check_extremes(&Config::tiny().with_settings(&[window]).unwrap());
-    }
-}
-
 /// Black and saturated pairs, a 1 m scene posed far from the origin: finite outputs and
 /// gradients for the network of `cfg`.
 fn check_extremes(cfg: &Config) {

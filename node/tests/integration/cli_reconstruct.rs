@@ -193,19 +193,27 @@ fn a_generated_pair_gives_the_files_and_its_depth() {
         let ply = renderer::ply::load_ply(out.join("gaussians.ply")).unwrap();
         assert_eq!(ply.len() as u64, s["gaussians"].as_u64().unwrap());
         // A street reaches beyond the preset's 50-m bound on the fitted far end
-        // (`auto_depth_range_max_far`): the preset's range is used and none is reported.
-        assert!(
-            s["depth_range_m"].is_null(),
-            "{method}: {}",
-            s["depth_range_m"]
-        );
+        // (`auto_depth_range_max_far`): no fit; the learned model reports the candidates
+        // its rig calls for, on KITTI-360's rig the 1-100 m the weights learned.
+        match method {
+            "sgm" => assert!(s["depth_range_m"].is_null(), "{}", s["depth_range_m"]),
+            _ => {
+                let range = s["depth_range_m"].as_array().expect("the rig's range");
+                let near = range[0].as_f64().unwrap();
+                let far = range[1].as_f64().unwrap();
+                assert!(
+                    (near - 1.0).abs() < 2e-3 && (far - 100.0).abs() < 0.2,
+                    "{range:?}"
+                );
+            }
+        }
     }
 }
 
 #[test]
 fn auto_depth_range_fits_the_aloe_pair_and_is_reported() {
     // A bound of 50 m on the fitted far end (`auto_depth_range_max_far`) lets the room
-    // through; one of 5 m, under the room's depth, keeps the preset's range.
+    // through; one of 5 m, under the room's depth, keeps the rig's range.
     let mut ranges = Vec::new();
     for max_far in ["50", "5"] {
         let out = temp_dir(&format!("reconstruct-aloe-auto-range-{max_far}"));
@@ -224,7 +232,11 @@ fn auto_depth_range_fits_the_aloe_pair_and_is_reported() {
     let (near, far) = (range[0].as_f64().unwrap(), range[1].as_f64().unwrap());
     assert!((1.0..2.5).contains(&near), "{near}..{far}");
     assert!((7.0..20.0).contains(&far), "{near}..{far}");
-    assert!(ranges[1].is_null(), "{}", ranges[1]);
+    // Unfitted, the candidates are the rig's: fx 1315.7 px x 0.1 m at the 451-px working
+    // width over 0.233181 x 451 px is 1.251 m, to 100 times that.
+    let rig = ranges[1].as_array().expect("the rig's range");
+    assert!((rig[0].as_f64().unwrap() - 1.251).abs() < 2e-3, "{rig:?}");
+    assert!((rig[1].as_f64().unwrap() / rig[0].as_f64().unwrap() - 100.0).abs() < 1e-3);
 }
 
 #[test]

@@ -27,11 +27,10 @@ cd "$(dirname "$0")/.."
 data=data/transfer
 heldout=data/heldout272
 # Every row starts from the transfer stage's weights (scripts/train_tiny_transfer.sh), with
-# the settings they were trained with: no census correlation, the preset's fixed depth range,
-# no SGM hints (the shipped `tiny` turns all on), and the full depth expectation at inference
-# (`depth_window=null`; training ignores it).
+# the settings they were trained with: no census correlation, the preset's fixed depth range
+# in metres, no SGM hints (the shipped `tiny` turns all on).
 base=runs/tiny_transfer/stereosplat_tiny.safetensors
-before_census="--set census_matching=false --set auto_depth_range=false --set sgm_guidance=null --set depth_window=null"
+before_census="--set census_matching=false --set auto_depth_range=false --set sgm_guidance=null --set rig_disparity_fraction=null"
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build), e.g. a copy that edits of
 # the tree cannot break while rows train.
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"

@@ -49,7 +49,7 @@ done
 if [ ! -f "$data/heldout/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
   "$bin" synth-heldout --out "$data/heldout" --sequences 2 --frames 300 --width 272 --height 72
 fi
-before_census=census_matching=false,auto_depth_range=false,sgm_guidance=null,depth_window=null
+before_census=census_matching=false,auto_depth_range=false,sgm_guidance=null,rig_disparity_fraction=null
 shipped=$transfer@$before_census
 weights=(
   --weights "shipped=$shipped"

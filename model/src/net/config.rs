@@ -82,10 +82,11 @@ pub struct Config {
     /// generated streets to real photographs.
     #[serde(default)]
     pub census_matching: bool,
-    /// Spend the depth candidates on the depths the pair shows: SGM on the first pair (its
-    /// rows averaged in groups of up to 4, at full width) measures its disparities and the
-    /// candidates span them (2nd to 98th percentile, a 25% margin, at least a factor 3)
-    /// inside `near..far` ([`super::depth_range`]). Off: always `near..far`. Training with it on spans each sample's own range the same way, so the
+    /// Spend the depth candidates on the depths the pair shows: SGM on the first pair (at
+    /// the network's input size) measures its disparities and the candidates span them (2nd
+    /// to 98th percentile, a 25% margin, at least a factor 3) inside `near..far` or the
+    /// rig's range ([`super::depth_range`]). Off: always that range. Training with it on
+    /// spans each sample's own range the same way, so the
     /// network learns its candidates relative to it (weights trained without it read them as
     /// fixed depths, and the streets break under it). Pseudo pairs of the progressive pass
     /// keep `near..far`.

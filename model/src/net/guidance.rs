@@ -223,7 +223,7 @@ fn cell_hint(hints: &SgmHints, map: &[f32], i: usize, j: usize, stride: usize) -
 mod tests {
     use super::*;
 
-    /// A `width` x `height` map at disparity `d` everywhere (row group 1), fx * B = 100.
+    /// A `width` x `height` map at disparity `d` everywhere, fx * B = 100.
     fn flat_map(width: usize, height: usize, d: f32) -> SgmHints {
         SgmHints {
             disparity: vec![d; width * height],

@@ -23,7 +23,7 @@ use renderer::ply::SH_C0;
 use renderer::{scene, Camera, GaussianSet, Intrinsics};
 
 use crate::cli_support::{stereosplat, temp_dir};
-use crate::view_page::{psnr_and_mean_abs, render_rgb8};
+use crate::view_page::{score_shot, ShotScore};
 
 /// Least PSNR (dB, 8-bit RGB) between a viewer's render of the map file and the CPU reference's
 /// render of the same map and camera; the same bar as the live view's check (`view_page`),
@@ -250,21 +250,17 @@ fn viewer_psnr(
     assert_eq!(count, want, "{summary}");
     assert_eq!(summary["outside"], serde_json::json!([]), "{summary}");
 
-    let shot = image::open(shots.join(format!("{viewer}.png")))
-        .unwrap()
-        .to_rgb8();
-    assert_eq!((shot.width(), shot.height()), (k.width, k.height));
-    let shot = shot.into_raw();
-    let lit = shot.chunks(3).filter(|p| p.iter().any(|&c| c > 8)).count() as f64
-        / (k.width * k.height) as f64;
+    let ShotScore {
+        lit,
+        psnr,
+        mad,
+        psnr_off,
+        ..
+    } = score_shot(&shots.join(format!("{viewer}.png")), set, camera);
     assert!(
         lit >= MIN_LIT,
         "{viewer}'s canvas is nearly blank: {lit:.3} lit"
     );
-    let (psnr, mad) = psnr_and_mean_abs(&shot, &render_rgb8(set, camera));
-    let mut shifted = *camera;
-    shifted.intrinsics.cx += 1.0;
-    let (psnr_off, _) = psnr_and_mean_abs(&shot, &render_rgb8(set, &shifted));
     println!(
         "{viewer} vs CPU reference: PSNR {psnr:.2} dB, mean abs {mad:.2}/255, lit {lit:.3}; one pixel off: {psnr_off:.2} dB"
     );

@@ -276,23 +276,17 @@ fn the_live_view_shows_the_map_as_splats_and_charts_bins_as_they_arrive() {
     let set = renderer::ply::load_ply(checked.join("map.ply")).expect("the served PLY loads");
     assert!(set.len() > 1000, "{} Gaussians", set.len());
     let camera = first_bin_camera(&state);
-    let reference = render_rgb8(&set, &camera);
-    let shot = image::open(checked.join("splat.png"))
-        .expect("splat.png")
-        .to_rgb8();
-    let k = camera.intrinsics;
-    assert_eq!((shot.width(), shot.height()), (k.width, k.height));
-    let shot = shot.into_raw();
-    let lit = shot.chunks(3).filter(|p| p.iter().any(|&c| c > 8)).count() as f64
-        / (k.width * k.height) as f64;
+    let ShotScore {
+        lit,
+        psnr,
+        mad,
+        psnr_off,
+        mad_off,
+    } = score_shot(&checked.join("splat.png"), &set, &camera);
     assert!(
         lit >= MIN_LIT,
         "the splat canvas is nearly blank: {lit:.3} lit"
     );
-    let (psnr, mad) = psnr_and_mean_abs(&shot, &reference);
-    let mut shifted = camera;
-    shifted.intrinsics.cx += 1.0;
-    let (psnr_off, mad_off) = psnr_and_mean_abs(&shot, &render_rgb8(&set, &shifted));
     println!(
         "splats vs CPU reference: PSNR {psnr:.2} dB, mean abs diff {mad:.2}/255, lit {lit:.3}; \
          against the reference one pixel off: {psnr_off:.2} dB, {mad_off:.2}/255"
@@ -343,8 +337,46 @@ fn http_json(port: u16, path: &str) -> Option<Value> {
     serde_json::from_str(body).ok()
 }
 
+/// A browser's screenshot of a map against the CPU rasterizer.
+pub(crate) struct ShotScore {
+    /// Share of the shot's pixels with a channel above level 8 (not blank).
+    pub lit: f64,
+    /// PSNR (dB) against the render at the camera.
+    pub psnr: f64,
+    /// Mean absolute difference (levels) against the render at the camera.
+    pub mad: f64,
+    /// PSNR against the render from the camera one pixel off (principal point + 1 px).
+    pub psnr_off: f64,
+    /// Mean absolute difference against that render.
+    pub mad_off: f64,
+}
+
+/// Scores the RGB screenshot at `path`, which must have `camera`'s size, against the CPU
+/// rasterizer's render of `set` from `camera` and from the camera one pixel off.
+pub(crate) fn score_shot(path: &Path, set: &renderer::GaussianSet, camera: &Camera) -> ShotScore {
+    let shot = image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8();
+    let k = camera.intrinsics;
+    assert_eq!((shot.width(), shot.height()), (k.width, k.height));
+    let shot = shot.into_raw();
+    let lit = shot.chunks(3).filter(|p| p.iter().any(|&c| c > 8)).count() as f64
+        / (k.width * k.height) as f64;
+    let (psnr, mad) = psnr_and_mean_abs(&shot, &render_rgb8(set, camera));
+    let mut shifted = *camera;
+    shifted.intrinsics.cx += 1.0;
+    let (psnr_off, mad_off) = psnr_and_mean_abs(&shot, &render_rgb8(set, &shifted));
+    ShotScore {
+        lit,
+        psnr,
+        mad,
+        psnr_off,
+        mad_off,
+    }
+}
+
 /// The CPU reference render of `set` from `camera`, as RGB8.
-pub(crate) fn render_rgb8(set: &renderer::GaussianSet, camera: &Camera) -> Vec<u8> {
+fn render_rgb8(set: &renderer::GaussianSet, camera: &Camera) -> Vec<u8> {
     let out = cpu::render(
         &set.view().unwrap(),
         &camera.params::<f32>(),
@@ -355,7 +387,7 @@ pub(crate) fn render_rgb8(set: &renderer::GaussianSet, camera: &Camera) -> Vec<u
 }
 
 /// PSNR (dB, peak 255) and mean absolute difference (levels) of two RGB8 images.
-pub(crate) fn psnr_and_mean_abs(a: &[u8], b: &[u8]) -> (f64, f64) {
+fn psnr_and_mean_abs(a: &[u8], b: &[u8]) -> (f64, f64) {
     assert_eq!(a.len(), b.len());
     let (mut se, mut ae) = (0.0f64, 0.0f64);
     for (&x, &y) in a.iter().zip(b) {

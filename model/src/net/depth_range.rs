@@ -55,15 +55,15 @@ pub fn fit_scene(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option
     // rows (`results/setting_choices/`).
     let pair = images.narrow(0, 0, 2).ok()?;
     let (left, right) = (pair_image(&pair, 0)?, pair_image(&pair, 1)?);
-    let at_fit_size = |camera: &Camera| Camera {
+    let at_image_size = |camera: &Camera| Camera {
         intrinsics: camera.intrinsics.scaled(left.width, left.height),
         ..*camera
     };
     let view = StereoView {
         left: &left,
         right: &right,
-        left_camera: at_fit_size(cameras.first()?),
-        right_camera: at_fit_size(cameras.get(1)?),
+        left_camera: at_image_size(cameras.first()?),
+        right_camera: at_image_size(cameras.get(1)?),
     };
     let baseline = rectified_baseline(&view).ok()?;
     let sgm = SgmReconstructor::new(SgmConfig {

@@ -9,12 +9,19 @@
 # so an interrupted run goes on where it stopped; run it in the background with nohup.
 #   bash scripts/validation_data.sh [DATA_DIR]
 # VALIDATION_SEQUENCES (default 4) sets how many sequences per kind, VALIDATION_FRAMES
-# (default 40) their length.
+# (default 40) their length, VALIDATION_SIZE ("WIDTH HEIGHT", e.g. "544 112": the node's
+# working size) fixes the image size the randomised rigs would draw (their field of view
+# and baseline are still drawn).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/validation}"
 count="${VALIDATION_SEQUENCES:-4}"
 frames="${VALIDATION_FRAMES:-40}"
+size=()
+if [ -n "${VALIDATION_SIZE:-}" ]; then
+  read -r width height <<<"$VALIDATION_SIZE"
+  size=(--width "$width" --height "$height")
+fi
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 [ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
@@ -30,7 +37,7 @@ for kind in desk room street; do
     root="$data/${kind}_$seed"
     name=$(printf "synth_%s_%07d_sync" "$word" "$seed")
     if [ ! -f "$root/data_poses/$name/poses.txt" ]; then
-      "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise
+      "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
     fi
   done
 done

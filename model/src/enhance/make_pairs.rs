@@ -22,7 +22,7 @@ use crate::bins::BinConfig;
 use crate::frame::Side;
 use crate::net::LearnedReconstructor;
 use crate::reconstruct::Reconstructor;
-use crate::train::{draw_targets, BinInputs, TrainingSet};
+use crate::train::{draw_targets, BinInputs, DataRoot, TrainingSet};
 use renderer::Raster;
 
 /// StereoSplat weights that make renders, with the label the index records.
@@ -71,7 +71,11 @@ pub fn make_pairs(
     if count >= cfg.pairs {
         return Ok(count);
     }
-    let set = TrainingSet::open(data, &cfg.bins, None)?;
+    let root = DataRoot {
+        path: data.to_path_buf(),
+        bins: cfg.bins,
+    };
+    let set = TrainingSet::open(&[root], None)?;
     let mut nets = sources
         .iter()
         .map(|s| LearnedReconstructor::load(&s.config, &s.path))

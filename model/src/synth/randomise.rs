@@ -21,6 +21,10 @@ pub struct Randomisation {
     /// Image sizes (width, height) a drive picks from (all multiples of 8, about 20-28k
     /// pixels, so a training step costs about the same).
     pub sizes: &'static [(u32, u32)],
+    /// An image size every drive takes instead of its draw from `sizes` (training data at
+    /// one working size). The draw is still made, so a seed keeps the rest of its rig and
+    /// look: the field of view and baseline, hence the disparities relative to the width.
+    pub fixed_size: Option<(u32, u32)>,
     /// Horizontal field of view, degrees.
     pub hfov_deg: (f64, f64),
     /// Stereo baseline, metres (drawn log-uniformly: phone and OAK-D rigs to wide car rigs).
@@ -71,6 +75,7 @@ impl Default for Randomisation {
                 (176, 144),
                 (160, 160),
             ],
+            fixed_size: None,
             hfov_deg: (45.0, 100.0),
             baseline_m: (0.05, 0.6),
             colour_probability: 0.5,
@@ -180,7 +185,8 @@ pub(super) fn log_range(rng: &mut ChaCha8Rng, (lo, hi): (f64, f64)) -> f64 {
 impl Randomisation {
     /// The draw of one drive from `rng` (the drive's own stream).
     pub fn draw(&self, rng: &mut ChaCha8Rng) -> DriveLook {
-        let size = self.sizes[rng.random_range(0..self.sizes.len().max(1))];
+        let drawn = self.sizes[rng.random_range(0..self.sizes.len().max(1))];
+        let size = self.fixed_size.unwrap_or(drawn);
         let hfov = range(rng, self.hfov_deg).to_radians();
         let focal_px = 0.5 * size.0 as f64 / (0.5 * hfov).tan();
         let baseline_m = log_range(rng, self.baseline_m);
@@ -277,5 +283,22 @@ mod tests {
             widths.contains(&320) && widths.contains(&1408),
             "{widths:?}"
         );
+    }
+
+    #[test]
+    fn a_fixed_size_keeps_the_rest_of_the_draw() {
+        let drawn = Randomisation::for_scene(SceneKind::Desk);
+        let fixed = Randomisation {
+            fixed_size: Some((544, 112)),
+            ..drawn
+        };
+        for seed in 0..50 {
+            let a = drawn.draw(&mut ChaCha8Rng::seed_from_u64(seed));
+            let b = fixed.draw(&mut ChaCha8Rng::seed_from_u64(seed));
+            assert_eq!(b.size, (544, 112));
+            assert_eq!((a.baseline_m, a.camera), (b.baseline_m, b.camera));
+            let hfov = |l: &DriveLook| (0.5 * l.size.0 as f64 / l.focal_px).atan();
+            assert!((hfov(&a) - hfov(&b)).abs() < 1e-12, "seed {seed}");
+        }
     }
 }

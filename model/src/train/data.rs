@@ -2,7 +2,7 @@
 //! stereo pairs, `m ~ U{1..K}` (stochastic view subsampling; switched off, the bin's first
 //! pair), the targets are other frames of the same bin, with their sparse LiDAR depth.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use candle_core::{Device, Tensor};
 use glam::DAffine3;
@@ -31,6 +31,9 @@ pub enum DataError {
         /// The bin length.
         length: f64,
     },
+    /// No root was given.
+    #[error("no training data root given")]
+    NoRoots,
     /// A tensor could not be built.
     #[error(transparent)]
     Tensor(#[from] candle_core::Error),
@@ -84,63 +87,95 @@ pub struct Sample {
     pub occupied: Option<Vec<bool>>,
 }
 
-/// Every bin of every sequence under a root.
+/// One data root of a training mix and how its sequences are cut into bins: streets, desks
+/// and rooms move metres, centimetres and decimetres per frame, so each kind needs its own
+/// bin length.
+#[derive(Clone, Debug)]
+pub struct DataRoot {
+    /// A KITTI-360-layout root, or a folder of them.
+    pub path: PathBuf,
+    /// How its sequences are cut.
+    pub bins: BinConfig,
+}
+
+impl DataRoot {
+    /// `path` cut into the default bins (8 m, streets).
+    pub fn new(path: impl Into<PathBuf>) -> Self {
+        Self {
+            path: path.into(),
+            bins: BinConfig::default(),
+        }
+    }
+}
+
+/// Every bin of every sequence under one or more roots. A sample draws a root uniformly
+/// (so a mix is balanced by kind however many bins each kind cuts into), then a bin of it.
 pub struct TrainingSet {
     sequences: Vec<Sequence>,
-    bins: Vec<(usize, Bin)>,
+    /// Per root, its bins with the index of their sequence.
+    roots: Vec<Vec<(usize, Bin)>>,
 }
 
 impl TrainingSet {
-    /// Opens every sequence under `root` (read at `resize` if given: width, height) and cuts
-    /// it into bins. `root` is one KITTI-360-layout root, or a folder of them (each
-    /// subfolder with its own `calibration/`: drives of different rigs, as the domain
-    /// randomisation writes them).
-    pub fn open(
-        root: &Path,
-        bins: &BinConfig,
-        resize: Option<(u32, u32)>,
-    ) -> Result<Self, DataError> {
+    /// Opens every sequence under each root (read at `resize` if given: width, height) and
+    /// cuts it into the root's bins. A root is one KITTI-360-layout root, or a folder of
+    /// them (each subfolder with its own `calibration/`: drives of different rigs, as the
+    /// domain randomisation writes them). A root without a bin is an error.
+    pub fn open(roots: &[DataRoot], resize: Option<(u32, u32)>) -> Result<Self, DataError> {
         let mut sequences = Vec::new();
-        let mut all = Vec::new();
-        for (root, name) in sequences_under(root)? {
-            let mut sequence = Sequence::open(&root, &name)?;
-            if let Some((w, h)) = resize {
-                sequence = sequence.with_resolution(w, h);
+        let mut all = Vec::with_capacity(roots.len());
+        for data in roots {
+            let mut bins = Vec::new();
+            for (root, name) in sequences_under(&data.path)? {
+                let mut sequence = Sequence::open(&root, &name)?;
+                if let Some((w, h)) = resize {
+                    sequence = sequence.with_resolution(w, h);
+                }
+                let poses: Vec<_> = sequence.frames().iter().map(|f| f.left_to_world).collect();
+                bins.extend(
+                    make_bins(&poses, &data.bins)
+                        .into_iter()
+                        .map(|b| (sequences.len(), b)),
+                );
+                sequences.push(sequence);
             }
-            let poses: Vec<_> = sequence.frames().iter().map(|f| f.left_to_world).collect();
-            all.extend(
-                make_bins(&poses, bins)
-                    .into_iter()
-                    .map(|b| (sequences.len(), b)),
-            );
-            sequences.push(sequence);
+            if bins.is_empty() {
+                return Err(DataError::NoBins {
+                    root: data.path.display().to_string(),
+                    length: data.bins.length_m,
+                });
+            }
+            all.push(bins);
         }
         if all.is_empty() {
-            return Err(DataError::NoBins {
-                root: root.display().to_string(),
-                length: bins.length_m,
-            });
+            return Err(DataError::NoRoots);
         }
         Ok(Self {
             sequences,
-            bins: all,
+            roots: all,
         })
     }
 
-    /// How many bins there are.
+    /// How many bins there are, over all roots.
     pub fn len(&self) -> usize {
-        self.bins.len()
+        self.roots.iter().map(Vec::len).sum()
     }
 
     /// Whether there are none (never, once opened).
     pub fn is_empty(&self) -> bool {
-        self.bins.is_empty()
+        self.len() == 0
     }
 
-    /// Bin `i` (of [`Self::len`]) with the sequence it was cut from.
-    pub fn bin(&self, i: usize) -> (&Sequence, Bin) {
-        let (s, bin) = self.bins[i];
-        (&self.sequences[s], bin)
+    /// Bin `i` (of [`Self::len`], the roots' bins in order) with the sequence it was cut
+    /// from. Panics when `i` is not below [`Self::len`], as indexing does.
+    pub fn bin(&self, mut i: usize) -> (&Sequence, Bin) {
+        for bins in &self.roots {
+            if let Some(&(s, bin)) = bins.get(i) {
+                return (&self.sequences[s], bin);
+            }
+            i -= bins.len();
+        }
+        panic!("bin index past the training set's {} bins", self.len())
     }
 
     /// Draws a sample with `rng`.
@@ -150,7 +185,13 @@ impl TrainingSet {
         cfg: &SampleConfig,
         device: &Device,
     ) -> Result<Sample, DataError> {
-        let (s, bin) = self.bins[rng.random_range(0..self.bins.len())];
+        // One root draws nothing for the root, so its sample stream is that of a set
+        // of one root.
+        let bins = match self.roots.len() {
+            1 => &self.roots[0],
+            n => &self.roots[rng.random_range(0..n)],
+        };
+        let (s, bin) = bins[rng.random_range(0..bins.len())];
         let sequence = &self.sequences[s];
         let frames: Vec<usize> = bin.frames().collect();
         let inputs: Vec<usize> = if cfg.subsample_views {

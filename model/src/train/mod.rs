@@ -29,7 +29,9 @@ use serde::{Deserialize, Serialize};
 
 pub use adamw::{AdamW, AdamWConfig};
 pub use checkpoint::checkpoint_dir;
-pub use data::{depth_tensor, image_tensor, DataError, Sample, SampleConfig, Target, TrainingSet};
+pub use data::{
+    depth_tensor, image_tensor, DataError, DataRoot, Sample, SampleConfig, Target, TrainingSet,
+};
 pub(crate) use data::{draw_targets, BinInputs};
 pub use interpolate::{interpolate, interpolate_files, InterpolateError};
 pub use log::{TrainLog, LOG_COLUMNS};
@@ -37,7 +39,6 @@ pub use loss::{depth_loss, losses, masked_l1, DepthError, LossWeights, Losses, U
 pub use matching::matching_loss;
 pub use pseudo_mix::mix_pseudo_pairs;
 
-use crate::bins::BinConfig;
 use crate::compute::ComputeDevice;
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
 use crate::net::volume::VolumeConfig;
@@ -109,8 +110,6 @@ pub struct TrainConfig {
     pub sample: SampleConfig,
     /// Loss weights.
     pub loss: LossWeights,
-    /// Bin cutting.
-    pub bins: BinConfig,
     /// Optimizer settings.
     pub adamw: AdamWConfig,
     /// Read the frames at this size (width, height; intrinsics scaled), e.g. real KITTI-360
@@ -217,12 +216,12 @@ pub struct Trainer {
 }
 
 impl Trainer {
-    /// A run of preset `net_cfg` on the sequences under `data`, writing to `out`; with
+    /// A run of preset `net_cfg` on the sequences under the `data` roots, writing to `out`; with
     /// `resume`, continues from `out`'s checkpoint (weights, optimizer moments, step, log).
     pub fn new(
         net_cfg: &Config,
         mut cfg: TrainConfig,
-        data: &Path,
+        data: &[DataRoot],
         out: &Path,
         resume: bool,
     ) -> Result<Self, TrainError> {
@@ -263,7 +262,7 @@ impl Trainer {
         )?;
         Ok(Self {
             lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
-            data: TrainingSet::open(data, &cfg.bins, cfg.resize)?,
+            data: TrainingSet::open(data, cfg.resize)?,
             run,
             net,
             cfg,

@@ -12,11 +12,12 @@ use std::path::PathBuf;
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use finite_support::assert_finite_gradients;
-use model::bins::BinConfig;
 use model::lpips::{Lpips, DEFAULT_WEIGHTS};
 use model::net::{Config, StereoSplat};
 use model::synth::SynthConfig;
-use model::train::{losses, mix_pseudo_pairs, LossWeights, Sample, SampleConfig, TrainingSet};
+use model::train::{
+    losses, mix_pseudo_pairs, DataRoot, LossWeights, Sample, SampleConfig, TrainingSet,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use renderer::RenderSettings;
@@ -35,7 +36,7 @@ fn drive() -> PathBuf {
 
 /// A sample with exactly `pairs` input pairs.
 fn sample(pairs: usize) -> Sample {
-    let data = TrainingSet::open(&drive(), &BinConfig::default(), None).unwrap();
+    let data = TrainingSet::open(&[DataRoot::new(drive())], None).unwrap();
     let cfg = SampleConfig {
         max_pairs: pairs,
         subsample_views: pairs > 1,

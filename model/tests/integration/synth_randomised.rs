@@ -146,8 +146,7 @@ fn the_plain_generator_is_untouched_by_the_randomisation_code() {
 
 #[test]
 fn a_folder_of_randomised_roots_is_one_training_set() {
-    use model::bins::BinConfig;
-    use model::train::{SampleConfig, TrainingSet};
+    use model::train::{DataRoot, SampleConfig, TrainingSet};
     use rand::SeedableRng;
 
     let dir = std::env::temp_dir().join(format!("randomised_roots_{}", std::process::id()));
@@ -176,7 +175,7 @@ fn a_folder_of_randomised_roots_is_one_training_set() {
         model::generate::write_synthetic(&dir.join("rand_100"), &clash, &mut |_, _| {}).is_err()
     );
 
-    let set = TrainingSet::open(&dir, &BinConfig::default(), None).unwrap();
+    let set = TrainingSet::open(&[DataRoot::new(&dir)], None).unwrap();
     assert!(!set.is_empty());
     let cfg = SampleConfig {
         max_pairs: 1,

@@ -4,6 +4,7 @@
 //! clear errors or finite output at the extremes (a surface at 0.1 m, baselines of 1 mm and
 //! 2 m, black and saturated images).
 
+use candle_core::Device;
 use model::bins::BinConfig;
 use model::frame::Side;
 use model::generate::{calibration, scene_sequence_name, write_synthetic, GenerateError};
@@ -12,6 +13,9 @@ use model::synth::{
     Randomisation, RigChoice, SceneKind, SurfaceClass, SynthConfig, SynthConfigError, SynthFrame,
     SynthSequence,
 };
+use model::train::{DataError, DataRoot, SampleConfig, TrainingSet};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 /// An unrandomised sequence of `kind` at `width` x `height` with `rig` (the kind's own when
 /// `None`), one sample per pixel.
@@ -331,13 +335,49 @@ fn rigs_of_5_and_50_cm_are_written_and_read_back_for_training() {
         largest[0], largest[1]
     );
     assert!(largest.iter().all(|&d| d > 5.0 && d < 160.0), "{largest:?}");
-    // The training reader cuts handheld sequences into short bins and samples them.
-    let bins = BinConfig {
-        length_m: 0.1,
-        ..BinConfig::default()
+    // The training reader cuts handheld sequences into short bins and samples them (these
+    // 12-frame sequences move a few centimetres).
+    let root = |kind: SceneKind, length_m: f64| DataRoot {
+        path: dir.join(kind.name()),
+        bins: BinConfig {
+            length_m,
+            ..BinConfig::default()
+        },
     };
-    let set = model::train::TrainingSet::open(&dir, &bins, None).unwrap();
-    assert!(set.len() >= 2, "{} bins", set.len());
+    let open = |roots: &[DataRoot]| TrainingSet::open(roots, None);
+    let desks = open(&[root(SceneKind::Desk, 0.02)]).unwrap().len();
+    let rooms = open(&[root(SceneKind::Room, 0.1)]).unwrap().len();
+    assert!(desks >= 2, "{desks} desk bins");
+    // A mix cuts each root with its own length and draws the roots equally often.
+    let mix = open(&[root(SceneKind::Desk, 0.02), root(SceneKind::Room, 0.1)]).unwrap();
+    assert_eq!(mix.len(), desks + rooms);
+    let sample_cfg = SampleConfig {
+        max_pairs: 1,
+        subsample_views: false,
+        targets: 1,
+        gaussian_stride: 4,
+        volume: None,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let draws = 24;
+    let wide = (0..draws)
+        .filter(|_| {
+            let sample = mix.sample(&mut rng, &sample_cfg, &Device::Cpu).unwrap();
+            let (l, r) = (&sample.cameras[0], &sample.cameras[1]);
+            (l.position - r.position).length() > 0.25
+        })
+        .count();
+    assert!(
+        (6..=18).contains(&wide),
+        "{wide} of {draws} samples from the 50 cm room"
+    );
+    // A root too short for its bins, and no root at all, are clear errors.
+    let err = open(&[root(SceneKind::Desk, 0.02), root(SceneKind::Room, 1e3)])
+        .err()
+        .unwrap();
+    assert!(matches!(err, DataError::NoBins { .. }), "{err}");
+    assert!(err.to_string().contains("room"), "{err}");
+    assert!(matches!(open(&[]).err().unwrap(), DataError::NoRoots));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -5,11 +5,11 @@
 
 use std::path::{Path, PathBuf};
 
-use model::bins::BinConfig;
 use model::net::Config;
 use model::synth::SynthConfig;
 use model::train::{
-    exported_weights, AdamWConfig, LossWeights, SampleConfig, TrainConfig, TrainError, Trainer,
+    exported_weights, AdamWConfig, DataRoot, LossWeights, SampleConfig, TrainConfig, TrainError,
+    Trainer,
 };
 
 use crate::drive_support;
@@ -50,15 +50,20 @@ fn train_config(steps: u64) -> TrainConfig {
             volume: None,
         },
         loss: LossWeights::default(),
-        bins: BinConfig::default(),
         adamw: AdamWConfig::default(),
         resize: None,
     }
 }
 
 fn run(data: &Path, out: &Path, steps: u64, resume: bool) -> Vec<f32> {
-    let mut trainer =
-        Trainer::new(&Config::tiny(), train_config(steps), data, out, resume).unwrap();
+    let mut trainer = Trainer::new(
+        &Config::tiny(),
+        train_config(steps),
+        &[DataRoot::new(data)],
+        out,
+        resume,
+    )
+    .unwrap();
     let mut losses = Vec::new();
     trainer
         .run(&|| false, &mut |r| {
@@ -91,16 +96,17 @@ fn a_resumed_run_ends_where_a_straight_run_does() {
     let curve = image::open(resumed.join("loss_curve.png")).unwrap();
     assert_eq!((curve.width(), curve.height()), (800, 480));
 
-    let small = Trainer::new(&Config::small(), train_config(8), &data, &resumed, true);
+    let roots = [DataRoot::new(&data)];
+    let small = Trainer::new(&Config::small(), train_config(8), &roots, &resumed, true);
     assert!(matches!(small, Err(TrainError::PresetMismatch { .. })));
     // Network settings must match on resume; settings that only prune at inference need not.
     let unbounded = Config::tiny()
         .with_settings(&["depth_logit_bound=null"])
         .unwrap();
-    let other = Trainer::new(&unbounded, train_config(8), &data, &resumed, true);
+    let other = Trainer::new(&unbounded, train_config(8), &roots, &resumed, true);
     assert!(matches!(other, Err(TrainError::SettingsMismatch { .. })));
     let pruning = Config::tiny().with_settings(&["pair_fusion_margin=null", "opacity_floor=0.1"]);
-    assert!(Trainer::new(&pruning.unwrap(), train_config(8), &data, &resumed, true).is_ok());
+    assert!(Trainer::new(&pruning.unwrap(), train_config(8), &roots, &resumed, true).is_ok());
     for dir in [resumed, straight] {
         let _ = std::fs::remove_dir_all(dir);
     }
@@ -113,7 +119,8 @@ fn the_matching_loss_adds_its_weighted_cross_entropy_and_is_logged() {
     let first_step = |weight: f64, out: &Path| {
         let mut cfg = train_config(1);
         cfg.loss.matching = weight;
-        let mut trainer = Trainer::new(&Config::tiny(), cfg, &data, out, false).unwrap();
+        let mut trainer =
+            Trainer::new(&Config::tiny(), cfg, &[DataRoot::new(&data)], out, false).unwrap();
         let mut report = None;
         trainer
             .run(&|| false, &mut |r| report = Some((r.loss, r.matching)))

@@ -15,12 +15,11 @@ use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use finite_support::{assert_finite, assert_finite_gradients};
 use glam::{Quat, Vec3};
-use model::bins::BinConfig;
 use model::lpips::{Lpips, DEFAULT_WEIGHTS};
 use model::net::volume::voxels::voxel_count;
 use model::net::{default_weights, Config, LearnedReconstructor, StereoSplat};
 use model::synth::SynthConfig;
-use model::train::{losses, LossWeights, Sample, SampleConfig, Target, TrainingSet};
+use model::train::{losses, DataRoot, LossWeights, Sample, SampleConfig, Target, TrainingSet};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use renderer::{Camera, Intrinsics, RenderSettings};
@@ -64,7 +63,7 @@ fn drive() -> PathBuf {
 }
 
 fn sample_of(cfg: &Config, pairs: usize, seed: u64) -> Sample {
-    let data = TrainingSet::open(&drive(), &BinConfig::default(), None).unwrap();
+    let data = TrainingSet::open(&[DataRoot::new(drive())], None).unwrap();
     let sample_cfg = SampleConfig {
         max_pairs: pairs,
         subsample_views: pairs > 1,

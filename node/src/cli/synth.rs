@@ -24,17 +24,19 @@ pub struct DriveArgs {
     /// Frames per sequence (10 per second of driving).
     #[arg(long, default_value_t = SynthConfig::default().frames)]
     frames: u32,
-    /// Image width in pixels (KITTI-360's 1408 x 376 intrinsics are scaled to it).
-    #[arg(long, default_value_t = SynthConfig::default().width)]
-    width: u32,
-    /// Image height in pixels.
-    #[arg(long, default_value_t = SynthConfig::default().height)]
-    height: u32,
+    /// Image width in pixels (KITTI-360's 1408 x 376 intrinsics are scaled to it) [default:
+    /// 272]. With `--randomise`, `--width` and `--height` fix the size the drive would
+    /// otherwise draw; its field of view and baseline are still drawn.
+    #[arg(long, requires = "height")]
+    width: Option<u32>,
+    /// Image height in pixels [default: 72].
+    #[arg(long, requires = "width")]
+    height: Option<u32>,
     /// Samples per pixel along each axis (anti-aliasing).
     #[arg(long, default_value_t = SynthConfig::default().supersample)]
     supersample: u32,
     /// Domain randomisation (docs/evaluation.md, "Synthetic drives"): photo textures, lighting, a rig and
-    /// image size of its own (so `--width`/`--height` are unused), camera effects and
+    /// image size of its own (unless `--width`/`--height` fix it), camera effects and
     /// floating objects, all drawn from the seed.
     #[arg(long)]
     randomise: bool,
@@ -74,13 +76,19 @@ fn parse_scene(name: &str) -> Result<SceneKind, String> {
 
 impl DriveArgs {
     fn config(&self, seed: u64) -> SynthConfig {
+        let default = SynthConfig::default();
+        let size = self.width.zip(self.height);
+        let (width, height) = size.unwrap_or((default.width, default.height));
         SynthConfig {
             seed,
             frames: self.frames,
-            width: self.width,
-            height: self.height,
+            width,
+            height,
             supersample: self.supersample,
-            randomise: self.randomise.then(|| Randomisation::for_scene(self.scene)),
+            randomise: self.randomise.then(|| Randomisation {
+                fixed_size: size,
+                ..Randomisation::for_scene(self.scene)
+            }),
             scene: self.scene,
             rig: self.baseline.map(|baseline_m| RigChoice {
                 hfov_deg: self

@@ -1,5 +1,5 @@
-//! `stereosplat train`: trains a preset on a KITTI-360-layout root (generated streets or the
-//! real data set), with checkpoints, resume, a CSV log and the weights as safetensors.
+//! `stereosplat train`: trains a preset on KITTI-360-layout roots (generated streets, desks
+//! and rooms, or the real data set), with checkpoints, resume, a CSV log and the weights as safetensors.
 //! Ctrl-C stops at the end of the current step after writing a checkpoint.
 
 use std::path::PathBuf;
@@ -11,7 +11,8 @@ use clap::Args;
 use model::bins::BinConfig;
 use model::net::Config;
 use model::train::{
-    exported_weights, AdamWConfig, DepthError, LossWeights, SampleConfig, TrainConfig, Trainer,
+    exported_weights, AdamWConfig, DataRoot, DepthError, LossWeights, SampleConfig, TrainConfig,
+    Trainer,
 };
 
 use super::progress;
@@ -19,9 +20,10 @@ use super::progress;
 /// Flags of `train`.
 #[derive(Args, Clone, Debug)]
 pub struct TrainArgs {
-    /// KITTI-360-layout root to train on (every sequence under it).
-    #[arg(long)]
-    data: PathBuf,
+    /// KITTI-360-layout root to train on (every sequence under it). Repeatable: a mix of
+    /// roots (e.g. desks, rooms, streets), each drawn equally often whatever its size.
+    #[arg(long, required = true)]
+    data: Vec<PathBuf>,
     /// Network preset (tiny, small, paper).
     #[arg(long, default_value = "tiny")]
     preset: String,
@@ -69,9 +71,10 @@ pub struct TrainArgs {
     no_subsample: bool,
     /// Distance between a bin's first and last frames, metres: 8 for streets; handheld
     /// desks and rooms move centimetres per frame, so their bins are shorter (0.1 for desks,
-    /// 0.5 for rooms: docs/training.md).
-    #[arg(long, default_value_t = BinConfig::default().length_m)]
-    bin_length: f64,
+    /// 0.5 for rooms: docs/training.md). One value for every `--data` root, or one per root
+    /// in the same order [default: 8].
+    #[arg(long)]
+    bin_length: Vec<f64>,
     /// Read frames at this size (intrinsics scaled), e.g. real KITTI-360 at 544x144.
     #[arg(long, num_args = 2, value_names = ["WIDTH", "HEIGHT"])]
     resize: Option<Vec<u32>>,
@@ -116,14 +119,39 @@ fn loss_weights(args: &TrainArgs) -> LossWeights {
     }
 }
 
+/// The data roots the flags name, each with its bin length.
+fn data_roots(args: &TrainArgs) -> Result<Vec<DataRoot>> {
+    let lengths = match args.bin_length.as_slice() {
+        [] => vec![BinConfig::default().length_m; args.data.len()],
+        &[one] => vec![one; args.data.len()],
+        many if many.len() == args.data.len() => many.to_vec(),
+        many => bail!(
+            "{} --bin-length values for {} --data roots: give one for all, or one per root",
+            many.len(),
+            args.data.len()
+        ),
+    };
+    args.data
+        .iter()
+        .zip(lengths)
+        .map(|(path, length_m)| {
+            if !(length_m.is_finite() && length_m > 0.0) {
+                bail!("--bin-length {length_m}: a bin must span a positive distance");
+            }
+            Ok(DataRoot {
+                path: path.clone(),
+                bins: BinConfig {
+                    length_m,
+                    ..BinConfig::default()
+                },
+            })
+        })
+        .collect()
+}
+
 /// Runs `train`.
 pub fn run(args: &TrainArgs) -> Result<()> {
-    if !(args.bin_length.is_finite() && args.bin_length > 0.0) {
-        bail!(
-            "--bin-length {}: a bin must span a positive distance",
-            args.bin_length
-        );
-    }
+    let data = data_roots(args)?;
     let net = Config::preset(&args.preset)?.with_settings(&args.settings)?;
     let cfg = TrainConfig {
         steps: args.steps,
@@ -140,14 +168,10 @@ pub fn run(args: &TrainArgs) -> Result<()> {
             volume: None,
         },
         loss: loss_weights(args),
-        bins: BinConfig {
-            length_m: args.bin_length,
-            ..BinConfig::default()
-        },
         adamw: AdamWConfig::default(),
         resize: args.resize.as_ref().map(|s| (s[0], s[1])),
     };
-    let mut trainer = Trainer::new(&net, cfg, &args.data, &args.out, args.resume)
+    let mut trainer = Trainer::new(&net, cfg, &data, &args.out, args.resume)
         .with_context(|| format!("starting training in {}", args.out.display()))?;
     if let Some(init) = &args.init {
         let warm = trainer

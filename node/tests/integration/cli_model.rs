@@ -3,6 +3,7 @@
 //! 2 input pairs, and `bench model`'s JSON (with and without the volume branch).
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use crate::cli_support;
 
@@ -54,6 +55,19 @@ fn train_writes_checkpoint_log_curve_and_resumes() {
     ] {
         assert!(out.join(file).exists(), "{file}");
     }
+    // A mix takes one bin length for all roots or one per root, nothing else.
+    let mixed = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
+        .args(["train", "--steps", "1", "--data"])
+        .args([&data, Path::new("--data"), &data, Path::new("--out"), &out])
+        .args(["--bin-length", "8", "--bin-length", "4", "--bin-length", "2"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&mixed.stderr);
+    assert!(!mixed.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("3 --bin-length values for 2 --data roots"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(&data);
     let _ = std::fs::remove_dir_all(&out);
 }

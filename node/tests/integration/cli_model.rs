@@ -59,7 +59,14 @@ fn train_writes_checkpoint_log_curve_and_resumes() {
     let mixed = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
         .args(["train", "--steps", "1", "--data"])
         .args([&data, Path::new("--data"), &data, Path::new("--out"), &out])
-        .args(["--bin-length", "8", "--bin-length", "4", "--bin-length", "2"])
+        .args([
+            "--bin-length",
+            "8",
+            "--bin-length",
+            "4",
+            "--bin-length",
+            "2",
+        ])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&mixed.stderr);

@@ -6,7 +6,8 @@
 # DATA/street, so `train --data DATA/desk --data DATA/room --data DATA/street` draws the
 # three kinds equally often, each cut with its own bin length; and the same 4 plain streets
 # at 272x72, 300 frames, under DATA/plain272 (the demo's size, which the second phase of
-# scripts/train_tiny_scales.sh keeps in the mix). Randomised sequences keep
+# scripts/train_tiny_scales.sh keeps in the mix), with 4 more (seeds 4-7) under
+# DATA/plain272b for its third phase. Randomised sequences keep
 # their drawn field of view and baseline at the fixed size. Sequences already written are
 # kept, so an interrupted run goes on.
 #   bash scripts/scales_data.sh [DATA_DIR]   (default data/scales)
@@ -25,10 +26,12 @@ for seed in 0 1 2 3; do
   written "$data/street/plain" "$name" ||
     "$bin" synth --out "$data/street/plain" --seed "$seed" --frames 120 "${size[@]}"
 done
-for seed in 0 1 2 3; do
+for seed in 0 1 2 3 4 5 6 7; do
   name=$(printf "synth_drive_%07d_sync" "$seed")
-  written "$data/plain272" "$name" ||
-    "$bin" synth --out "$data/plain272" --seed "$seed" --frames 300 --width 272 --height 72
+  root="$data/plain272"
+  ((seed < 4)) || root="$data/plain272b"
+  written "$root" "$name" ||
+    "$bin" synth --out "$root" --seed "$seed" --frames 300 --width 272 --height 72
 done
 # kind, first seed, word in the sequence name, frames
 for row in "desk 300 desk 40" "room 400 room 40" "street 500 drive 80"; do

@@ -1,6 +1,6 @@
 //! `stereosplat export`: a map in the formats the splat field exchanges. The input is any map
 //! file (3DGS PLY, SPZ, glTF binary; told apart by content) or the node's checkpoint
-//! (`global_map.ssgmap`, exported around its latest bin's origin, as `run` does); the output is
+//! (`global_map.ssgmap` with its journal `global_map.journal/` replayed, exported around its latest bin's origin, as `run` does); the output is
 //! PLY, SPZ or glTF binary with `KHR_gaussian_splatting` ([`renderer::formats`]). Prints one
 //! JSON line: what was written, what was skipped or clamped, the format's position error.
 
@@ -13,7 +13,8 @@ use glam::{DAffine3, DVec3};
 use renderer::formats::{load_map, save_map, MapFormat};
 use renderer::GaussianSet;
 
-use crate::fusion::{local_set, GlobalMap};
+use crate::fusion::{local_set, AtTornTail};
+use crate::service::map_files::{journal_of, restore_files, Restored};
 
 /// The first bytes of the node's checkpoint file.
 const CHECKPOINT_MAGIC: &[u8] = b"SSGMAP";
@@ -51,7 +52,20 @@ pub fn load_input(path: &Path) -> Result<MapInput> {
         .and_then(|f| f.take(CHECKPOINT_MAGIC.len() as u64).read_to_end(&mut head))
         .with_context(|| format!("reading {}", path.display()))?;
     if head == CHECKPOINT_MAGIC {
-        let map = GlobalMap::load(path).with_context(|| format!("reading {}", path.display()))?;
+        // The base with its journal replayed: what the node had published (a record a crash
+        // tore is left out, and the files are left as they are).
+        let restored = restore_files(path, &journal_of(path), AtTornTail::Stop)
+            .with_context(|| format!("reading {}", path.display()))?;
+        let Some(Restored { map, replay }) = restored else {
+            anyhow::bail!("{}: no such checkpoint", path.display());
+        };
+        if let Some(t) = replay.torn {
+            eprintln!(
+                "left out a record torn by a crash at the end of {} ({} bytes)",
+                t.path.display(),
+                t.cut_bytes
+            );
+        }
         let origin = map.latest_origin().unwrap_or(DVec3::ZERO);
         let set = local_set(
             map.gaussians().map(|(_, g)| g),

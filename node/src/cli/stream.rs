@@ -10,7 +10,7 @@ use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
-use crate::service::{self, InputLimits, NodeConfig, StartMap};
+use crate::service::{self, Compaction, InputLimits, NodeConfig, StartMap};
 use crate::transport::open;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -98,7 +98,8 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 2)]
     queue: usize,
     /// Where the fused global map is written when the node stops, and where its checkpoint
-    /// (`global_map.ssgmap`) is kept: a node started on a folder that holds one resumes it
+    /// (`global_map.ssgmap` and `global_map.journal/`) is kept: a node started on a folder
+    /// that holds one resumes it
     /// (map, bin ids, sequence numbers); a checkpoint that does not load stops the node.
     #[arg(long, default_value = "out/node")]
     out: PathBuf,
@@ -108,13 +109,19 @@ pub struct RunArgs {
     #[arg(long, default_value_t = MapFormat::Ply)]
     format: MapFormat,
     /// Start a new, empty map even if `--out` holds a checkpoint (it is kept, renamed to
-    /// `global_map.ssgmap.replaced-<unix seconds>`).
+    /// `global_map.ssgmap.replaced-<unix seconds>` and `global_map.journal.replaced-<unix
+    /// seconds>`).
     #[arg(long)]
     fresh: bool,
-    /// Checkpoint the map after every this many bins, before they are published (0: only
-    /// when the node stops). With 1, a crash loses no bin that was published.
+    /// Sync the map's journal (`global_map.journal/`, what each bin changed) after every
+    /// this many bins, before they are published (0: nothing is written until the node
+    /// stops). With 1, a crash loses no bin that was published.
     #[arg(long, default_value_t = 1)]
     checkpoint_every: u64,
+    /// Fold the journal into the checkpoint's base file in the background once it holds
+    /// this many MiB and at least as many bytes as the base.
+    #[arg(long, default_value_t = 64)]
+    compact_after_mib: u64,
     /// Rasterizer of the per-bin renders (input view and bird's-eye view); `off` for none.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
@@ -227,6 +234,9 @@ pub fn run(args: &RunArgs) -> Result<()> {
             false => StartMap::Resume,
         },
         checkpoint_every: args.checkpoint_every,
+        compaction: Compaction {
+            min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
+        },
         renders: args.renders.into(),
         snapshot_every: args.snapshot_every,
         limits: args.limits.limits()?,

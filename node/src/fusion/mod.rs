@@ -23,6 +23,7 @@
 mod cells;
 mod export;
 mod increments;
+mod journal;
 mod snapshot;
 mod wire;
 
@@ -35,6 +36,7 @@ use renderer::GaussianSet;
 pub use cells::{cell_centre, cell_of, CellKey};
 pub use export::{bev_image, local_set, save_bev_png, BevView, ExportError};
 pub use increments::{Increment, InsertStats, MapReplica, ReplicaError, Snapshot};
+pub use journal::{segment_path, segments, AtTornTail, JournalWriter, Replay, TornTail};
 pub use snapshot::StoreError;
 pub use wire::{decode_update, increment_message, snapshot_message, Update, WireError};
 

@@ -25,7 +25,7 @@ const VERSION: u32 = 3;
 /// The oldest version still read (without the keep rule).
 const OLDEST_VERSION: u32 = 2;
 /// Bytes per stored Gaussian.
-const RECORD_BYTES: usize = 88;
+pub(super) const RECORD_BYTES: usize = 88;
 
 /// Why a map could not be saved or restored. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -81,7 +81,7 @@ pub enum StoreError {
 }
 
 /// FNV-1a, 64 bit: a checksum that catches flipped and truncated bytes.
-fn fnv1a(bytes: &[u8]) -> u64 {
+pub(super) fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
         (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
     })
@@ -110,18 +110,17 @@ impl GlobalMap {
         );
         b.extend_from_slice(&(self.len() as u64).to_le_bytes());
         for (id, g) in self.gaussians() {
-            b.extend_from_slice(&id.0.to_le_bytes());
-            b.extend_from_slice(&g.bin_id.to_le_bytes());
-            put_f64s(&mut b, &g.position.to_array());
-            put_f32s(&mut b, &g.log_scale.to_array());
-            put_f32s(&mut b, &g.rotation.to_array());
-            put_f32s(&mut b, &[g.opacity]);
-            put_f32s(&mut b, &g.color.to_array());
-            put_f32s(&mut b, &[g.confidence]);
+            put_gaussian(&mut b, id, g);
         }
         let sum = fnv1a(&b);
         b.extend_from_slice(&sum.to_le_bytes());
         b
+    }
+
+    /// The size of the map's file ([`GlobalMap::to_bytes`]) in bytes, without writing it.
+    pub fn stored_bytes(&self) -> u64 {
+        // Header (106 bytes) and checksum (8) besides the records.
+        114 + (self.len() * RECORD_BYTES) as u64
     }
 
     /// Writes the map to `path` atomically (see the module doc): a crash at any moment
@@ -208,30 +207,12 @@ impl GlobalMap {
         let mut previous: Option<u64> = None;
         for _ in 0..count {
             let at = r.pos;
-            let id = r.u64()?;
-            let g = WorldGaussian {
-                bin_id: r.u64()?,
-                position: DVec3::from_array(r.f64s()?),
-                log_scale: Vec3::from_array(r.f32s()?),
-                rotation: Quat::from_array(r.f32s()?),
-                opacity: r.f32()?,
-                color: Vec3::from_array(r.f32s()?),
-                confidence: r.f32()?,
-            };
-            if previous.is_some_and(|p| id <= p) || id >= next_id {
+            let (id, g) = r.gaussian()?;
+            if previous.is_some_and(|p| id.0 <= p) || id.0 >= next_id {
                 return Err(r.invalid(at, "ids not increasing or not below the next id"));
             }
-            let finite = g.position.is_finite()
-                && g.log_scale.is_finite()
-                && g.rotation.is_finite()
-                && g.opacity.is_finite()
-                && g.color.is_finite()
-                && g.confidence.is_finite();
-            if !finite {
-                return Err(r.invalid(at, "Gaussian with a NaN or infinite field"));
-            }
-            previous = Some(id);
-            gaussians.insert(GaussianId(id), g);
+            previous = Some(id.0);
+            gaussians.insert(id, g);
         }
         Ok(GlobalMap::from_parts(Stored {
             config,
@@ -245,7 +226,20 @@ impl GlobalMap {
     }
 }
 
-fn put_f64s(b: &mut Vec<u8>, v: &[f64]) {
+/// Appends one stored Gaussian ([`RECORD_BYTES`] bytes: id, bin id, position, log scale,
+/// rotation, opacity, colour, confidence).
+pub(super) fn put_gaussian(b: &mut Vec<u8>, id: GaussianId, g: &WorldGaussian) {
+    b.extend_from_slice(&id.0.to_le_bytes());
+    b.extend_from_slice(&g.bin_id.to_le_bytes());
+    put_f64s(b, &g.position.to_array());
+    put_f32s(b, &g.log_scale.to_array());
+    put_f32s(b, &g.rotation.to_array());
+    put_f32s(b, &[g.opacity]);
+    put_f32s(b, &g.color.to_array());
+    put_f32s(b, &[g.confidence]);
+}
+
+pub(super) fn put_f64s(b: &mut Vec<u8>, v: &[f64]) {
     v.iter().for_each(|x| b.extend_from_slice(&x.to_le_bytes()));
 }
 
@@ -254,13 +248,41 @@ fn put_f32s(b: &mut Vec<u8>, v: &[f32]) {
 }
 
 /// A cursor over the file's bytes that turns running out into [`StoreError::Truncated`].
-struct Reader<'a> {
-    bytes: &'a [u8],
-    pos: usize,
-    path: &'a Path,
+pub(super) struct Reader<'a> {
+    /// The bytes read.
+    pub bytes: &'a [u8],
+    /// Where the next read starts.
+    pub pos: usize,
+    /// The file, named in errors.
+    pub path: &'a Path,
 }
 
 impl<'a> Reader<'a> {
+    /// One Gaussian as [`put_gaussian`] writes it; a NaN or infinite field is an error.
+    pub fn gaussian(&mut self) -> Result<(GaussianId, WorldGaussian), StoreError> {
+        let at = self.pos;
+        let id = GaussianId(self.u64()?);
+        let g = WorldGaussian {
+            bin_id: self.u64()?,
+            position: DVec3::from_array(self.f64s()?),
+            log_scale: Vec3::from_array(self.f32s()?),
+            rotation: Quat::from_array(self.f32s()?),
+            opacity: self.f32()?,
+            color: Vec3::from_array(self.f32s()?),
+            confidence: self.f32()?,
+        };
+        let finite = g.position.is_finite()
+            && g.log_scale.is_finite()
+            && g.rotation.is_finite()
+            && g.opacity.is_finite()
+            && g.color.is_finite()
+            && g.confidence.is_finite();
+        if !finite {
+            return Err(self.invalid(at, "Gaussian with a NaN or infinite field"));
+        }
+        Ok((id, g))
+    }
+
     fn truncated(&self, needed: usize) -> StoreError {
         StoreError::Truncated {
             path: self.path.to_path_buf(),
@@ -269,7 +291,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn invalid(&self, offset: usize, what: &'static str) -> StoreError {
+    pub fn invalid(&self, offset: usize, what: &'static str) -> StoreError {
         StoreError::Invalid {
             path: self.path.to_path_buf(),
             offset,
@@ -277,7 +299,7 @@ impl<'a> Reader<'a> {
         }
     }
 
-    fn take(&mut self, n: usize) -> Result<&'a [u8], StoreError> {
+    pub fn take(&mut self, n: usize) -> Result<&'a [u8], StoreError> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len());
         let end = end.ok_or_else(|| self.truncated(n))?;
         let s = &self.bytes[self.pos..end];
@@ -285,29 +307,29 @@ impl<'a> Reader<'a> {
         Ok(s)
     }
 
-    fn array<const N: usize>(&mut self) -> Result<[u8; N], StoreError> {
+    pub fn array<const N: usize>(&mut self) -> Result<[u8; N], StoreError> {
         let mut a = [0u8; N];
         a.copy_from_slice(self.take(N)?);
         Ok(a)
     }
 
-    fn u32(&mut self) -> Result<u32, StoreError> {
+    pub fn u32(&mut self) -> Result<u32, StoreError> {
         self.array().map(u32::from_le_bytes)
     }
 
-    fn u64(&mut self) -> Result<u64, StoreError> {
+    pub fn u64(&mut self) -> Result<u64, StoreError> {
         self.array().map(u64::from_le_bytes)
     }
 
-    fn f32(&mut self) -> Result<f32, StoreError> {
+    pub fn f32(&mut self) -> Result<f32, StoreError> {
         self.array().map(f32::from_le_bytes)
     }
 
-    fn f64(&mut self) -> Result<f64, StoreError> {
+    pub fn f64(&mut self) -> Result<f64, StoreError> {
         self.array().map(f64::from_le_bytes)
     }
 
-    fn f32s<const N: usize>(&mut self) -> Result<[f32; N], StoreError> {
+    pub fn f32s<const N: usize>(&mut self) -> Result<[f32; N], StoreError> {
         let mut a = [0.0; N];
         for x in &mut a {
             *x = self.f32()?;
@@ -315,7 +337,7 @@ impl<'a> Reader<'a> {
         Ok(a)
     }
 
-    fn f64s<const N: usize>(&mut self) -> Result<[f64; N], StoreError> {
+    pub fn f64s<const N: usize>(&mut self) -> Result<[f64; N], StoreError> {
         let mut a = [0.0; N];
         for x in &mut a {
             *x = self.f64()?;
@@ -324,7 +346,7 @@ impl<'a> Reader<'a> {
     }
 
     /// A flag byte (0 or 1) then a value that is always present; `None` when the flag is 0.
-    fn flagged<T>(
+    pub fn flagged<T>(
         &mut self,
         read: impl FnOnce(&mut Self) -> Result<T, StoreError>,
     ) -> Result<Option<T>, StoreError> {

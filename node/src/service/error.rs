@@ -25,6 +25,9 @@ pub enum ServiceError {
     /// The out folder's checkpoint cannot be resumed.
     #[error(transparent)]
     Restore(#[from] RestoreError),
+    /// The map's journal could not be set up in the out folder.
+    #[error("the global map's journal: {0}")]
+    Journal(#[from] crate::fusion::StoreError),
     /// The Foxglove server did not start (`run --foxglove`).
     #[error(transparent)]
     Foxglove(#[from] crate::foxglove::FoxgloveError),

@@ -1,14 +1,20 @@
-//! The node's global-map files under its out folder: the checkpoint it writes as bins are
+//! The node's global-map files under its out folder: the checkpoint it keeps as bins are
 //! fused and resumes from when it starts again, and the exports it writes when it stops.
 //!
-//! Resume rule: a node with an out folder that holds a checkpoint (`global_map.ssgmap`)
-//! starts from it unless told to start fresh ([`StartMap::Fresh`], `run --fresh`). The
-//! resumed map keeps its settings, Gaussians and ids; the next bin id follows its last bin;
-//! its increments continue its sequence numbers; its epoch goes up by one. A checkpoint that
-//! does not load (damaged, truncated, another version) stops the node with
-//! [`RestoreError::Unreadable`], naming the file and why, and the file is left as it is; a
-//! fresh start moves an existing checkpoint aside (to `global_map.ssgmap.replaced-<unix
-//! seconds>`) rather than overwriting it, so no saved map is ever replaced by an empty one.
+//! The checkpoint is a base file (`global_map.ssgmap`) plus a journal folder
+//! (`global_map.journal/`) of what each bin changed since the base was written
+//! ([`super::map_store`] writes both; [`crate::fusion::JournalWriter`] has the format).
+//! Restoring loads the base and replays the journal ([`restore`]); a record torn by a crash
+//! at the journal's end is cut, and the node says how much it kept.
+//!
+//! Resume rule: a node with an out folder that holds a checkpoint starts from it unless told
+//! to start fresh ([`StartMap::Fresh`], `run --fresh`). The resumed map keeps its settings,
+//! Gaussians and ids; the next bin id follows its last bin; its increments continue its
+//! sequence numbers; its epoch goes up by one. A checkpoint that does not load (damaged,
+//! truncated, another version, a journal without its base) stops the node with
+//! [`RestoreError::Unreadable`], naming the file and why, and the files are left as they
+//! are; a fresh start moves the base and the journal aside (to `<name>.replaced-<unix
+//! seconds>`) rather than overwriting them, so no saved map is ever replaced by an empty one.
 //! The exported map file is in the format `run --format` names (PLY by default).
 //! Every file is replaced atomically ([`renderer::atomic`]).
 
@@ -19,10 +25,16 @@ use glam::{DAffine3, DVec2};
 
 use renderer::formats::MapFormat;
 
-use crate::fusion::{bev_image, local_set, save_bev_png, BevView, GlobalMap, StoreError};
+use crate::fusion::{
+    bev_image, local_set, save_bev_png, segments, AtTornTail, BevView, GlobalMap, Replay,
+    StoreError,
+};
 
-/// The checkpoint's file name in the out folder.
+/// The checkpoint's base file name in the out folder.
 pub const CHECKPOINT: &str = "global_map.ssgmap";
+
+/// The checkpoint's journal folder name in the out folder.
+pub const JOURNAL: &str = "global_map.journal";
 
 /// How a node with an out folder starts its global map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -81,8 +93,54 @@ pub struct Start {
     pub map: GlobalMap,
     /// The checkpoint it was resumed from (`None`: a new, empty map).
     pub resumed_from: Option<PathBuf>,
-    /// Where a fresh start moved the old checkpoint.
-    pub moved_aside: Option<PathBuf>,
+    /// What replaying the journal did, for a resumed map.
+    pub replay: Option<Replay>,
+    /// Where a fresh start moved the old checkpoint's files.
+    pub moved_aside: Vec<PathBuf>,
+}
+
+/// A map restored from an out folder's checkpoint.
+#[derive(Debug)]
+pub struct Restored {
+    /// The map: the base with the journal replayed.
+    pub map: GlobalMap,
+    /// What the replay did (records applied, a torn tail cut).
+    pub replay: Replay,
+}
+
+/// The map of the checkpoint in `dir` (`None` when it holds none): the base file with every
+/// journal record past it replayed ([`GlobalMap::replay_journal`]), a torn last record
+/// handled by `at_torn`. Journal segments without a base are an error.
+pub fn restore(dir: &Path, at_torn: AtTornTail) -> Result<Option<Restored>, StoreError> {
+    restore_files(&dir.join(CHECKPOINT), &dir.join(JOURNAL), at_torn)
+}
+
+/// [`restore`] from a base file and a journal folder named apart.
+pub fn restore_files(
+    base: &Path,
+    journal: &Path,
+    at_torn: AtTornTail,
+) -> Result<Option<Restored>, StoreError> {
+    let journal = segments(journal)?;
+    if !base.exists() {
+        return match journal.first() {
+            None => Ok(None),
+            Some(path) => Err(StoreError::Invalid {
+                path: path.clone(),
+                offset: 0,
+                what: "journal segment without its base file",
+            }),
+        };
+    }
+    let mut map = GlobalMap::load(base)?;
+    let replay = map.replay_journal(&journal, at_torn)?;
+    Ok(Some(Restored { map, replay }))
+}
+
+/// The journal folder beside a checkpoint's base file: `<stem>.journal`
+/// (`global_map.ssgmap` -> `global_map.journal`).
+pub fn journal_of(base: &Path) -> PathBuf {
+    base.with_extension("journal")
 }
 
 /// The map to start with under `out_dir` (`None`: no files, `empty`), by the rule in the
@@ -95,45 +153,56 @@ pub fn start_map(
     let mut start = Start {
         map: empty,
         resumed_from: None,
-        moved_aside: None,
+        replay: None,
+        moved_aside: Vec::new(),
     };
-    let Some(path) = out_dir.map(|d| d.join(CHECKPOINT)) else {
+    let Some(dir) = out_dir else {
         return Ok(start);
     };
-    if !path.exists() {
-        return Ok(start);
-    }
+    let files = [dir.join(CHECKPOINT), dir.join(JOURNAL)];
     match how {
         StartMap::Resume => {
-            let mut map =
-                GlobalMap::load(&path).map_err(|source| RestoreError::Unreadable { source })?;
-            map.resume();
-            start.map = map;
-            start.resumed_from = Some(path);
+            let restored = restore(dir, AtTornTail::Cut)
+                .map_err(|source| RestoreError::Unreadable { source })?;
+            if let Some(mut r) = restored {
+                r.map.resume();
+                start.map = r.map;
+                start.replay = Some(r.replay);
+                start.resumed_from = Some(files[0].clone());
+            }
         }
         StartMap::Fresh => {
             let secs = SystemTime::now()
                 .duration_since(UNIX_EPOCH)
                 .map_or(0, |d| d.as_secs());
-            let to = path.with_file_name(format!("{CHECKPOINT}.replaced-{secs}"));
-            std::fs::rename(&path, &to).map_err(|source| RestoreError::MoveAside {
-                from: path.clone(),
-                to: to.clone(),
-                source,
-            })?;
-            start.moved_aside = Some(to);
+            for from in files.into_iter().filter(|f| f.exists()) {
+                let name = from.file_name().unwrap_or_default().to_string_lossy();
+                let to = from.with_file_name(format!("{name}.replaced-{secs}"));
+                std::fs::rename(&from, &to).map_err(|source| RestoreError::MoveAside {
+                    from: from.clone(),
+                    to: to.clone(),
+                    source,
+                })?;
+                start.moved_aside.push(to);
+            }
         }
     }
     Ok(start)
 }
 
-/// Saves `map` as the checkpoint in `dir` (created if missing), atomically.
+/// Saves `map` as the checkpoint's base in `dir` (created if missing), atomically, then
+/// removes the journal's segments, which the base now holds. A crash between the two leaves
+/// segments that a restore skips.
 pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
     std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
         path: dir.to_path_buf(),
         source,
     })?;
-    map.save(dir.join(CHECKPOINT))
+    map.save(dir.join(CHECKPOINT))?;
+    for path in segments(&dir.join(JOURNAL))? {
+        std::fs::remove_file(&path).map_err(|source| StoreError::Io { path, source })?;
+    }
+    Ok(())
 }
 
 /// Writes the checkpoint, the global map as `global_map.<ply|spz|glb>` in `format` (positions

@@ -14,7 +14,8 @@ use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
 use super::map_files::{export, start_map, StartMap};
-use super::outputs::{Checkpoints, NodeSummary, Outputs};
+use super::map_store::{Compaction, MapStore};
+use super::outputs::{NodeSummary, Outputs};
 use super::snapshot_gate::SnapshotGate;
 use crate::foxglove::{Foxglove, FoxgloveConfig};
 use crate::fusion::FusionConfig;
@@ -59,10 +60,13 @@ pub struct NodeConfig {
     pub map_format: MapFormat,
     /// Resume the checkpoint in `out_dir` or start fresh.
     pub start_map: StartMap,
-    /// The map is checkpointed to `out_dir` after every this many fused bins, before they
-    /// are published (0: only when the node stops). 1 is what makes "a crash loses nothing
-    /// that was published" hold; larger values trade that for less disk writing.
+    /// The map's journal in `out_dir` is synced after every this many fused bins, before
+    /// they are published (0: nothing is written until the node stops). 1 is what makes "a
+    /// crash loses nothing that was published" hold; larger values trade that for fewer
+    /// syncs.
     pub checkpoint_every: u64,
+    /// When the journal is folded into the checkpoint's base ([`super::map_store`]).
+    pub compaction: Compaction,
     /// A global map snapshot is published after every this many bins (0: only on request).
     pub snapshot_every: u64,
     /// Per-bin renders: the bin map seen from its input view (drawn on the worker with this
@@ -117,6 +121,7 @@ impl Default for NodeConfig {
             map_format: MapFormat::Ply,
             start_map: StartMap::Resume,
             checkpoint_every: 1,
+            compaction: Compaction::default(),
             snapshot_every: 10,
             renders: RenderWith::Auto,
             name: "stereosplat_node".into(),
@@ -175,7 +180,21 @@ pub async fn run_with(
             m.epoch()
         );
     }
-    if let Some(to) = &start.moved_aside {
+    if let Some(replay) = &start.replay {
+        eprintln!(
+            "replayed {} journal records past the base ({} it already held)",
+            replay.applied, replay.skipped
+        );
+        if let Some(t) = &replay.torn {
+            eprintln!(
+                "cut a record torn by a crash at the end of {}: kept its first {} bytes, cut {}",
+                t.path.display(),
+                t.kept_bytes,
+                t.cut_bytes
+            );
+        }
+    }
+    for to in &start.moved_aside {
         eprintln!(
             "starting a fresh global map; the old one is kept as {}",
             to.display()
@@ -228,12 +247,17 @@ pub async fn run_with(
     let mut snapshot_gate =
         SnapshotGate::new(keys.snapshot_request(), config.limits.snapshot_interval);
     let bev = config.renders != RenderWith::Off;
-    let checkpoints = config.out_dir.clone().map(|dir| Checkpoints {
-        dir,
-        every: config.checkpoint_every,
-    });
+    let store = match config.out_dir.clone() {
+        Some(dir) => Some(MapStore::new(
+            dir,
+            &start.map,
+            config.checkpoint_every,
+            config.compaction,
+        )?),
+        None => None,
+    };
     let resumed = start.resumed_from.is_some();
-    let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, checkpoints)
+    let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, store)
         .with_foxglove(foxglove.as_ref());
     if resumed {
         outputs.announce_resume();
@@ -316,6 +340,7 @@ pub async fn run_with(
     }
     outputs.finish(drops).await?;
     outputs.counters.set("dropped/worker_queue", drops);
+    outputs.close_store();
     // A map that never held a bin (nothing arrived, nothing was resumed) leaves no files:
     // an empty checkpoint would only shadow a later run's start.
     if let (Some(dir), Some(_)) = (&config.out_dir, outputs.map.last_bin_id()) {

@@ -3,8 +3,9 @@
 //! then its render when the worker has drawn it, and the bin's latency once the bin has
 //! also closed, with the counters beside it.
 //!
-//! Write-ahead: a bin is fused and the map checkpointed (when due) before anything of the
-//! bin is published, so a crash cannot lose a published bin. A resumed map says so: its
+//! Write-ahead: a bin is fused and its change journaled and synced (when due,
+//! [`super::map_store`]) before anything of the bin is published, so a crash cannot lose a
+//! published bin. A resumed map says so: its
 //! first `map/update` is a snapshot of the restored map with the restored sequence number
 //! (a new map's first is increment 1), and the increments go on from there; the counter
 //! `map/epoch` in the diagnostics is the number of times the map was resumed.
@@ -25,20 +26,20 @@
 //! without blocking: the bin map, its frame, the fused map's new points, the render, the
 //! camera, the latency and the counters (with the server's own).
 
-use std::collections::{BTreeMap, BTreeSet};
-use std::path::PathBuf;
-
 use glam::DVec2;
 use renderer::GaussianSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 use super::counters::Counters;
 use super::error::ServiceError;
 use super::inputs::CameraPose;
 use super::keys::{self, Topic};
-use super::map_files::checkpoint;
+use super::map_store::MapStore;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
-use crate::fusion::{bev_image, increment_message, snapshot_message, BevView, GlobalMap};
+use crate::fusion::{
+    bev_image, increment_message, snapshot_message, BevView, GlobalMap, Increment,
+};
 use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::geometry_msgs::TransformStamped;
 use crate::msg::image::image_from_rgb;
@@ -68,15 +69,6 @@ pub struct NodeSummary {
 /// the latest bin's origin.
 const BEV: (u32, f64) = (256, 0.25);
 
-/// Where and how often the map is checkpointed.
-#[derive(Clone, Debug)]
-pub(super) struct Checkpoints {
-    /// The out folder.
-    pub dir: PathBuf,
-    /// After every this many fused bins (0: never while running).
-    pub every: u64,
-}
-
 /// The node's outputs and the state they are made from.
 pub(super) struct Outputs<'a> {
     outlet: &'a Outlet,
@@ -88,10 +80,8 @@ pub(super) struct Outputs<'a> {
     bev: bool,
     /// Snapshot period in bins (0: on request only).
     snapshot_every: u64,
-    /// Checkpointing, when the node has an out folder.
-    checkpoints: Option<Checkpoints>,
-    /// Bins fused since the last checkpoint.
-    unsaved_bins: u64,
+    /// The map's journal, when the node has an out folder.
+    store: Option<MapStore>,
     /// A resumed map's snapshot is still to be published (before the first increment).
     resume_pending: bool,
     /// Stamps of closed bins, until their map is published.
@@ -119,7 +109,7 @@ impl<'a> Outputs<'a> {
         map: GlobalMap,
         bev: bool,
         snapshot_every: u64,
-        checkpoints: Option<Checkpoints>,
+        store: Option<MapStore>,
     ) -> Self {
         let mut counters = Counters::default();
         counters.set("map/epoch", map.epoch());
@@ -129,8 +119,7 @@ impl<'a> Outputs<'a> {
             map,
             bev,
             snapshot_every,
-            checkpoints,
-            unsaved_bins: 0,
+            store,
             resume_pending: false,
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
@@ -187,8 +176,8 @@ impl<'a> Outputs<'a> {
                 };
                 let fused = self.map.insert_bin(out.bin_id, to_fuse, out.bin_to_world);
                 self.latest_source_ns = stamps.source_ns;
-                if fused.is_ok() {
-                    self.checkpoint_if_due();
+                if let Ok(inc) = &fused {
+                    self.journal(inc);
                 }
                 let frame = format!("bin_{}", out.bin_id);
                 match cloud_from_gaussians(&set, header(&frame), None) {
@@ -347,22 +336,34 @@ impl<'a> Outputs<'a> {
 
     /// Saves the map when `every` bins were fused since the last save. A failed save is
     /// counted (`error/checkpoint`) and reported on stderr; the node goes on.
-    fn checkpoint_if_due(&mut self) {
-        let Some(c) = &self.checkpoints else {
+    /// Journals a fused bin's change before the bin is published; a failure is reported
+    /// and counted, and the bin is still published.
+    fn journal(&mut self, inc: &Increment) {
+        let Some(store) = &mut self.store else {
             return;
         };
-        self.unsaved_bins += 1;
-        if c.every == 0 || self.unsaved_bins < c.every {
-            return;
-        }
-        match checkpoint(&self.map, &c.dir) {
-            Ok(()) => {
-                self.unsaved_bins = 0;
-                self.counters.add("map/checkpoints", 1);
-            }
+        match store.record(&self.map, inc) {
+            Ok(true) => self.counters.add("map/checkpoints", 1),
+            Ok(false) => {}
             Err(e) => {
                 eprintln!("checkpoint failed: {e}");
                 self.counters.add("error/checkpoint", 1);
+            }
+        }
+        for (name, value) in store.counts() {
+            self.counters.set(name, value);
+        }
+    }
+
+    /// Syncs the journal and waits for its compactor, before the map is saved whole.
+    pub fn close_store(&mut self) {
+        if let Some(mut store) = self.store.take() {
+            if let Err(e) = store.finish() {
+                eprintln!("checkpoint failed: {e}");
+                self.counters.add("error/checkpoint", 1);
+            }
+            for (name, value) in store.counts() {
+                self.counters.set(name, value);
             }
         }
     }

@@ -33,7 +33,7 @@ fn set_of(gs: &[Gaussian]) -> GaussianSet {
 
 /// A map that fuses every distance and confidence (the keep rule has its own tests in
 /// `fusion_keep.rs`).
-fn map_with(cell_size: f64, opacity_floor: f32, max_gaussians: usize) -> GlobalMap {
+pub(crate) fn map_with(cell_size: f64, opacity_floor: f32, max_gaussians: usize) -> GlobalMap {
     GlobalMap::new(FusionConfig {
         cell_size,
         opacity_floor,
@@ -181,7 +181,7 @@ fn positions_far_from_the_origin_stay_exact() {
 /// A random bin: origin 4 m further along x than the last (so consecutive bins overlap
 /// by half), a random yaw, Gaussians in an 8 x 2 x 10 m box around the origin, some below
 /// the opacity floor, some with NaN fields, every 17th bin empty.
-fn random_bin(rng: &mut ChaCha8Rng, k: u64) -> (GaussianSet, DAffine3) {
+pub(crate) fn random_bin(rng: &mut ChaCha8Rng, k: u64) -> (GaussianSet, DAffine3) {
     let yaw = rng.random_range(-0.3..0.3);
     let pose = DAffine3::from_rotation_translation(
         DQuat::from_rotation_z(yaw),

@@ -34,6 +34,7 @@ mod doc_blocks;
 mod formats_interop;
 mod foxglove_client;
 mod fusion;
+mod fusion_journal;
 mod fusion_keep;
 #[cfg(unix)]
 mod launch;

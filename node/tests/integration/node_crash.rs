@@ -21,12 +21,14 @@ use drive_support::{bin_of_frame_id, wait_for, Collector, Drive, Player};
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::synth::SynthConfig;
 use node::bag::BagReader;
+use node::fusion::AtTornTail;
 use node::fusion::{decode_update, GaussianId, GlobalMap, MapReplica, Snapshot, Update};
 use node::msg::latency::Diagnostics;
 use node::msg::map_update::MapUpdate;
 use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
+use node::service::map_files::restore;
 use node::service::Keys;
 use node::transport::open;
 use zenoh::qos::CongestionControl;
@@ -258,11 +260,29 @@ async fn a_node_killed_mid_drive_resumes_its_map_bin_ids_and_sequence_numbers() 
         replica.len()
     );
     let max_id_before = replica.gaussians().map(|(id, _)| id.0).max().unwrap();
-    // Everything published is in the checkpoint the kill left.
-    let saved = GlobalMap::load(out.join("global_map.ssgmap")).unwrap();
+    // Everything published is in the checkpoint the kill left: its base and journal (the
+    // kill came between journal records and their compaction into the base).
+    let journal = node::fusion::segments(&out.join("global_map.journal")).unwrap();
+    assert_eq!(journal.len(), 1, "one journal segment");
+    let saved = restore(&out, AtTornTail::Cut)
+        .unwrap()
+        .expect("a checkpoint")
+        .map;
     assert_same_gaussians(&saved, &replica.snapshot());
     assert_eq!(saved.last_bin_id(), Some(before as u64 - 1));
     assert_eq!(saved.increments(), last_sequence);
+    // `export` reads the checkpoint the same way, without changing its files.
+    let exported = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
+        .args(["export", "--map"])
+        .arg(out.join("global_map.ssgmap"))
+        .arg("--out")
+        .arg(out.join("after_kill.ply"))
+        .output()
+        .unwrap();
+    assert!(exported.status.success(), "{exported:?}");
+    let summary: serde_json::Value = serde_json::from_slice(&exported.stdout).unwrap();
+    assert_eq!(summary["gaussians"], replica.len() as u64);
+    assert_eq!(node::fusion::segments(&out.join("global_map.journal")).unwrap(), journal);
     drop((collector, player));
 
     // Run 2 on the same --out: it resumes, answers queries with the resumed map, and the
@@ -321,6 +341,11 @@ async fn a_node_killed_mid_drive_resumes_its_map_bin_ids_and_sequence_numbers() 
     // The final map is what subscribers hold; it keeps every Gaussian published before the
     // kill that no later bin replaced (and some did stay).
     let last = GlobalMap::load(out.join("global_map.ssgmap")).unwrap();
+    let journal = node::fusion::segments(&out.join("global_map.journal")).unwrap();
+    assert!(
+        journal.is_empty(),
+        "a clean stop folds the journal in: {journal:?}"
+    );
     assert_same_gaussians(&last, &replica.snapshot());
     assert_eq!(last.increments(), last_sequence + after as u64);
     assert_eq!(last.epoch(), 1);

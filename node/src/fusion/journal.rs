@@ -1,0 +1,453 @@
+//! The global map's journal: an append-only record of what each bin changed, so keeping a
+//! map on disk costs each bin the size of its own change, not the size of the map.
+//!
+//! A saved map is a base file ([`GlobalMap::save`]) plus the journal's segments, files in one
+//! folder named after the sequence number of their first record (`<20 digits>.ssgj`).
+//! Restoring loads the base and replays every record past the base's sequence number, in
+//! order ([`GlobalMap::replay_journal`]); records the base already holds are skipped, so a
+//! base rewritten while its segments were still on disk restores the same map.
+//!
+//! Segment format (little endian): magic `SSGJRNL\n`, version u32 (1), then records, each a
+//! payload length u32, the payload and an FNV-1a 64 checksum (u64) of the payload. Payload:
+//! sequence number u64 (the map's increment count after the bin), epoch u64, bin id u64,
+//! next id u64, latest origin flag u8 + 3 x f64, removed count u64 and the removed ids (u64
+//! each), added count u64 and the added Gaussians in the base file's record layout.
+//!
+//! A crash can tear only the newest segment's last record (records are appended and synced
+//! in order); replay stops before such a tail and says how much it kept ([`TornTail`]); a
+//! restarting node also cuts it from the file ([`AtTornTail`]). A bad record anywhere else is an error: the journal is damaged.
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufReader, ErrorKind, Read, Write};
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use super::cells::cell_of;
+use super::snapshot::{fnv1a, put_f64s, put_gaussian, Reader, RECORD_BYTES};
+use super::{GaussianId, GlobalMap, Increment, StoreError, WorldGaussian};
+
+const MAGIC: &[u8; 8] = b"SSGJRNL\n";
+const VERSION: u32 = 1;
+/// Bytes before a segment's first record.
+const HEADER_BYTES: u64 = 12;
+/// The file name ending of a segment.
+const SEGMENT_EXT: &str = "ssgj";
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> StoreError + '_ {
+    move |source| StoreError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Appends the map's changes to the journal's open segment, one record per bin.
+#[derive(Debug)]
+pub struct JournalWriter {
+    dir: PathBuf,
+    open: Option<(File, PathBuf)>,
+    segment_bytes: u64,
+    unsynced: bool,
+}
+
+impl JournalWriter {
+    /// A writer into the folder `dir` (created with the first segment). It opens a new
+    /// segment for its first record, so it never appends to a segment a crash may have torn.
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self {
+            dir: dir.into(),
+            open: None,
+            segment_bytes: 0,
+            unsynced: false,
+        }
+    }
+
+    /// The journal's folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Bytes in the open segment (0 when none is open).
+    pub fn segment_bytes(&self) -> u64 {
+        self.segment_bytes
+    }
+
+    /// Appends the record of `inc`, which `map` has just taken in (its counters are read
+    /// after the bin), opening a segment first when none is open. The record is written
+    /// but not yet durable: [`JournalWriter::sync`] makes it so. Returns the bytes written.
+    pub fn append(&mut self, map: &GlobalMap, inc: &Increment) -> Result<u64, StoreError> {
+        let record = encode(map, inc);
+        if self.open.is_none() {
+            self.open_segment(map.increments())?;
+        }
+        let Some((file, path)) = &mut self.open else {
+            unreachable!("a segment was opened above")
+        };
+        file.write_all(&record).map_err(io_error(path))?;
+        self.segment_bytes += record.len() as u64;
+        self.unsynced = true;
+        Ok(record.len() as u64)
+    }
+
+    /// Makes every record appended so far durable (fdatasync of the open segment).
+    pub fn sync(&mut self) -> Result<(), StoreError> {
+        if let (Some((file, path)), true) = (&self.open, self.unsynced) {
+            file.sync_data().map_err(io_error(path))?;
+        }
+        self.unsynced = false;
+        Ok(())
+    }
+
+    /// Syncs and closes the open segment; returns its path (`None` when none was open).
+    /// The next record opens a new segment.
+    pub fn close_segment(&mut self) -> Result<Option<PathBuf>, StoreError> {
+        self.sync()?;
+        self.segment_bytes = 0;
+        Ok(self.open.take().map(|(_, path)| path))
+    }
+
+    fn open_segment(&mut self, first_sequence: u64) -> Result<(), StoreError> {
+        std::fs::create_dir_all(&self.dir).map_err(io_error(&self.dir))?;
+        let path = segment_path(&self.dir, first_sequence);
+        let mut file = OpenOptions::new()
+            .create(true)
+            .truncate(true)
+            .write(true)
+            .open(&path)
+            .map_err(io_error(&path))?;
+        let mut header = MAGIC.to_vec();
+        header.extend_from_slice(&VERSION.to_le_bytes());
+        file.write_all(&header).map_err(io_error(&path))?;
+        file.sync_data().map_err(io_error(&path))?;
+        // The new name must survive a crash too.
+        File::open(&self.dir)
+            .and_then(|d| d.sync_all())
+            .map_err(io_error(&self.dir))?;
+        self.segment_bytes = HEADER_BYTES;
+        self.open = Some((file, path));
+        Ok(())
+    }
+}
+
+/// The path of the segment whose first record has sequence number `first_sequence`.
+pub fn segment_path(dir: &Path, first_sequence: u64) -> PathBuf {
+    dir.join(format!("{first_sequence:020}.{SEGMENT_EXT}"))
+}
+
+/// The journal's segments in `dir`, oldest first; none when the folder does not exist.
+pub fn segments(dir: &Path) -> Result<Vec<PathBuf>, StoreError> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(io_error(dir)(e)),
+    };
+    let mut found = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(io_error(dir))?.path();
+        if path.extension().is_some_and(|e| e == SEGMENT_EXT) {
+            found.push(path);
+        }
+    }
+    found.sort();
+    Ok(found)
+}
+
+/// A record encoded with its length and checksum.
+fn encode(map: &GlobalMap, inc: &Increment) -> Vec<u8> {
+    let mut p = Vec::with_capacity(72 + inc.removed.len() * 8 + inc.added.len() * RECORD_BYTES);
+    p.extend_from_slice(&map.increments().to_le_bytes());
+    p.extend_from_slice(&map.epoch().to_le_bytes());
+    p.extend_from_slice(&inc.bin_id.to_le_bytes());
+    p.extend_from_slice(&map.next_id.to_le_bytes());
+    let origin = map.latest_origin();
+    p.push(u8::from(origin.is_some()));
+    put_f64s(&mut p, &origin.unwrap_or(DVec3::ZERO).to_array());
+    p.extend_from_slice(&(inc.removed.len() as u64).to_le_bytes());
+    for id in &inc.removed {
+        p.extend_from_slice(&id.0.to_le_bytes());
+    }
+    p.extend_from_slice(&(inc.added.len() as u64).to_le_bytes());
+    for (id, g) in &inc.added {
+        put_gaussian(&mut p, *id, g);
+    }
+    let mut record = Vec::with_capacity(p.len() + 12);
+    record.extend_from_slice(&(p.len() as u32).to_le_bytes());
+    let sum = fnv1a(&p);
+    record.extend_from_slice(&p);
+    record.extend_from_slice(&sum.to_le_bytes());
+    record
+}
+
+/// One decoded record.
+struct Record {
+    sequence: u64,
+    epoch: u64,
+    bin_id: u64,
+    next_id: u64,
+    latest_origin: Option<DVec3>,
+    removed: Vec<GaussianId>,
+    added: Vec<(GaussianId, WorldGaussian)>,
+}
+
+fn decode(payload: &[u8], path: &Path, offset: u64) -> Result<Record, StoreError> {
+    let mut r = Reader {
+        bytes: payload,
+        pos: 0,
+        path,
+    };
+    let sequence = r.u64()?;
+    let epoch = r.u64()?;
+    let bin_id = r.u64()?;
+    let next_id = r.u64()?;
+    let latest_origin = r.flagged(|r| r.f64s::<3>().map(DVec3::from_array))?;
+    let bad = |what| StoreError::Invalid {
+        path: path.to_path_buf(),
+        offset: offset as usize,
+        what,
+    };
+    if latest_origin.is_some_and(|o| !o.is_finite()) {
+        return Err(bad("latest origin is not finite"));
+    }
+    let removed_count = r.u64()?;
+    let fits = |count: u64, each: usize| count <= (payload.len() / each) as u64;
+    if !fits(removed_count, 8) {
+        return Err(bad("removed count does not fit the record"));
+    }
+    let removed = (0..removed_count)
+        .map(|_| r.u64().map(GaussianId))
+        .collect::<Result<Vec<_>, _>>()?;
+    let added_count = r.u64()?;
+    if !fits(added_count, RECORD_BYTES) {
+        return Err(bad("added count does not fit the record"));
+    }
+    let added = (0..added_count)
+        .map(|_| r.gaussian())
+        .collect::<Result<Vec<_>, _>>()?;
+    if r.pos != payload.len() {
+        return Err(bad("record longer than its contents"));
+    }
+    Ok(Record {
+        sequence,
+        epoch,
+        bin_id,
+        next_id,
+        latest_origin,
+        removed,
+        added,
+    })
+}
+
+/// A segment's last record, which a crash tore: replay stopped before it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TornTail {
+    /// The segment.
+    pub path: PathBuf,
+    /// Bytes of the segment kept (its complete records).
+    pub kept_bytes: u64,
+    /// Bytes cut from its end.
+    pub cut_bytes: u64,
+}
+
+/// What a replay does with an incomplete or corrupt record at the end of the last segment
+/// (one anywhere else is always an error).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AtTornTail {
+    /// Stops there and truncates the segment to its complete records (a node restarting).
+    Cut,
+    /// Stops there and leaves the file as it is (a reader, such as `export`).
+    Stop,
+    /// Fails (the compactor, whose segments were synced and closed).
+    Fail,
+}
+
+/// What a replay did.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Replay {
+    /// Records applied (those past the map's sequence number).
+    pub applied: u64,
+    /// Records skipped because the map already held them.
+    pub skipped: u64,
+    /// The torn tail at the end of the newest segment, if there was one (cut from the file
+    /// with [`AtTornTail::Cut`]).
+    pub torn: Option<TornTail>,
+}
+
+/// How a segment's reading ended.
+enum End {
+    /// At a record boundary.
+    Clean,
+    /// In a record that is incomplete or fails its checksum, starting at this offset.
+    Torn(u64),
+}
+
+impl GlobalMap {
+    /// Applies, in order, every record of `segments` (oldest first, as [`segments`] lists
+    /// them) whose sequence number is past the map's; earlier ones are skipped. An
+    /// incomplete or corrupt record at the end of the last segment is handled by `at_torn`
+    /// (and said in [`Replay::torn`]); anywhere else it is an error. A record
+    /// that does not follow the map (a gap in sequence numbers, a removed Gaussian the map
+    /// does not hold, an added id it already holds) is an error; the map may then be partly
+    /// replayed and should be dropped.
+    pub fn replay_journal(
+        &mut self,
+        segments: &[PathBuf],
+        at_torn: AtTornTail,
+    ) -> Result<Replay, StoreError> {
+        let mut replay = Replay::default();
+        for (i, path) in segments.iter().enumerate() {
+            let last = i + 1 == segments.len();
+            match self.replay_segment(path, &mut replay)? {
+                End::Clean => {}
+                End::Torn(offset) if last && at_torn == AtTornTail::Cut => {
+                    replay.torn = Some(cut(path, offset)?);
+                }
+                End::Torn(offset) if last && at_torn == AtTornTail::Stop => {
+                    let len = std::fs::metadata(path).map_err(io_error(path))?.len();
+                    replay.torn = Some(TornTail {
+                        path: path.clone(),
+                        kept_bytes: offset,
+                        cut_bytes: len - offset,
+                    });
+                }
+                End::Torn(offset) => {
+                    return Err(StoreError::Invalid {
+                        path: path.clone(),
+                        offset: offset as usize,
+                        what: "incomplete or corrupt journal record",
+                    })
+                }
+            }
+        }
+        Ok(replay)
+    }
+
+    fn replay_segment(&mut self, path: &Path, replay: &mut Replay) -> Result<End, StoreError> {
+        let file = File::open(path).map_err(io_error(path))?;
+        let mut input = BufReader::new(file);
+        let mut header = [0u8; HEADER_BYTES as usize];
+        match read_full(&mut input, &mut header).map_err(io_error(path))? {
+            n if n < header.len() => return Ok(End::Torn(0)),
+            _ => {}
+        }
+        if &header[..8] != MAGIC {
+            return Err(StoreError::BadMagic {
+                path: path.to_path_buf(),
+            });
+        }
+        let version = u32::from_le_bytes(header[8..].try_into().unwrap_or_default());
+        if version != VERSION {
+            return Err(StoreError::UnsupportedVersion {
+                path: path.to_path_buf(),
+                version,
+            });
+        }
+        let mut offset = HEADER_BYTES;
+        loop {
+            let mut len = [0u8; 4];
+            match read_full(&mut input, &mut len).map_err(io_error(path))? {
+                0 => return Ok(End::Clean),
+                4 => {}
+                _ => return Ok(End::Torn(offset)),
+            }
+            let len = u32::from_le_bytes(len) as usize;
+            let mut payload = Vec::new();
+            let got = (&mut input)
+                .take(len as u64)
+                .read_to_end(&mut payload)
+                .map_err(io_error(path))?;
+            let mut sum = [0u8; 8];
+            let sum_got = read_full(&mut input, &mut sum).map_err(io_error(path))?;
+            if got < len || sum_got < 8 || fnv1a(&payload) != u64::from_le_bytes(sum) {
+                return Ok(End::Torn(offset));
+            }
+            let record = decode(&payload, path, offset)?;
+            if record.sequence <= self.increments {
+                replay.skipped += 1;
+            } else {
+                self.apply_record(record, path, offset)?;
+                replay.applied += 1;
+            }
+            offset += 12 + len as u64;
+        }
+    }
+
+    /// Applies one record: removes its removed ids, adds its Gaussians, takes its counters.
+    fn apply_record(&mut self, rec: Record, path: &Path, offset: u64) -> Result<(), StoreError> {
+        let bad = |what| StoreError::Invalid {
+            path: path.to_path_buf(),
+            offset: offset as usize,
+            what,
+        };
+        if rec.sequence != self.increments + 1 {
+            return Err(bad("journal record out of sequence with the map"));
+        }
+        for id in &rec.removed {
+            let g = self
+                .gaussians
+                .remove(id)
+                .ok_or_else(|| bad("removes a Gaussian the map does not hold"))?;
+            let key = cell_of(g.position, self.config.cell_size);
+            if let Some(cell) = self.cells.get_mut(&key) {
+                cell.ids.retain(|i| i != id);
+                if cell.ids.is_empty() {
+                    self.cells.remove(&key);
+                } else {
+                    cell.max_confidence = cell
+                        .ids
+                        .iter()
+                        .filter_map(|i| self.gaussians.get(i))
+                        .map(|g| g.confidence)
+                        .fold(f32::NEG_INFINITY, f32::max);
+                }
+            }
+        }
+        for (id, g) in rec.added {
+            if id.0 >= rec.next_id || self.gaussians.contains_key(&id) {
+                return Err(bad("adds an id the map holds or has not assigned"));
+            }
+            let key = cell_of(g.position, self.config.cell_size);
+            self.cells.entry(key).or_default().push(id, g.confidence);
+            self.gaussians.insert(id, g);
+        }
+        self.increments = rec.sequence;
+        self.epoch = rec.epoch;
+        self.last_bin_id = Some(rec.bin_id);
+        self.next_id = rec.next_id;
+        self.latest_origin = rec.latest_origin;
+        Ok(())
+    }
+}
+
+/// Reads until `buf` is full or the input ends; the bytes read.
+fn read_full(input: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match input.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Truncates `path` to `offset` bytes (a segment with not even a whole header is removed).
+fn cut(path: &Path, offset: u64) -> Result<TornTail, StoreError> {
+    let len = std::fs::metadata(path).map_err(io_error(path))?.len();
+    if offset == 0 {
+        std::fs::remove_file(path).map_err(io_error(path))?;
+    } else {
+        let file = OpenOptions::new()
+            .write(true)
+            .open(path)
+            .map_err(io_error(path))?;
+        file.set_len(offset).map_err(io_error(path))?;
+        file.sync_all().map_err(io_error(path))?;
+    }
+    Ok(TornTail {
+        path: path.to_path_buf(),
+        kept_bytes: offset,
+        cut_bytes: len - offset,
+    })
+}

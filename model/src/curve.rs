@@ -268,12 +268,17 @@ fn log_axis((lo, hi): (f64, f64)) -> LogCoord<f64> {
 }
 
 /// Draws the loss curve of `series` on `area` (see the module documentation).
-fn draw_curves(area: &Area, series: &[Series]) -> Result<Frame, CurveError> {
+fn draw_curves(
+    area: &Area,
+    series: &[Series],
+    titles: Option<(&str, &str)>,
+) -> Result<Frame, CurveError> {
     area.fill(&WHITE)?;
     let (x, y) = fit(series);
-    let y_title = match series {
-        [one] => format!("{} (log scale)", one.name),
-        _ => "value (log scale)".into(),
+    let (x_title, y_title) = match (titles, series) {
+        (Some((x, y)), _) => (x.to_string(), y.to_string()),
+        (None, [one]) => ("step".into(), format!("{} (log scale)", one.name)),
+        (None, _) => ("step".into(), "value (log scale)".into()),
     };
     let mut chart = ChartBuilder::on(area)
         .margin(12)
@@ -282,7 +287,7 @@ fn draw_curves(area: &Area, series: &[Series]) -> Result<Frame, CurveError> {
         .build_cartesian_2d(x.0..x.1, log_axis(y))?;
     chart
         .configure_mesh()
-        .x_desc("step")
+        .x_desc(x_title)
         .y_desc(y_title)
         .x_label_formatter(&|v| number(*v))
         .y_label_formatter(&|v| log_tick(*v))
@@ -321,7 +326,25 @@ fn draw_curves(area: &Area, series: &[Series]) -> Result<Frame, CurveError> {
 /// Series with no drawable point still get their legend entry. Canvases under 160 x 120
 /// pixels are refused with [`CurveError::Canvas`].
 pub fn render(series: &[Series], width: u32, height: u32) -> Result<RgbImage, CurveError> {
-    paint(width, height, MIN_SIZE, |area| draw_curves(area, series)).map(|(img, _)| img)
+    paint(width, height, MIN_SIZE, |area| {
+        draw_curves(area, series, None)
+    })
+    .map(|(img, _)| img)
+}
+
+/// Writes the chart of `series` (see [`render`]) to `path` as PNG with the axis titles
+/// `(x, y)` instead of `step` and the series' name (the y axis is log10 either way).
+pub fn write_png_titled(
+    path: &Path,
+    series: &[Series],
+    titles: (&str, &str),
+    width: u32,
+    height: u32,
+) -> Result<(), CurveError> {
+    let img = paint(width, height, MIN_SIZE, |area| {
+        draw_curves(area, series, Some(titles))
+    })?;
+    save_png(&img.0, path)
 }
 
 /// Writes the chart of `series` (see [`render`]) to `path` as PNG.

@@ -11,7 +11,10 @@ fn series(name: &str, points: &[(f64, f64)]) -> Series {
 
 /// The chart and where its plot area landed.
 fn drawn(series: &[Series], width: u32, height: u32) -> (RgbImage, Frame) {
-    paint(width, height, MIN_SIZE, |area| draw_curves(area, series)).unwrap()
+    paint(width, height, MIN_SIZE, |area| {
+        draw_curves(area, series, None)
+    })
+    .unwrap()
 }
 
 /// The row of `f`'s plot area where log10 value `y` lies.

@@ -2,9 +2,14 @@
 //! owned by the Gaussians of one bin at a time. The fusion rule and the eviction rule both
 //! act on whole cells.
 
-use glam::DVec3;
+use std::collections::{HashMap, HashSet};
+
+use glam::{DVec2, DVec3};
 
 use super::GaussianId;
+
+/// Ground size of a column of the cell index, metres: the granularity of region queries.
+const COLUMN_M: f64 = 16.0;
 
 /// Integer coordinates of a cell: `floor(position / cell_size)` per axis.
 pub type CellKey = (i64, i64, i64);
@@ -36,6 +41,141 @@ impl Cell {
             self.max_confidence = confidence;
         }
         self.ids.push(id);
+    }
+}
+
+/// The occupied cells, with an index of them by ground column (x-y squares of about
+/// [`COLUMN_M`], every height) so a region of the ground is found without visiting the map.
+#[derive(Clone, Debug)]
+pub struct CellIndex {
+    cells: HashMap<CellKey, Cell>,
+    columns: HashMap<(i64, i64), HashSet<CellKey>>,
+    /// Cells per column side.
+    per_column: i64,
+    cell_size: f64,
+}
+
+impl CellIndex {
+    /// An empty index of cells of `cell_size` metres.
+    pub fn new(cell_size: f64) -> Self {
+        Self {
+            cells: HashMap::new(),
+            columns: HashMap::new(),
+            per_column: ((COLUMN_M / cell_size).round() as i64).max(1),
+            cell_size,
+        }
+    }
+
+    fn column(&self, key: CellKey) -> (i64, i64) {
+        (
+            key.0.div_euclid(self.per_column),
+            key.1.div_euclid(self.per_column),
+        )
+    }
+
+    /// Occupied cells.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// The cell at `key`, if occupied.
+    pub fn get(&self, key: &CellKey) -> Option<&Cell> {
+        self.cells.get(key)
+    }
+
+    /// Whether the cell at `key` is occupied.
+    pub fn contains(&self, key: &CellKey) -> bool {
+        self.cells.contains_key(key)
+    }
+
+    /// The occupied cells' keys, in no set order.
+    pub fn keys(&self) -> impl Iterator<Item = CellKey> + '_ {
+        self.cells.keys().copied()
+    }
+
+    /// Adds Gaussian `id` with `confidence` to the cell at `key`.
+    pub fn push(&mut self, key: CellKey, id: GaussianId, confidence: f32) {
+        let column = self.column(key);
+        let cell = self.cells.entry(key).or_default();
+        if cell.ids.is_empty() {
+            self.columns.entry(column).or_default().insert(key);
+        }
+        cell.push(id, confidence);
+    }
+
+    /// Empties the cell at `key`; its ids (none when it was empty).
+    pub fn remove(&mut self, key: CellKey) -> Vec<GaussianId> {
+        let Some(cell) = self.cells.remove(&key) else {
+            return Vec::new();
+        };
+        let column = self.column(key);
+        if let Some(keys) = self.columns.get_mut(&column) {
+            keys.remove(&key);
+            if keys.is_empty() {
+                self.columns.remove(&column);
+            }
+        }
+        cell.ids
+    }
+
+    /// Removes Gaussian `id` from the cell at `key`; the cell's highest confidence is
+    /// recomputed from what is left with `confidence_of`.
+    pub fn remove_id(
+        &mut self,
+        key: CellKey,
+        id: GaussianId,
+        confidence_of: impl Fn(GaussianId) -> Option<f32>,
+    ) {
+        let Some(cell) = self.cells.get_mut(&key) else {
+            return;
+        };
+        cell.ids.retain(|i| *i != id);
+        if cell.ids.is_empty() {
+            self.remove(key);
+            return;
+        }
+        cell.max_confidence = cell
+            .ids
+            .iter()
+            .filter_map(|&i| confidence_of(i))
+            .fold(f32::NEG_INFINITY, f32::max);
+    }
+
+    /// The ids in every cell whose ground column meets the box `min`-`max` (x-y, metres),
+    /// in no set order: a superset of the Gaussians whose centres lie in the box, found by
+    /// visiting only the columns it covers.
+    pub fn ids_near(&self, min: DVec2, max: DVec2) -> Vec<GaussianId> {
+        let side = self.per_column as f64 * self.cell_size;
+        let lo = (min / side).floor();
+        let hi = (max / side).floor();
+        let mut ids = Vec::new();
+        if !(lo.is_finite() && hi.is_finite()) {
+            return ids;
+        }
+        // Casts saturate far out; a box wider than the occupied columns visits those
+        // columns instead of the box's.
+        let (x0, x1, y0, y1) = (lo.x as i64, hi.x as i64, lo.y as i64, hi.y as i64);
+        let span = (x1.saturating_sub(x0).saturating_add(1))
+            .saturating_mul(y1.saturating_sub(y0).saturating_add(1));
+        let mut take = |keys: &HashSet<CellKey>| {
+            keys.iter().for_each(|k| ids.extend(&self.cells[k].ids));
+        };
+        if span > self.columns.len() as i64 {
+            for (&(cx, cy), keys) in &self.columns {
+                if (x0..=x1).contains(&cx) && (y0..=y1).contains(&cy) {
+                    take(keys);
+                }
+            }
+        } else {
+            for cx in x0..=x1 {
+                for cy in y0..=y1 {
+                    if let Some(keys) = self.columns.get(&(cx, cy)) {
+                        take(keys);
+                    }
+                }
+            }
+        }
+        ids
     }
 }
 

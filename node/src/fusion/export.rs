@@ -105,6 +105,15 @@ impl BevView {
         Self::square(centre, 512, 0.25)
     }
 
+    /// The ground box (world x-y, min and max) holding the centre of every Gaussian that
+    /// can touch the view: the view's extent plus the largest footprint radius and a pixel.
+    pub fn ground_box(&self) -> (DVec2, DVec2) {
+        let mpp = self.metres_per_pixel;
+        let half = DVec2::new(self.width as f64, self.height as f64) * mpp / 2.0
+            + (MAX_RADIUS_PX + 1.0) * mpp;
+        (self.centre - half, self.centre + half)
+    }
+
     fn validate(&self) -> Result<(), ExportError> {
         let what = if self.width == 0 || self.height == 0 {
             "width and height must be positive"

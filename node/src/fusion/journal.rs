@@ -387,26 +387,16 @@ impl GlobalMap {
                 .remove(id)
                 .ok_or_else(|| bad("removes a Gaussian the map does not hold"))?;
             let key = cell_of(g.position, self.config.cell_size);
-            if let Some(cell) = self.cells.get_mut(&key) {
-                cell.ids.retain(|i| i != id);
-                if cell.ids.is_empty() {
-                    self.cells.remove(&key);
-                } else {
-                    cell.max_confidence = cell
-                        .ids
-                        .iter()
-                        .filter_map(|i| self.gaussians.get(i))
-                        .map(|g| g.confidence)
-                        .fold(f32::NEG_INFINITY, f32::max);
-                }
-            }
+            let gaussians = &self.gaussians;
+            self.cells
+                .remove_id(key, *id, |i| gaussians.get(&i).map(|g| g.confidence));
         }
         for (id, g) in rec.added {
             if id.0 >= rec.next_id || self.gaussians.contains_key(&id) {
                 return Err(bad("adds an id the map holds or has not assigned"));
             }
             let key = cell_of(g.position, self.config.cell_size);
-            self.cells.entry(key).or_default().push(id, g.confidence);
+            self.cells.push(key, id, g.confidence);
             self.gaussians.insert(id, g);
         }
         self.increments = rec.sequence;

@@ -29,7 +29,7 @@ mod wire;
 
 use std::collections::{BTreeMap, HashMap};
 
-use glam::{DAffine3, DMat3, DQuat, DVec3, Quat, Vec3};
+use glam::{DAffine3, DMat3, DQuat, DVec2, DVec3, Quat, Vec3};
 use renderer::gaussians::LengthMismatch;
 use renderer::GaussianSet;
 
@@ -40,7 +40,7 @@ pub use journal::{segment_path, segments, AtTornTail, JournalWriter, Replay, Tor
 pub use snapshot::StoreError;
 pub use wire::{decode_update, increment_message, snapshot_message, Update, WireError};
 
-use cells::{eviction_order, Cell};
+use cells::{eviction_order, CellIndex};
 
 /// A Gaussian's id in the global map: unique for the map's life, never reused, so
 /// subscribers can key their copies on it.
@@ -218,7 +218,7 @@ pub fn pose_problem(pose: &DAffine3) -> Option<&'static str> {
 pub struct GlobalMap {
     config: FusionConfig,
     gaussians: BTreeMap<GaussianId, WorldGaussian>,
-    cells: HashMap<CellKey, Cell>,
+    cells: CellIndex,
     next_id: u64,
     last_bin_id: Option<u64>,
     latest_origin: Option<DVec3>,
@@ -233,7 +233,7 @@ impl GlobalMap {
         Ok(Self {
             config,
             gaussians: BTreeMap::new(),
-            cells: HashMap::new(),
+            cells: CellIndex::new(config.cell_size),
             next_id: 0,
             last_bin_id: None,
             latest_origin: None,
@@ -299,6 +299,21 @@ impl GlobalMap {
         self.gaussians.iter().map(|(&id, g)| (id, g))
     }
 
+    /// The Gaussians whose centres lie in the ground box `min`-`max` (world x-y, metres,
+    /// any height), in id order. It visits only the part of the map near the box, so its
+    /// cost follows the box's content, not the map's size.
+    pub fn gaussians_in(&self, min: DVec2, max: DVec2) -> Vec<(GaussianId, &WorldGaussian)> {
+        let mut ids = self.cells.ids_near(min, max);
+        ids.sort_unstable();
+        ids.into_iter()
+            .filter_map(|id| self.gaussians.get(&id).map(|g| (id, g)))
+            .filter(|(_, g)| {
+                let p = g.position.truncate();
+                p.cmpge(min).all() && p.cmple(max).all()
+            })
+            .collect()
+    }
+
     /// Everything in the map, sorted by id: what a late subscriber starts from.
     pub fn snapshot(&self) -> Snapshot {
         Snapshot::of(&self.gaussians, self.last_bin_id)
@@ -355,14 +370,14 @@ impl GlobalMap {
         for (key, g) in candidates {
             let accept = *taken
                 .entry(key)
-                .or_insert_with(|| !self.cells.contains_key(&key));
+                .or_insert_with(|| !self.cells.contains(&key));
             if !accept {
                 stats.dropped_lower_confidence += 1;
                 continue;
             }
             let id = GaussianId(self.next_id);
             self.next_id += 1;
-            self.cells.entry(key).or_default().push(id, g.confidence);
+            self.cells.push(key, id, g.confidence);
             self.gaussians.insert(id, g);
             added.push(id);
         }
@@ -437,7 +452,7 @@ impl GlobalMap {
 
     /// Removes a whole cell and its Gaussians; returns their ids.
     fn remove_cell(&mut self, key: CellKey) -> Vec<GaussianId> {
-        let ids = self.cells.remove(&key).map(|c| c.ids).unwrap_or_default();
+        let ids = self.cells.remove(key);
         for id in &ids {
             self.gaussians.remove(id);
         }
@@ -451,7 +466,7 @@ impl GlobalMap {
             return Vec::new();
         }
         let anchor = self.latest_origin.unwrap_or(DVec3::ZERO);
-        let order = eviction_order(self.cells.keys().copied(), anchor, self.config.cell_size);
+        let order = eviction_order(self.cells.keys(), anchor, self.config.cell_size);
         let mut evicted = Vec::new();
         for key in order {
             if self.gaussians.len() <= self.config.max_gaussians {
@@ -465,10 +480,10 @@ impl GlobalMap {
     /// Rebuilds a map from stored parts (the cells follow from the positions); used by
     /// restore after the parts were checked.
     fn from_parts(parts: Stored) -> Self {
-        let mut cells: HashMap<CellKey, Cell> = HashMap::new();
+        let mut cells = CellIndex::new(parts.config.cell_size);
         for (&id, g) in &parts.gaussians {
             let key = cell_of(g.position, parts.config.cell_size);
-            cells.entry(key).or_default().push(id, g.confidence);
+            cells.push(key, id, g.confidence);
         }
         Self {
             config: parts.config,

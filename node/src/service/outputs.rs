@@ -386,7 +386,10 @@ impl<'a> Outputs<'a> {
             return Ok(());
         };
         let view = BevView::square(DVec2::new(origin.x, origin.y), BEV.0, BEV.1);
-        match bev_image(self.map.gaussians().map(|(_, g)| g), &view) {
+        // Only the Gaussians near the view: the cost follows the view, not the map.
+        let (min, max) = view.ground_box();
+        let near = self.map.gaussians_in(min, max);
+        match bev_image(near.into_iter().map(|(_, g)| g), &view) {
             Ok(img) => {
                 let msg = Image {
                     header,

@@ -478,3 +478,65 @@ fn bird_s_eye_view_puts_colours_at_the_expected_pixels() {
         "ids follow input order"
     );
 }
+
+#[test]
+fn a_ground_box_query_finds_exactly_the_gaussians_in_it_and_the_bird_s_eye_view_needs_no_more() {
+    // 120 random bins on a loop of 60 m radius around the origin (negative coordinates too).
+    let mut map = map_with(0.2, 0.1, 1_000_000);
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for k in 0..120u64 {
+        let (set, _) = random_bin(&mut rng, k);
+        let a = k as f64 / 120.0 * std::f64::consts::TAU;
+        let pose = DAffine3::from_rotation_translation(
+            DQuat::from_rotation_z(a),
+            DVec3::new(60.0 * a.cos(), 60.0 * a.sin(), 0.0),
+        );
+        map.insert_bin(k, &set, pose).unwrap();
+    }
+    assert!(map.len() > 3000, "{}", map.len());
+    let brute = |min: DVec2, max: DVec2| -> Vec<GaussianId> {
+        map.gaussians()
+            .filter(|(_, g)| {
+                let p = g.position.truncate();
+                p.cmpge(min).all() && p.cmple(max).all()
+            })
+            .map(|(id, _)| id)
+            .collect()
+    };
+    let ids = |found: Vec<(GaussianId, &node::fusion::WorldGaussian)>| -> Vec<GaussianId> {
+        found.into_iter().map(|(id, _)| id).collect()
+    };
+    for _ in 0..40 {
+        let c = DVec2::new(rng.random_range(-80.0..80.0), rng.random_range(-80.0..80.0));
+        let half = DVec2::new(rng.random_range(0.1..40.0), rng.random_range(0.1..40.0));
+        let (min, max) = (c - half, c + half);
+        let found = ids(map.gaussians_in(min, max));
+        assert_eq!(found, brute(min, max), "box {min} - {max}");
+    }
+    // Everything, nothing far away, an inverted box, a NaN box.
+    let all = ids(map.gaussians_in(DVec2::splat(-1e300), DVec2::splat(1e300)));
+    assert_eq!(all.len(), map.len());
+    assert!(map
+        .gaussians_in(DVec2::splat(1e12), DVec2::splat(1e12 + 50.0))
+        .is_empty());
+    assert!(map
+        .gaussians_in(DVec2::splat(10.0), DVec2::splat(-10.0))
+        .is_empty());
+    assert!(map.gaussians_in(DVec2::NAN, DVec2::splat(1.0)).is_empty());
+    // The published bird's-eye view drawn from its ground box equals the one drawn from the
+    // whole map.
+    for centre in [DVec2::new(60.0, 0.0), DVec2::new(-42.0, -42.0), DVec2::ZERO] {
+        let view = BevView::square(centre, 256, 0.25);
+        let (min, max) = view.ground_box();
+        let near = map.gaussians_in(min, max);
+        assert!(
+            near.len() < map.len() / 2,
+            "{} of {}",
+            near.len(),
+            map.len()
+        );
+        let whole = bev_image(map.gaussians().map(|(_, g)| g), &view).unwrap();
+        let local = bev_image(near.into_iter().map(|(_, g)| g), &view).unwrap();
+        assert_eq!(whole, local, "view at {centre}");
+    }
+}

@@ -282,7 +282,10 @@ async fn a_node_killed_mid_drive_resumes_its_map_bin_ids_and_sequence_numbers() 
     assert!(exported.status.success(), "{exported:?}");
     let summary: serde_json::Value = serde_json::from_slice(&exported.stdout).unwrap();
     assert_eq!(summary["gaussians"], replica.len() as u64);
-    assert_eq!(node::fusion::segments(&out.join("global_map.journal")).unwrap(), journal);
+    assert_eq!(
+        node::fusion::segments(&out.join("global_map.journal")).unwrap(),
+        journal
+    );
     drop((collector, player));
 
     // Run 2 on the same --out: it resumes, answers queries with the resumed map, and the

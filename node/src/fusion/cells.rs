@@ -177,6 +177,31 @@ impl CellIndex {
         }
         ids
     }
+
+    /// The ground columns, farthest (column centre, on the ground) from `anchor` first, ties
+    /// by column key: the order in which the budget evicts them. Costs the number of
+    /// columns, not of cells.
+    pub fn columns_farthest_first(&self, anchor: DVec3) -> Vec<(i64, i64)> {
+        let side = self.per_column as f64 * self.cell_size;
+        let mut keyed: Vec<(f64, (i64, i64))> = self
+            .columns
+            .keys()
+            .map(|&(x, y)| {
+                let centre = (DVec2::new(x as f64, y as f64) + 0.5) * side;
+                (centre.distance_squared(anchor.truncate()), (x, y))
+            })
+            .collect();
+        keyed.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        keyed.into_iter().map(|(_, c)| c).collect()
+    }
+
+    /// The occupied cells of a ground column, in no set order.
+    pub fn column_cells(&self, column: (i64, i64)) -> Vec<CellKey> {
+        self.columns
+            .get(&column)
+            .map(|keys| keys.iter().copied().collect())
+            .unwrap_or_default()
+    }
 }
 
 /// The order in which cells are evicted when the map is over budget: farthest from

@@ -15,10 +15,13 @@
 //! `keep.min_confidence`) are skipped before the rule (and counted). The keep rule exists for
 //! the map's consumers: a bin map's far Gaussians (sky placed at the network's farthest depth,
 //! distant matches with little support) render the bin's own views well but, fused into the
-//! world, float above the road that later bins see from close by. Budget: after a bin is fused, while the map holds more than `max_gaussians`,
-//! whole cells are evicted, farthest (cell centre) from the latest bin's origin first, ties
-//! by cell key. Ids are u64, assigned in increasing order in the bin's input order, never
-//! reused.
+//! world, float above the road that later bins see from close by.
+//!
+//! Budget: after a bin is fused, while the map holds more than `max_gaussians`, whole cells
+//! are evicted: ground column by ground column (x-y squares of about 16 m), the farthest
+//! (column centre) from the latest bin's origin first, and within a column the farthest cell
+//! (centre) first, ties by key. Ids are u64, assigned in increasing order in the bin's input
+//! order, never reused.
 
 mod cells;
 mod export;
@@ -459,20 +462,24 @@ impl GlobalMap {
         ids
     }
 
-    /// Evicts whole cells, farthest from the latest origin first, until the map is within
-    /// budget; returns the evicted ids.
+    /// Evicts whole cells until the map is within budget, ground column by ground column
+    /// (about 16 m squares, the farthest from the latest origin first), within a column the
+    /// farthest cell first; returns the evicted ids. Ordering columns rather than every cell
+    /// keeps the cost to the number of columns, not the map's size.
     fn enforce_budget(&mut self) -> Vec<GaussianId> {
+        let mut evicted = Vec::new();
         if self.gaussians.len() <= self.config.max_gaussians {
-            return Vec::new();
+            return evicted;
         }
         let anchor = self.latest_origin.unwrap_or(DVec3::ZERO);
-        let order = eviction_order(self.cells.keys(), anchor, self.config.cell_size);
-        let mut evicted = Vec::new();
-        for key in order {
-            if self.gaussians.len() <= self.config.max_gaussians {
-                break;
+        for column in self.cells.columns_farthest_first(anchor) {
+            let cells = self.cells.column_cells(column);
+            for key in eviction_order(cells, anchor, self.config.cell_size) {
+                if self.gaussians.len() <= self.config.max_gaussians {
+                    return evicted;
+                }
+                evicted.extend(self.remove_cell(key));
             }
-            evicted.extend(self.remove_cell(key));
         }
         evicted
     }

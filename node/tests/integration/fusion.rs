@@ -540,3 +540,29 @@ fn a_ground_box_query_finds_exactly_the_gaussians_in_it_and_the_bird_s_eye_view_
         assert_eq!(whole, local, "view at {centre}");
     }
 }
+
+#[test]
+fn over_budget_along_a_long_road_the_farthest_columns_go_and_the_near_road_stays() {
+    // 300 bins 4 m apart along x (1.2 km), budget 2,000: what is left is the road behind the
+    // latest bin, nearest first, and never a Gaussian farther than one evicted.
+    let budget = 2_000;
+    let mut map = map_with(0.2, 0.1, budget);
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let mut evicted = 0;
+    for k in 0..300u64 {
+        let (set, pose) = random_bin(&mut rng, k);
+        evicted += map.insert_bin(k, &set, pose).unwrap().stats.evicted;
+        assert!(map.len() <= budget);
+    }
+    assert!(evicted > 5_000, "{evicted}");
+    let anchor = map.latest_origin().unwrap();
+    let far = map
+        .gaussians()
+        .map(|(_, g)| (g.position - anchor).truncate().length())
+        .fold(0.0, f64::max);
+    // Kept: at most about two columns' diagonal (2 x 16 m x sqrt 2) beyond the road the
+    // budget holds (2,000 Gaussians of about 40 per 4 m bin: about 200 m).
+    eprintln!("{evicted} evicted; kept {} within {far:.0} m", map.len());
+    assert!(far < 260.0, "a Gaussian {far} m from the latest bin is kept");
+    assert!(map.len() > budget * 9 / 10, "{}", map.len());
+}

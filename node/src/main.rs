@@ -4,9 +4,9 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_drive, bench_export, bench_model, bench_node, bench_pareto, demo,
-    enhancer_data, eval, eval_enhancer, eval_map, export, interpolate_weights, launch, logs,
-    reconstruct, render, stream, synth, train, train_enhancer, view,
+    bench, bench_check, bench_drive, bench_export, bench_fusion, bench_model, bench_node,
+    bench_pareto, demo, enhancer_data, eval, eval_enhancer, eval_map, export, interpolate_weights,
+    launch, logs, reconstruct, render, stream, synth, train, train_enhancer, view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -80,6 +80,9 @@ enum BenchCommand {
     /// A long drive through the node at its recorded rate, its map journaled to disk: the
     /// per-bin cost as the map grows, memory, bytes written, restore time, a plot.
     Drive(bench_drive::BenchDriveArgs),
+    /// The global map and its journal alone, driven by synthetic bins for hours of driving:
+    /// time per bin, memory and disk use as the drive goes on.
+    Fusion(bench_fusion::BenchFusionArgs),
     /// The learned reconstructor per preset: ms per stereo pair, memory, parameters.
     Model(bench_model::BenchModelArgs),
     /// The per-bin self-check on generated drives and bad pairs: scores, verdicts, cost.
@@ -129,6 +132,7 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
         Command::Bench(BenchCommand::Drive(args)) => bench_drive::run(&args),
+        Command::Bench(BenchCommand::Fusion(args)) => bench_fusion::run(&args),
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
         Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),
         Command::Bench(BenchCommand::Pareto(args)) => bench_pareto::run(&args),

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod bench_check;
 pub mod bench_drive;
 pub mod bench_export;
+pub mod bench_fusion;
 pub mod bench_model;
 pub mod bench_node;
 pub mod bench_pareto;

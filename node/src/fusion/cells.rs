@@ -2,7 +2,7 @@
 //! owned by the Gaussians of one bin at a time. The fusion rule and the eviction rule both
 //! act on whole cells.
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 use glam::{DVec2, DVec3};
 
@@ -59,8 +59,8 @@ impl CellIndex {
     /// An empty index of cells of `cell_size` metres.
     pub fn new(cell_size: f64) -> Self {
         Self {
-            cells: HashMap::new(),
-            columns: HashMap::new(),
+            cells: HashMap::default(),
+            columns: HashMap::default(),
             per_column: ((COLUMN_M / cell_size).round() as i64).max(1),
             cell_size,
         }
@@ -86,11 +86,6 @@ impl CellIndex {
     /// Whether the cell at `key` is occupied.
     pub fn contains(&self, key: &CellKey) -> bool {
         self.cells.contains_key(key)
-    }
-
-    /// The occupied cells' keys, in no set order.
-    pub fn keys(&self) -> impl Iterator<Item = CellKey> + '_ {
-        self.cells.keys().copied()
     }
 
     /// Adds Gaussian `id` with `confidence` to the cell at `key`.

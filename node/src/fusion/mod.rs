@@ -30,7 +30,9 @@ mod journal;
 mod snapshot;
 mod wire;
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
+
+use rustc_hash::FxHashMap as HashMap;
 
 use glam::{DAffine3, DMat3, DQuat, DVec2, DVec3, Quat, Vec3};
 use renderer::gaussians::LengthMismatch;
@@ -353,7 +355,7 @@ impl GlobalMap {
         self.latest_origin = Some(bin_to_world.translation);
 
         let candidates = self.to_world(bin_id, set, bin_to_world, &mut stats);
-        let mut bin_max: HashMap<CellKey, f32> = HashMap::new();
+        let mut bin_max: HashMap<CellKey, f32> = HashMap::default();
         for (key, g) in &candidates {
             let m = bin_max.entry(*key).or_insert(g.confidence);
             *m = m.max(g.confidence);
@@ -369,7 +371,7 @@ impl GlobalMap {
         }
         let first_new = self.next_id;
         let mut added = Vec::new();
-        let mut taken: HashMap<CellKey, bool> = HashMap::new();
+        let mut taken: HashMap<CellKey, bool> = HashMap::default();
         for (key, g) in candidates {
             let accept = *taken
                 .entry(key)

@@ -203,7 +203,7 @@ impl GlobalMap {
         if count.checked_mul(RECORD_BYTES as u64) != Some(left) {
             return Err(r.invalid(r.pos - 8, "count does not match the file length"));
         }
-        let mut gaussians = BTreeMap::new();
+        let mut gaussians = Vec::with_capacity(count as usize);
         let mut previous: Option<u64> = None;
         for _ in 0..count {
             let at = r.pos;
@@ -212,8 +212,10 @@ impl GlobalMap {
                 return Err(r.invalid(at, "ids not increasing or not below the next id"));
             }
             previous = Some(id.0);
-            gaussians.insert(id, g);
+            gaussians.push((id, g));
         }
+        // Ids are increasing, so the map is built in bulk.
+        let gaussians = BTreeMap::from_iter(gaussians);
         Ok(GlobalMap::from_parts(Stored {
             config,
             gaussians,

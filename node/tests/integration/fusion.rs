@@ -563,6 +563,9 @@ fn over_budget_along_a_long_road_the_farthest_columns_go_and_the_near_road_stays
     // Kept: at most about two columns' diagonal (2 x 16 m x sqrt 2) beyond the road the
     // budget holds (2,000 Gaussians of about 40 per 4 m bin: about 200 m).
     eprintln!("{evicted} evicted; kept {} within {far:.0} m", map.len());
-    assert!(far < 260.0, "a Gaussian {far} m from the latest bin is kept");
+    assert!(
+        far < 260.0,
+        "a Gaussian {far} m from the latest bin is kept"
+    );
     assert!(map.len() > budget * 9 / 10, "{}", map.len());
 }

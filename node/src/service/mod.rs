@@ -22,6 +22,7 @@ pub mod monitor;
 pub mod node;
 mod outputs;
 pub mod record;
+pub mod region;
 pub mod replay;
 pub mod replay_bag;
 pub mod snapshot_gate;

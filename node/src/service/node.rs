@@ -16,6 +16,7 @@ use super::limits::InputLimits;
 use super::map_files::{export, start_map, StartMap};
 use super::map_store::{Compaction, MapStore};
 use super::outputs::{NodeSummary, Outputs};
+use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
 use crate::foxglove::{Foxglove, FoxgloveConfig};
 use crate::fusion::FusionConfig;
@@ -296,14 +297,37 @@ pub async fn run_with(
                 }
             },
             Ok(q) = snapshot_requests.recv_async() => {
+                let region = match RegionQuery::parse(q.parameters().iter()) {
+                    Ok(region) => region,
+                    Err(refused) => {
+                        outputs.counters.add("refused/snapshot_region", 1);
+                        q.reply_err(refused.to_string()).await.map_err(zenoh_err)?;
+                        continue;
+                    }
+                };
                 if let Err(refused) = snapshot_gate.admit(q.key_expr().as_str(), Instant::now()) {
                     outputs.counters.add(refused.counter(), 1);
                     q.reply_err(refused.to_string()).await.map_err(zenoh_err)?;
                     continue;
                 }
-                match outputs.snapshot(outputs.snapshot_header()) {
-                    Ok(m) => q.reply(q.key_expr().clone(), m.encode()).await.map_err(zenoh_err)?,
-                    Err(_) => outputs.counters.add("error/encode_map_update", 1),
+                let Some(region) = region else {
+                    match outputs.snapshot(outputs.snapshot_header()) {
+                        Ok(m) => q.reply(q.key_expr().clone(), m.encode()).await.map_err(zenoh_err)?,
+                        Err(_) => outputs.counters.add("error/encode_map_update", 1),
+                    }
+                    continue;
+                };
+                let pages = outputs.region_pages(&region);
+                for (i, page) in pages.pages.iter().enumerate() {
+                    let attachment = region.attachment(i, pages.pages.len(), pages.total);
+                    match outputs.region_page(page) {
+                        Ok(m) => q
+                            .reply(q.key_expr().clone(), m.encode())
+                            .attachment(attachment)
+                            .await
+                            .map_err(zenoh_err)?,
+                        Err(_) => outputs.counters.add("error/encode_map_update", 1),
+                    }
                 }
             },
             Some(event) = out_rx.recv() => outputs.worker_event(event, worker.drops()).await?,

@@ -35,10 +35,12 @@ use super::error::ServiceError;
 use super::inputs::CameraPose;
 use super::keys::{self, Topic};
 use super::map_store::MapStore;
+use super::region::RegionQuery;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
 use crate::fusion::{
-    bev_image, increment_message, snapshot_message, BevView, GlobalMap, Increment,
+    bev_image, increment_message, snapshot_message, BevView, GaussianId, GlobalMap, Increment,
+    Snapshot, WorldGaussian,
 };
 use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::geometry_msgs::TransformStamped;
@@ -63,6 +65,14 @@ pub struct NodeSummary {
     pub global_gaussians: usize,
     /// The counters at the end.
     pub counters: Counters,
+}
+
+/// A region's Gaussians cut into pages ([`Outputs::region_pages`]).
+pub(super) struct RegionPages {
+    /// The pages, in id order.
+    pub pages: Vec<Vec<(GaussianId, WorldGaussian)>>,
+    /// Gaussians in all pages.
+    pub total: usize,
 }
 
 /// The bird's-eye view published per bin: 256 x 256 pixels at 0.25 m, 64 m square around
@@ -299,6 +309,33 @@ impl<'a> Outputs<'a> {
     /// The whole map as a MapUpdate snapshot at the current sequence number.
     pub fn snapshot(&self, header: Header) -> Result<MapUpdate, crate::msg::ConvertError> {
         snapshot_message(&self.map.snapshot(), self.map.increments(), header)
+    }
+
+    /// The Gaussians of `region`, in id order, cut into pages of its page size (one empty
+    /// page when there are none).
+    pub fn region_pages(&self, region: &RegionQuery) -> RegionPages {
+        let found = self.map.gaussians_in(region.min, region.max);
+        let total = found.len();
+        let mut pages: Vec<Vec<(GaussianId, WorldGaussian)>> = found
+            .chunks(region.page_size)
+            .map(|c| c.iter().map(|&(id, g)| (id, *g)).collect())
+            .collect();
+        if pages.is_empty() {
+            pages.push(Vec::new());
+        }
+        RegionPages { pages, total }
+    }
+
+    /// One page of a region as a MapUpdate snapshot at the current sequence number.
+    pub fn region_page(
+        &self,
+        page: &[(GaussianId, WorldGaussian)],
+    ) -> Result<MapUpdate, crate::msg::ConvertError> {
+        let snap = Snapshot {
+            last_bin_id: self.map.last_bin_id(),
+            gaussians: page.to_vec(),
+        };
+        snapshot_message(&snap, self.map.increments(), self.snapshot_header())
     }
 
     /// The header of a snapshot answering a query: the world frame at the latest fused

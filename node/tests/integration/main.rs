@@ -45,6 +45,7 @@ mod msg_rgb;
 mod node_bad_input;
 mod node_crash;
 mod node_far;
+mod node_region;
 mod node_replay;
 mod node_ros2;
 mod node_self_check;

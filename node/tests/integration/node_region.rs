@@ -1,0 +1,151 @@
+//! Snapshot queries for a region of the map: a running node (SGM, a small generated drive,
+//! loopback) answers `box=` and `around=;radius=` queries with exactly the Gaussians whose
+//! centres lie in the region, in pages of at most `page_size`, each page saying which it is;
+//! a region with nothing in it gets one empty page; bad parameters get an error reply naming
+//! them, counted as `refused/snapshot_region`, and do not use up the rate limit.
+
+use crate::drive_support;
+
+use std::collections::BTreeSet;
+use std::time::Duration;
+
+use drive_support::{Collector, Drive, Player, RunningNode};
+use glam::{DAffine3, DVec2};
+use node::fusion::{decode_update, GaussianId, Snapshot, Update};
+use node::msg::map_update::MapUpdate;
+use node::msg::Message;
+use node::pipeline::worker::RenderWith;
+use node::service::{Keys, NodeConfig};
+use zenoh::query::ConsolidationMode;
+
+/// One reply: the page's snapshot and its attachment, or the error text.
+type Reply = Result<(Snapshot, serde_json::Value), String>;
+
+async fn query(player: &Player, selector: &str) -> Vec<Reply> {
+    // Pages share the key: without consolidation off, zenoh would keep only the last.
+    let replies = player
+        .session
+        .get(selector)
+        .consolidation(ConsolidationMode::None)
+        .await
+        .unwrap();
+    let mut out = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        out.push(match reply.result() {
+            Ok(sample) => {
+                let msg = MapUpdate::decode(&sample.payload().to_bytes()).unwrap();
+                let Update::Snapshot(snap) = decode_update(&msg).unwrap() else {
+                    panic!("a region is answered with snapshots")
+                };
+                let attachment = sample
+                    .attachment()
+                    .map(|a| serde_json::from_slice(&a.to_bytes()).unwrap())
+                    .unwrap_or(serde_json::Value::Null);
+                Ok((snap, attachment))
+            }
+            Err(e) => Err(String::from_utf8_lossy(&e.payload().to_bytes()).into_owned()),
+        });
+    }
+    out
+}
+
+/// The ids of a region's pages, checking page sizes and numbering.
+fn pages_ids(replies: &[Reply], page_size: usize) -> Vec<GaussianId> {
+    let mut ids = Vec::new();
+    for (i, reply) in replies.iter().enumerate() {
+        let (snap, att) = reply.as_ref().expect("a page, not an error");
+        assert!(snap.gaussians.len() <= page_size);
+        assert_eq!(att["page"], i);
+        assert_eq!(att["pages"], replies.len());
+        ids.extend(snap.gaussians.iter().map(|(id, _)| *id));
+    }
+    let total = replies[0].as_ref().unwrap().1["gaussians"]
+        .as_u64()
+        .unwrap();
+    assert_eq!(ids.len() as u64, total);
+    ids
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refused() {
+    let drive = Drive::small("region");
+    let keys = Keys::new("region");
+    let node = RunningNode::start(NodeConfig {
+        keys: keys.clone(),
+        method: "sgm".into(),
+        queue_capacity: 64,
+        renders: RenderWith::Off,
+        ..NodeConfig::default()
+    })
+    .await;
+    let poses = Collector::connect(&node, &[keys.bin_pose()]).await;
+    let player = Player::connect(&node).await;
+    player.drive(&drive, DAffine3::IDENTITY, 0).await;
+    assert!(
+        poses
+            .wait_count(&keys.bin_pose(), drive.bins_opened(8.0))
+            .await
+    );
+
+    let key = keys.snapshot_request();
+    let whole = query(&player, &key).await;
+    assert_eq!(whole.len(), 1);
+    let map = &whole[0].as_ref().unwrap().0.gaussians;
+    assert!(map.len() > 1000, "{} Gaussians", map.len());
+    let inside = |min: DVec2, max: DVec2| -> Vec<GaussianId> {
+        map.iter()
+            .filter(|(_, g)| {
+                let p = g.position.truncate();
+                p.cmpge(min).all() && p.cmple(max).all()
+            })
+            .map(|(id, _)| *id)
+            .collect()
+    };
+    // Around the middle of the map.
+    let mid = map[map.len() / 2].1.position.truncate();
+    let (min, max) = (mid - DVec2::new(6.0, 4.0), mid + DVec2::new(5.0, 3.0));
+
+    // Bad parameters first: answered at once, whatever the rate limit.
+    for (params, says) in [
+        ("box=1,2,3", "needs 4 numbers"),
+        ("box=0,0,nan,1", "finite"),
+        ("around=1,2;radius=-1", "above 0"),
+        ("tiles=0", "unknown snapshot parameter"),
+    ] {
+        let replies = query(&player, &format!("{key}?{params}")).await;
+        match replies.as_slice() {
+            [Err(text)] => assert!(text.contains(says), "{params}: {text}"),
+            other => panic!("{params}: {} replies, not one error", other.len()),
+        }
+    }
+
+    tokio::time::sleep(Duration::from_millis(1100)).await;
+    let selector = format!("{key}?box={},{},{},{}", min.x, min.y, max.x, max.y);
+    let replies = query(&player, &selector).await;
+    let want = inside(min, max);
+    assert!(
+        want.len() > 20 && want.len() < map.len() / 2,
+        "{}",
+        want.len()
+    );
+    assert_eq!(pages_ids(&replies, usize::MAX), want);
+    assert_eq!(replies.len(), 1);
+
+    tokio::time::sleep(Duration::from_millis(1100)).await;
+    let page = 37;
+    let selector = format!("{key}?around={},{};radius=5;page_size={page}", mid.x, mid.y);
+    let replies = query(&player, &selector).await;
+    let want = inside(mid - 5.0, mid + 5.0);
+    assert!(replies.len() >= 2, "{} pages", replies.len());
+    let got = pages_ids(&replies, page);
+    assert_eq!(got, want, "in id order across pages");
+    assert_eq!(got.iter().collect::<BTreeSet<_>>().len(), got.len());
+
+    tokio::time::sleep(Duration::from_millis(1100)).await;
+    let replies = query(&player, &format!("{key}?box=1e6,1e6,1.0001e6,1.0001e6")).await;
+    assert_eq!(replies.len(), 1);
+    assert!(replies[0].as_ref().unwrap().0.gaussians.is_empty());
+
+    let summary = node.stop().await;
+    assert_eq!(summary.counters.get("refused/snapshot_region"), 4);
+}

@@ -23,9 +23,9 @@ use model::synth::SynthConfig;
 use renderer::{Gaussian, GaussianSet};
 use serde::Serialize;
 
-use super::method_args::MethodArgs;
+use super::bench_node::{with_fields, BenchNodeSettings};
 use super::progress;
-use super::stream::{rate_of, RenderArg};
+use super::stream::rate_of;
 use super::synth::cached_drive;
 use crate::fusion::{AtTornTail, FusionConfig, GlobalMap, JournalWriter, Keep};
 use crate::msg::latency::BinLatency;
@@ -55,18 +55,9 @@ pub struct BenchDriveArgs {
     /// Replay rate (1 = recorded rate, 0 = as fast as possible).
     #[arg(long, default_value_t = 1.0)]
     rate: f64,
-    /// The reconstructor, its preset, weights and settings.
+    /// The node's reconstructor, renders, queue and budget.
     #[command(flatten)]
-    method: MethodArgs,
-    /// Rasterizer of the per-bin renders.
-    #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
-    renders: RenderArg,
-    /// Bins waiting for the worker at most.
-    #[arg(long, default_value_t = 2)]
-    queue: usize,
-    /// The global map's Gaussian budget.
-    #[arg(long, default_value_t = FusionConfig::default().max_gaussians)]
-    max_gaussians: usize,
+    node: BenchNodeSettings,
     /// Sync the journal after every this many bins (as `run --checkpoint-every`).
     #[arg(long, default_value_t = 1)]
     checkpoint_every: u64,
@@ -152,13 +143,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     let name = cached_drive(&drive_dir, &synth)?;
     let sequence = Sequence::open(&drive_dir, &name)?;
     let map_dir = args.out.join("map");
-    let config = args.method.node_config(NodeConfig {
-        renders: args.renders.into(),
-        queue_capacity: args.queue,
-        fusion: FusionConfig {
-            max_gaussians: args.max_gaussians,
-            ..FusionConfig::default()
-        },
+    let config = args.node.node_config(NodeConfig {
         out_dir: Some(map_dir.clone()),
         start_map: StartMap::Fresh,
         checkpoint_every: args.checkpoint_every,
@@ -213,14 +198,11 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     bins_in_map.sort_unstable();
     bins_in_map.dedup();
 
-    let out = serde_json::json!({
+    let mut out = serde_json::json!({
         "sequence": name,
         "frames": report.frames,
         "size": [args.width, args.height],
         "rate": args.rate,
-        "method": args.method.method,
-        "preset": args.method.preset,
-        "renders": format!("{:?}", args.renders).to_lowercase(),
         "threads": std::thread::available_parallelism().map_or(1, |n| n.get()),
         "bins_published": report.node.bins_published,
         "drops": counters.get("dropped/worker_queue"),
@@ -243,6 +225,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         "series": args.out.join("series.csv"),
         "plot": args.out.join("latency.png"),
     });
+    with_fields(&mut out, args.node.report());
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
 }

@@ -46,18 +46,52 @@ pub struct BenchNodeArgs {
     /// Replay rates to run, one node each (0 = as fast as possible, 1 = recorded rate).
     #[arg(long, default_values_t = [0.0, 1.0])]
     rate: Vec<f64>,
+    /// The node's reconstructor, renders, queue and budget.
+    #[command(flatten)]
+    node: BenchNodeSettings,
+}
+
+/// The node settings a benchmark run sets (`bench node`, `bench drive`).
+#[derive(Args, Clone, Debug)]
+pub struct BenchNodeSettings {
     /// The reconstructor, its preset, weights and settings.
     #[command(flatten)]
-    method: MethodArgs,
+    pub method: MethodArgs,
     /// Rasterizer of the per-bin renders.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
-    renders: RenderArg,
+    pub renders: RenderArg,
     /// Bins waiting for the worker at most (keep newest beyond it).
     #[arg(long, default_value_t = 2)]
-    queue: usize,
+    pub queue: usize,
     /// The global map's Gaussian budget (its memory bound).
     #[arg(long, default_value_t = FusionConfig::default().max_gaussians)]
-    max_gaussians: usize,
+    pub max_gaussians: usize,
+}
+
+impl BenchNodeSettings {
+    /// `base` with these settings.
+    pub fn node_config(&self, base: NodeConfig) -> NodeConfig {
+        self.method.node_config(NodeConfig {
+            renders: self.renders.into(),
+            queue_capacity: self.queue,
+            fusion: FusionConfig {
+                max_gaussians: self.max_gaussians,
+                ..base.fusion
+            },
+            ..base
+        })
+    }
+
+    /// The settings as JSON fields of a report.
+    pub fn report(&self) -> serde_json::Value {
+        serde_json::json!({
+            "method": self.method.method,
+            "preset": self.method.preset,
+            "settings": self.method.settings,
+            "renders": format!("{:?}", self.renders).to_lowercase(),
+            "max_gaussians": self.max_gaussians,
+        })
+    }
 }
 
 /// One rate's figures.
@@ -87,14 +121,8 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
     let runtime = tokio::runtime::Runtime::new()?;
     let mut runs = Vec::new();
     for &rate in &args.rate {
-        let config = args.method.node_config(NodeConfig {
-            renders: args.renders.into(),
-            queue_capacity: args.queue,
+        let config = args.node.node_config(NodeConfig {
             binner: BinnerConfig::default(),
-            fusion: FusionConfig {
-                max_gaussians: args.max_gaussians,
-                ..FusionConfig::default()
-            },
             ..NodeConfig::default()
         });
         let bar = progress::bar(sequence.frames().len(), &format!("rate {rate}"));
@@ -152,19 +180,22 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
             wall_s: report.wall_s,
         });
     }
-    let out = serde_json::json!({
+    let mut out = serde_json::json!({
         "sequence": name,
         "size": [sequence.rig().intrinsics.width, sequence.rig().intrinsics.height],
-        "method": args.method.method,
-        "preset": args.method.preset,
-        "settings": args.method.settings,
-        "renders": format!("{:?}", args.renders).to_lowercase(),
         "threads": std::thread::available_parallelism().map_or(1, |n| n.get()),
-        "max_gaussians": args.max_gaussians,
         "runs": runs,
     });
+    with_fields(&mut out, args.node.report());
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
+}
+
+/// Adds the fields of the object `more` to the object `out`.
+pub fn with_fields(out: &mut serde_json::Value, more: serde_json::Value) {
+    if let (Some(out), serde_json::Value::Object(more)) = (out.as_object_mut(), more) {
+        out.extend(more);
+    }
 }
 
 /// The drive to replay: `--data`, or one generated into `--cache` (kept for later runs).

@@ -73,6 +73,18 @@ pub struct WorldGaussian {
     pub bin_id: u64,
 }
 
+impl WorldGaussian {
+    /// Whether every field is finite (NaN and infinities are not).
+    pub fn is_finite(&self) -> bool {
+        self.position.is_finite()
+            && self.log_scale.is_finite()
+            && self.rotation.is_finite()
+            && self.opacity.is_finite()
+            && self.color.is_finite()
+            && self.confidence.is_finite()
+    }
+}
+
 /// Which of a bin map's Gaussians the global map takes in (the rest stay in the bin map,
 /// published with it, but are not fused).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -273,13 +273,7 @@ impl<'a> Reader<'a> {
             color: Vec3::from_array(self.f32s()?),
             confidence: self.f32()?,
         };
-        let finite = g.position.is_finite()
-            && g.log_scale.is_finite()
-            && g.rotation.is_finite()
-            && g.opacity.is_finite()
-            && g.color.is_finite()
-            && g.confidence.is_finite();
-        if !finite {
+        if !g.is_finite() {
             return Err(self.invalid(at, "Gaussian with a NaN or infinite field"));
         }
         Ok((id, g))

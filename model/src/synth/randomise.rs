@@ -12,7 +12,7 @@ use glam::DVec3;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use super::config::SceneKind;
+use super::scene_kind::SceneKind;
 
 /// The ranges the randomisation draws from. `Default` holds the documented ranges
 /// (docs/evaluation.md, "Synthetic drives"); every drive draws its own values.

@@ -170,9 +170,8 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     let mut rows: Vec<BinRow> = report.latencies.iter().map(BinRow::of).collect();
     rows.sort_by_key(|r| r.bin_id);
     let tenth = (rows.len() / 10).max(1);
-    let (first, last) = (Stretch::of(&rows[..tenth.min(rows.len())]), {
-        Stretch::of(&rows[rows.len().saturating_sub(tenth)..])
-    });
+    let first = Stretch::of(&rows[..tenth.min(rows.len())]);
+    let last = Stretch::of(&rows[rows.len().saturating_sub(tenth)..]);
     write_series(&args.out, &rows)?;
 
     let mib = |b: u64| b as f64 / (1 << 20) as f64;

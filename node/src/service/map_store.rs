@@ -21,7 +21,7 @@ use std::time::Instant;
 
 use crate::fusion::{segments, AtTornTail, GlobalMap, Increment, JournalWriter, StoreError};
 
-use super::map_files::{CHECKPOINT, JOURNAL};
+use super::map_files::{checkpoint, CHECKPOINT, JOURNAL};
 
 /// When the journal is folded into the base.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -132,11 +132,7 @@ impl MapStore {
             return Ok(false);
         }
         if let Some(empty) = self.empty.take() {
-            std::fs::create_dir_all(&self.dir).map_err(|source| StoreError::Io {
-                path: self.dir.clone(),
-                source,
-            })?;
-            empty.save(self.dir.join(CHECKPOINT))?;
+            checkpoint(&empty, &self.dir)?;
         }
         self.journal_bytes += self.writer.append(map, inc)?;
         self.unsynced_bins += 1;

@@ -15,7 +15,7 @@ use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
 use super::map_files::{export, start_map, StartMap};
 use super::map_store::{Compaction, MapStore};
-use super::outputs::{NodeSummary, Outputs};
+use super::outputs::{NodeSummary, Outputs, RegionPages};
 use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
 use crate::foxglove::{Foxglove, FoxgloveConfig};
@@ -317,9 +317,10 @@ pub async fn run_with(
                     }
                     continue;
                 };
-                let pages = outputs.region_pages(&region);
-                for (i, page) in pages.pages.iter().enumerate() {
-                    let attachment = region.attachment(i, pages.pages.len(), pages.total);
+                let RegionPages { pages, total } = outputs.region_pages(&region);
+                let count = pages.len();
+                for (i, page) in pages.into_iter().enumerate() {
+                    let attachment = region.attachment(i, count, total);
                     match outputs.region_page(page) {
                         Ok(m) => q
                             .reply(q.key_expr().clone(), m.encode())

@@ -329,11 +329,11 @@ impl<'a> Outputs<'a> {
     /// One page of a region as a MapUpdate snapshot at the current sequence number.
     pub fn region_page(
         &self,
-        page: &[(GaussianId, WorldGaussian)],
+        page: Vec<(GaussianId, WorldGaussian)>,
     ) -> Result<MapUpdate, crate::msg::ConvertError> {
         let snap = Snapshot {
             last_bin_id: self.map.last_bin_id(),
-            gaussians: page.to_vec(),
+            gaussians: page,
         };
         snapshot_message(&snap, self.map.increments(), self.snapshot_header())
     }

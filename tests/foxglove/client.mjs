@@ -10,7 +10,8 @@
 //   {"event":"summary","received":{topic:count},"errors":[...]}  when stdin closes
 // Modes (--mode): `read` reads everything; `stall` subscribes, then stops reading the socket
 // (its TCP window fills and the server must drop for it) until stdin closes, then reads
-// for --drain-ms and prints only the summary; `leave` disconnects after its first message.
+// until nothing has come for --drain-ms and prints only the summary; `leave` disconnects
+// after its first message.
 //
 // Usage: node client.mjs --url ws://127.0.0.1:PORT [--mode read|stall|leave] [--drain-ms 2000]
 
@@ -202,8 +203,19 @@ function finish() {
 process.stdin.resume();
 process.stdin.on("end", () => {
   if (mode === "stall") {
+    // Read what the server still holds for us, until nothing has come for --drain-ms.
     ws.resume();
-    setTimeout(finish, Number(args["drain-ms"]));
+    let seen = -1;
+    const quiet = () => {
+      const now = Object.values(received).reduce((a, b) => a + b, 0);
+      if (now === seen) {
+        finish();
+      } else {
+        seen = now;
+        setTimeout(quiet, Number(args["drain-ms"]));
+      }
+    };
+    quiet();
   } else {
     finish();
   }

@@ -10,7 +10,9 @@
 //! colour (`0.5 + SH_C0 * f_dc`, clamped); the bin frames' `foxglove.FrameTransforms` equal
 //! the bin poses, the camera's equal the drive's poses; the renders are the same bytes, the
 //! input images the drive's; the fused map's new points add up to the map's size. A client
-//! that stops reading and one that leaves mid-stream cost the node no bin. Without a drive:
+//! that stops reading and one that leaves mid-stream cost the node no bin, and one that stops
+//! reading under a stream larger than the kernel's socket buffers gets only what its
+//! bounded queue and those buffers held. Without a drive:
 //! empty and one-Gaussian maps, colours outside [0, 1], NaN, and points 1e5 m from the
 //! origin, through the same client; an address in use is a clear error.
 //!
@@ -547,4 +549,58 @@ async fn empty_and_extreme_maps_reach_the_client_and_an_address_in_use_is_a_clea
     // f32 offsets from the f64 origin: well below a millimetre 1e5 m out.
     assert!((back - g.position).abs().max_element() < 1e-6, "{back}");
     eprintln!("far point error {:e} m", (back - g.position).length());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_stops_reading_gets_only_what_its_bounded_queue_held() {
+    require_client();
+    // A queue of 8 messages per client in the SDK; 300 images of 640x360 (691 KB each,
+    // 207 MB in all) against this machine's loopback buffers (at most 32 MiB received plus
+    // 4 MiB sent by default on Linux).
+    const BACKLOG: usize = 8;
+    const IMAGES: u64 = 300;
+    let mut server = Foxglove::start(
+        &FoxgloveConfig {
+            bind: SocketAddr::from(([127, 0, 0, 1], 0)),
+            backlog: BACKLOG,
+            ..FoxgloveConfig::default()
+        },
+        "slow",
+    )
+    .await
+    .unwrap();
+    let url = server.url();
+    let (stalled, _) = tokio::task::block_in_place(|| Client::start(&url, "stall"));
+    let image = model::frame::RgbImage::from_rgb8(
+        640,
+        360,
+        &(0..640 * 360 * 3)
+            .map(|i| (i % 251) as u8)
+            .collect::<Vec<_>>(),
+    );
+    for bin in 0..IMAGES {
+        server.render(bin, bin as i64, &image);
+        // Paced so the node's own queue (64 items) never fills: every loss is the SDK's.
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    // Let the server's thread hand the last items to the SDK before the count is read.
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let mut counters = node::service::Counters::default();
+    server.count_into(&mut counters);
+    // The stalled client reads what was held for it, until 2 s pass with nothing new.
+    let (summary, _) = tokio::task::block_in_place(|| stalled.finish());
+    server.stop().await;
+    let received = summary["received"]["/slow/bin/render"]
+        .as_u64()
+        .unwrap_or(0);
+    let sent = counters.get("foxglove/sent");
+    eprintln!(
+        "stalled client: {received} of {sent} images (node queue dropped {})",
+        counters.get("foxglove/dropped")
+    );
+    assert_eq!(counters.get("foxglove/dropped"), 0, "{counters:?}");
+    assert_eq!(sent, IMAGES);
+    // What the socket buffers hold (36 MiB, 55 images) plus the queue, not the stream.
+    assert!(received >= 1, "{summary}");
+    assert!(received <= 55 + BACKLOG as u64 + 10, "{summary}");
 }

@@ -10,7 +10,10 @@
 #             -> train_tiny_transfer.sh (runs/tiny_transfer, 6,000 steps, about 67 min)
 #             -> train_tiny_census.sh (runs/tiny_census/cv_census05, 1,500 steps, about 45 min)
 #             -> train_tiny_guided.sh (runs/tiny_guided, 2,400 steps, about 40 min)
-#             results/stereosplat_tiny/README.md
+#             -> train_tiny_scales.sh (runs/tiny_scales, 3,000 steps on desks, rooms and
+#             streets, about 2.5 h) -> choose_checkpoint.sh (the kept step the validation
+#             drives choose, about 40 min)
+#             results/stereosplat_tiny/README.md, results/stereosplat_tiny/scales/README.md
 #   tiny-3d   train_tiny.sh -> train_tiny_transfer.sh
 #             -> train_tiny_3d.sh (runs/tiny_3d/cv3d, 1,500 steps, about 41 min; runs/tiny_3d/near,
 #             1,800 steps, about 70 min; the blend of the two, seconds)
@@ -62,8 +65,12 @@ case "$target" in
   tiny)
     stage runs/tiny_census/cv_census05 1500 bash scripts/train_tiny_census.sh
     stage runs/tiny_guided 2400 env SHIP=0 bash scripts/train_tiny_guided.sh runs/tiny_guided 2400
-    cp runs/tiny_guided/stereosplat_tiny.safetensors model/weights/stereosplat_tiny.safetensors
-    echo "weights: model/weights/stereosplat_tiny.safetensors"
+    stage runs/tiny_scales 3000 bash scripts/train_tiny_scales.sh runs/tiny_scales 3000
+    bash scripts/choose_checkpoint.sh runs/tiny_scales runs/tiny_guided/stereosplat_tiny.safetensors
+    chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
+      runs/tiny_scales/choice/scores.json)
+    cp "runs/tiny_scales/kept/step_$chosen.safetensors" model/weights/stereosplat_tiny.safetensors
+    echo "weights: model/weights/stereosplat_tiny.safetensors (step $chosen)"
     ;;
   tiny-3d)
     # Skips its finished phases itself and writes model/weights/ as its last step.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Stage 5 of `tiny`'s chain (results/stereosplat_tiny/scales/README.md; the shipped file is
-# still stage 4's, scripts/reproduce_weights.sh): the guided stage's weights
+# Stage 5 of `tiny`'s chain, the shipped one (results/stereosplat_tiny/scales/README.md,
+# scripts/reproduce_weights.sh): the guided stage's weights
 # (runs/tiny_guided/stereosplat_tiny.safetensors, scripts/train_tiny_guided.sh) trained on
 # desks, rooms and streets at the node's working size, 544x112 (scripts/scales_data.sh),
 # each kind drawn equally often and cut into its own bins (0.1 m, 0.5 m, 8 m), with the

@@ -30,7 +30,7 @@ use super::synth::cached_drive;
 use crate::fusion::{AtTornTail, FusionConfig, GlobalMap, JournalWriter, Keep};
 use crate::msg::latency::BinLatency;
 use crate::service::loopback::run_loopback;
-use crate::service::map_files::{restore, CHECKPOINT, JOURNAL};
+use crate::service::map_files::{restore, whole_map, CHECKPOINT, JOURNAL};
 use crate::service::{Compaction, NodeConfig, StartMap};
 
 /// Flags of `bench drive`.
@@ -193,7 +193,8 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     let restore_s = start.elapsed().as_secs_f64();
     let map = restored.map;
     let replay_s = replay_whole_map(&map, &args.out.join("replay_probe"))?;
-    let mut bins_in_map: Vec<u64> = map.gaussians().map(|(_, g)| g.bin_id).collect();
+    let whole = whole_map(&map, &map_dir.join(CHECKPOINT))?;
+    let mut bins_in_map: Vec<u64> = whole.iter().map(|g| g.bin_id).collect();
     bins_in_map.sort_unstable();
     bins_in_map.dedup();
 
@@ -216,7 +217,9 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         "compacted_bytes_per_bin": compacted / bins,
         "written_over_increments": (journal + compacted) as f64 / journal.max(1) as f64,
         "compactions": counters.get("map/compactions"),
-        "global_gaussians": map.len(),
+        "global_gaussians": whole.len(),
+        "global_gaussians_in_memory": map.len(),
+        "tiles_on_disk": map.paged_tiles().len(),
         "restore_s": restore_s,
         "replay_of_a_whole_map_journal_s": replay_s,
         "bins_in_final_map": bins_in_map.len(),
@@ -261,9 +264,9 @@ fn write_series(dir: &Path, rows: &[BinRow]) -> Result<()> {
     Ok(())
 }
 
-/// Seconds to restore a checkpoint whose journal adds every Gaussian of `map` to an empty
-/// base (written under `dir`, removed after): the replay a restore can face on top of its
-/// base when the journal is as large as the map.
+/// Seconds to restore a checkpoint whose journal adds every Gaussian `map` holds in memory to
+/// an empty base (written under `dir`, removed after): the replay a restore can face on top
+/// of its base when the journal is as large as the map in memory.
 fn replay_whole_map(map: &GlobalMap, dir: &Path) -> Result<f64> {
     let _ = std::fs::remove_dir_all(dir);
     std::fs::create_dir_all(dir)?;
@@ -288,7 +291,7 @@ fn replay_whole_map(map: &GlobalMap, dir: &Path) -> Result<f64> {
     }
     let inc = copy.insert_bin(0, &set, DAffine3::from_translation(origin))?;
     let mut writer = JournalWriter::new(dir.join(JOURNAL));
-    writer.append(&copy, &inc)?;
+    writer.append(&copy, &inc, &[], &[])?;
     writer.close_segment()?;
     let start = Instant::now();
     let replayed = restore(dir, AtTornTail::Fail)?.context("the probe's checkpoint")?;

@@ -6,8 +6,9 @@
 //! first's cells), then a straight road. Every bin is `--bin-length` metres on from the last
 //! and holds `--gaussians` Gaussians on and beside the road ahead of its camera, with random
 //! colours and confidences (seeded, so runs repeat). Each bin is fused
-//! ([`crate::fusion::GlobalMap::insert_bin`]) and journaled and synced as `run` does
-//! ([`crate::service::map_store::MapStore`]); the figures are reported per window of bins.
+//! ([`crate::fusion::GlobalMap::insert_bin`]), journaled and synced, and far tiles paged to
+//! disk, as `run` does ([`crate::service::map_store::MapStore`]); the figures are reported
+//! per window of bins.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -24,7 +25,7 @@ use crate::fusion::{AtTornTail, FusionConfig, GlobalMap};
 use crate::service::loopback::rss_bytes;
 use crate::service::map_files::{restore, CHECKPOINT, JOURNAL};
 use crate::service::map_store::MapStore;
-use crate::service::Compaction;
+use crate::service::{Compaction, Paging};
 
 /// Flags of `bench fusion`.
 #[derive(Args, Clone, Debug)]
@@ -50,6 +51,10 @@ pub struct BenchFusionArgs {
     /// Fold the journal into the base at this many MiB (as `run --compact-after-mib`).
     #[arg(long, default_value_t = 64)]
     compact_after_mib: u64,
+    /// Keep in memory the tiles within this many metres (as `run --page-radius-m`; 0: the
+    /// whole map, evicting past the budget).
+    #[arg(long, default_value_t = Paging::default().radius_m)]
+    page_radius_m: f64,
     /// Folder of the map's checkpoint (emptied first).
     #[arg(long, default_value = "out/bench_fusion")]
     out: PathBuf,
@@ -64,6 +69,7 @@ struct Window {
     journal_p50_ms: f64,
     journal_max_ms: f64,
     map_gaussians: usize,
+    map_total: u64,
     evicted: usize,
     rss_mib: f64,
     disk_mib: f64,
@@ -143,7 +149,10 @@ pub fn run(args: &BenchFusionArgs) -> Result<()> {
     let compaction = Compaction {
         min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
     };
-    let mut store = MapStore::new(args.out.clone(), &map, 1, compaction)?;
+    let paging = (args.page_radius_m > 0.0).then_some(Paging {
+        radius_m: args.page_radius_m,
+    });
+    let mut store = MapStore::new(args.out.clone(), &map, 1, compaction, paging)?;
     let mut rng = ChaCha8Rng::seed_from_u64(0);
     let mut windows = Vec::new();
     let (mut fuse, mut journal, mut evicted) = (Vec::new(), Vec::new(), 0);
@@ -151,11 +160,13 @@ pub fn run(args: &BenchFusionArgs) -> Result<()> {
     let started = Instant::now();
     for k in 0..args.bins {
         let set = bin_set(&mut rng, args);
+        let pose = pose_at(k, args);
         let t = Instant::now();
-        let inc = map.insert_bin(k, &set, pose_at(k, args))?;
+        store.prepare(&mut map, pose.translation)?;
+        let inc = map.insert_bin(k, &set, pose)?;
         fuse.push(t.elapsed().as_secs_f64() * 1e3);
         let t = Instant::now();
-        store.record(&map, &inc)?;
+        store.record(&mut map, &inc)?;
         journal.push(t.elapsed().as_secs_f64() * 1e3);
         evicted += inc.stats.evicted;
         if (k + 1) % args.window == 0 || k + 1 == args.bins {
@@ -166,6 +177,7 @@ pub fn run(args: &BenchFusionArgs) -> Result<()> {
                 journal_p50_ms: median(journal.clone()),
                 journal_max_ms: journal.iter().copied().fold(0.0, f64::max),
                 map_gaussians: map.len(),
+                map_total: map.total_len(),
                 evicted,
                 rss_mib: mib(rss_bytes()),
                 disk_mib: mib(disk_bytes(&args.out)),

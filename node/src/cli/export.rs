@@ -14,7 +14,7 @@ use renderer::formats::{load_map, save_map, MapFormat};
 use renderer::GaussianSet;
 
 use crate::fusion::{local_set, AtTornTail};
-use crate::service::map_files::{journal_of, restore_files, Restored};
+use crate::service::map_files::{journal_of, restore_files, whole_map, Restored};
 
 /// The first bytes of the node's checkpoint file.
 const CHECKPOINT_MAGIC: &[u8] = b"SSGMAP";
@@ -53,7 +53,7 @@ pub fn load_input(path: &Path) -> Result<MapInput> {
         .with_context(|| format!("reading {}", path.display()))?;
     if head == CHECKPOINT_MAGIC {
         // The base with its journal replayed: what the node had published (a record a crash
-        // tore is left out, and the files are left as they are).
+        // tore is left out, and the files are left as they are), with its paged-out tiles.
         let restored = restore_files(path, &journal_of(path), AtTornTail::Stop)
             .with_context(|| format!("reading {}", path.display()))?;
         let Some(Restored { map, replay }) = restored else {
@@ -67,10 +67,9 @@ pub fn load_input(path: &Path) -> Result<MapInput> {
             );
         }
         let origin = map.latest_origin().unwrap_or(DVec3::ZERO);
-        let set = local_set(
-            map.gaussians().map(|(_, g)| g),
-            DAffine3::from_translation(origin),
-        )?;
+        // Every tile: those in memory when it was saved and those paged out beside it.
+        let whole = whole_map(&map, path).with_context(|| format!("reading {}", path.display()))?;
+        let set = local_set(whole.iter(), DAffine3::from_translation(origin))?;
         return Ok(MapInput {
             set,
             origin: Some(origin),

@@ -10,7 +10,7 @@ use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
-use crate::service::{self, Compaction, InputLimits, NodeConfig, StartMap};
+use crate::service::{self, Compaction, InputLimits, NodeConfig, Paging, StartMap};
 use crate::transport::open;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -122,6 +122,14 @@ pub struct RunArgs {
     /// this many MiB and at least as many bytes as the base.
     #[arg(long, default_value_t = 64)]
     compact_after_mib: u64,
+    /// Keep in memory only the map's tiles within this many metres of the vehicle; farther
+    /// tiles are paged to `--out` and read back when the vehicle returns (0: keep the whole
+    /// map in memory, evicting past the budget). docs/long-drives.md
+    #[arg(long, default_value_t = 200.0)]
+    page_radius_m: f64,
+    /// Side of the map's square ground tiles, metres (whole 16 m columns)
+    #[arg(long, default_value_t = 64.0)]
+    tile_m: f64,
     /// Rasterizer of the per-bin renders (input view and bird's-eye view); `off` for none.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
@@ -225,6 +233,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
                 max_range_m: args.map_keep_range,
                 ..Keep::default()
             },
+            tile_m: args.tile_m,
             ..FusionConfig::default()
         },
         out_dir: Some(args.out.clone()),
@@ -237,6 +246,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         compaction: Compaction {
             min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
         },
+        paging: page_radius(args.page_radius_m)?,
         renders: args.renders.into(),
         snapshot_every: args.snapshot_every,
         limits: args.limits.limits()?,
@@ -274,6 +284,15 @@ pub fn run(args: &RunArgs) -> Result<()> {
 }
 
 /// A non-negative number of seconds as nanoseconds (at most about 292 years).
+/// `--page-radius-m`: `None` at 0 (no paging), else the radius.
+fn page_radius(metres: f64) -> Result<Option<Paging>> {
+    anyhow::ensure!(
+        metres.is_finite() && metres >= 0.0,
+        "--page-radius-m must be a distance in metres from 0, not {metres}"
+    );
+    Ok((metres > 0.0).then_some(Paging { radius_m: metres }))
+}
+
 fn seconds_ns(seconds: f64, flag: &str) -> Result<i64> {
     anyhow::ensure!(
         seconds.is_finite() && (0.0..9.2e9).contains(&seconds),

@@ -11,6 +11,16 @@ use super::GaussianId;
 /// Ground size of a column of the cell index, metres: the granularity of region queries.
 const COLUMN_M: f64 = 16.0;
 
+/// The side of a ground column of the cell index for cells of `cell_size`, metres: about
+/// [`COLUMN_M`], a whole number of cells.
+pub fn column_side(cell_size: f64) -> f64 {
+    cells_per_column(cell_size) as f64 * cell_size
+}
+
+fn cells_per_column(cell_size: f64) -> i64 {
+    ((COLUMN_M / cell_size).round() as i64).max(1)
+}
+
 /// Integer coordinates of a cell: `floor(position / cell_size)` per axis.
 pub type CellKey = (i64, i64, i64);
 
@@ -61,7 +71,7 @@ impl CellIndex {
         Self {
             cells: HashMap::default(),
             columns: HashMap::default(),
-            per_column: ((COLUMN_M / cell_size).round() as i64).max(1),
+            per_column: cells_per_column(cell_size),
             cell_size,
         }
     }
@@ -188,6 +198,13 @@ impl CellIndex {
             .collect();
         keyed.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         keyed.into_iter().map(|(_, c)| c).collect()
+    }
+
+    /// Every occupied ground column with its cells, in no set order.
+    pub fn columns(&self) -> impl Iterator<Item = ((i64, i64), impl Iterator<Item = &Cell>)> {
+        self.columns
+            .iter()
+            .map(|(&column, keys)| (column, keys.iter().map(|k| &self.cells[k])))
     }
 
     /// The occupied cells of a ground column, in no set order.

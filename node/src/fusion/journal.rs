@@ -7,11 +7,14 @@
 //! order ([`GlobalMap::replay_journal`]); records the base already holds are skipped, so a
 //! base rewritten while its segments were still on disk restores the same map.
 //!
-//! Segment format (little endian): magic `SSGJRNL\n`, version u32 (1), then records, each a
+//! Segment format (little endian): magic `SSGJRNL\n`, version u32 (2), then records, each a
 //! payload length u32, the payload and an FNV-1a 64 checksum (u64) of the payload. Payload:
 //! sequence number u64 (the map's increment count after the bin), epoch u64, bin id u64,
-//! next id u64, latest origin flag u8 + 3 x f64, removed count u64 and the removed ids (u64
-//! each), added count u64 and the added Gaussians in the base file's record layout.
+//! next id u64, latest origin flag u8 + 3 x f64, the tiles paged before the bin (version 2),
+//! removed count u64 and the removed ids (u64 each), added count u64 and the added Gaussians
+//! in the base file's record layout, the tiles paged after the bin (version 2). Paged tiles:
+//! count u64, then per tile kind u8 (0 in, 1 out), x i64, y i64, file version u64, Gaussian
+//! count u64 ([`super::tiles`]). Replay reads a paged-in tile's file from the tiles folder.
 //!
 //! A crash can tear only the newest segment's last record (records are appended and synced
 //! in order); replay stops before such a tail and says how much it kept ([`TornTail`]); a
@@ -25,10 +28,13 @@ use glam::DVec3;
 
 use super::cells::cell_of;
 use super::snapshot::{fnv1a, put_f64s, put_gaussian, Reader, RECORD_BYTES};
+use super::tiles::{read_tile, PageEvent, PagedTile};
 use super::{GaussianId, GlobalMap, Increment, StoreError, WorldGaussian};
 
 const MAGIC: &[u8; 8] = b"SSGJRNL\n";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
+/// The oldest segment version read (without paged tiles).
+const OLDEST_VERSION: u32 = 1;
 /// Bytes before a segment's first record.
 const HEADER_BYTES: u64 = 12;
 /// The file name ending of a segment.
@@ -73,10 +79,17 @@ impl JournalWriter {
     }
 
     /// Appends the record of `inc`, which `map` has just taken in (its counters are read
-    /// after the bin), opening a segment first when none is open. The record is written
-    /// but not yet durable: [`JournalWriter::sync`] makes it so. Returns the bytes written.
-    pub fn append(&mut self, map: &GlobalMap, inc: &Increment) -> Result<u64, StoreError> {
-        let record = encode(map, inc);
+    /// after the bin), with the tiles paged in `before` the bin and out `after` it, opening a
+    /// segment first when none is open. The record is written but not yet durable:
+    /// [`JournalWriter::sync`] makes it so. Returns the bytes written.
+    pub fn append(
+        &mut self,
+        map: &GlobalMap,
+        inc: &Increment,
+        before: &[PageEvent],
+        after: &[PageEvent],
+    ) -> Result<u64, StoreError> {
+        let record = encode(map, inc, before, after);
         if self.open.is_none() {
             self.open_segment(map.increments())?;
         }
@@ -152,8 +165,48 @@ pub fn segments(dir: &Path) -> Result<Vec<PathBuf>, StoreError> {
     Ok(found)
 }
 
+/// Appends a list of paged tiles.
+fn put_events(p: &mut Vec<u8>, events: &[PageEvent]) {
+    p.extend_from_slice(&(events.len() as u64).to_le_bytes());
+    for e in events {
+        let (kind, tile, paged) = match e {
+            PageEvent::In(t, p) => (0u8, t, p),
+            PageEvent::Out(t, p) => (1u8, t, p),
+        };
+        p.push(kind);
+        for v in [tile.0 as u64, tile.1 as u64, paged.version, paged.count] {
+            p.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+}
+
+/// Reads a list of paged tiles ([`put_events`]).
+fn events(r: &mut Reader, len: usize) -> Result<Vec<PageEvent>, StoreError> {
+    let at = r.pos;
+    let count = r.u64()?;
+    if count > (len / 33) as u64 {
+        return Err(r.invalid(at, "paged tile count does not fit the record"));
+    }
+    (0..count)
+        .map(|_| {
+            let at = r.pos;
+            let kind = r.array::<1>()?[0];
+            let tile = (r.u64()? as i64, r.u64()? as i64);
+            let paged = PagedTile {
+                version: r.u64()?,
+                count: r.u64()?,
+            };
+            match kind {
+                0 => Ok(PageEvent::In(tile, paged)),
+                1 => Ok(PageEvent::Out(tile, paged)),
+                _ => Err(r.invalid(at, "paged tile kind is neither in nor out")),
+            }
+        })
+        .collect()
+}
+
 /// A record encoded with its length and checksum.
-fn encode(map: &GlobalMap, inc: &Increment) -> Vec<u8> {
+fn encode(map: &GlobalMap, inc: &Increment, before: &[PageEvent], after: &[PageEvent]) -> Vec<u8> {
     let mut p = Vec::with_capacity(72 + inc.removed.len() * 8 + inc.added.len() * RECORD_BYTES);
     p.extend_from_slice(&map.increments().to_le_bytes());
     p.extend_from_slice(&map.epoch().to_le_bytes());
@@ -162,6 +215,7 @@ fn encode(map: &GlobalMap, inc: &Increment) -> Vec<u8> {
     let origin = map.latest_origin();
     p.push(u8::from(origin.is_some()));
     put_f64s(&mut p, &origin.unwrap_or(DVec3::ZERO).to_array());
+    put_events(&mut p, before);
     p.extend_from_slice(&(inc.removed.len() as u64).to_le_bytes());
     for id in &inc.removed {
         p.extend_from_slice(&id.0.to_le_bytes());
@@ -170,6 +224,7 @@ fn encode(map: &GlobalMap, inc: &Increment) -> Vec<u8> {
     for (id, g) in &inc.added {
         put_gaussian(&mut p, *id, g);
     }
+    put_events(&mut p, after);
     let mut record = Vec::with_capacity(p.len() + 12);
     record.extend_from_slice(&(p.len() as u32).to_le_bytes());
     let sum = fnv1a(&p);
@@ -185,11 +240,13 @@ struct Record {
     bin_id: u64,
     next_id: u64,
     latest_origin: Option<DVec3>,
+    before: Vec<PageEvent>,
     removed: Vec<GaussianId>,
     added: Vec<(GaussianId, WorldGaussian)>,
+    after: Vec<PageEvent>,
 }
 
-fn decode(payload: &[u8], path: &Path, offset: u64) -> Result<Record, StoreError> {
+fn decode(payload: &[u8], version: u32, path: &Path, offset: u64) -> Result<Record, StoreError> {
     let mut r = Reader {
         bytes: payload,
         pos: 0,
@@ -208,6 +265,11 @@ fn decode(payload: &[u8], path: &Path, offset: u64) -> Result<Record, StoreError
     if latest_origin.is_some_and(|o| !o.is_finite()) {
         return Err(bad("latest origin is not finite"));
     }
+    let paged = |r: &mut Reader| match version {
+        1 => Ok(Vec::new()),
+        _ => events(r, payload.len()),
+    };
+    let before = paged(&mut r)?;
     let removed_count = r.u64()?;
     let fits = |count: u64, each: usize| count <= (payload.len() / each) as u64;
     if !fits(removed_count, 8) {
@@ -223,6 +285,7 @@ fn decode(payload: &[u8], path: &Path, offset: u64) -> Result<Record, StoreError
     let added = (0..added_count)
         .map(|_| r.gaussian())
         .collect::<Result<Vec<_>, _>>()?;
+    let after = paged(&mut r)?;
     if r.pos != payload.len() {
         return Err(bad("record longer than its contents"));
     }
@@ -232,8 +295,10 @@ fn decode(payload: &[u8], path: &Path, offset: u64) -> Result<Record, StoreError
         bin_id,
         next_id,
         latest_origin,
+        before,
         removed,
         added,
+        after,
     })
 }
 
@@ -282,7 +347,8 @@ enum End {
 
 impl GlobalMap {
     /// Applies, in order, every record of `segments` (oldest first, as [`segments`] lists
-    /// them) whose sequence number is past the map's; earlier ones are skipped. An
+    /// them) whose sequence number is past the map's; earlier ones are skipped. Tiles a
+    /// record pages in are read from the tiles folder `tiles`. An
     /// incomplete or corrupt record at the end of the last segment is handled by `at_torn`
     /// (and said in [`Replay::torn`]); anywhere else it is an error. A record
     /// that does not follow the map (a gap in sequence numbers, a removed Gaussian the map
@@ -291,12 +357,13 @@ impl GlobalMap {
     pub fn replay_journal(
         &mut self,
         segments: &[PathBuf],
+        tiles: &Path,
         at_torn: AtTornTail,
     ) -> Result<Replay, StoreError> {
         let mut replay = Replay::default();
         for (i, path) in segments.iter().enumerate() {
             let last = i + 1 == segments.len();
-            match self.replay_segment(path, &mut replay)? {
+            match self.replay_segment(path, tiles, &mut replay)? {
                 End::Clean => {}
                 End::Torn(offset) if last && at_torn == AtTornTail::Cut => {
                     replay.torn = Some(cut(path, offset)?);
@@ -321,7 +388,12 @@ impl GlobalMap {
         Ok(replay)
     }
 
-    fn replay_segment(&mut self, path: &Path, replay: &mut Replay) -> Result<End, StoreError> {
+    fn replay_segment(
+        &mut self,
+        path: &Path,
+        tiles: &Path,
+        replay: &mut Replay,
+    ) -> Result<End, StoreError> {
         let file = File::open(path).map_err(io_error(path))?;
         let mut input = BufReader::new(file);
         let mut header = [0u8; HEADER_BYTES as usize];
@@ -335,7 +407,7 @@ impl GlobalMap {
             });
         }
         let version = u32::from_le_bytes(header[8..].try_into().unwrap_or_default());
-        if version != VERSION {
+        if !(OLDEST_VERSION..=VERSION).contains(&version) {
             return Err(StoreError::UnsupportedVersion {
                 path: path.to_path_buf(),
                 version,
@@ -360,19 +432,26 @@ impl GlobalMap {
             if got < len || sum_got < 8 || fnv1a(&payload) != u64::from_le_bytes(sum) {
                 return Ok(End::Torn(offset));
             }
-            let record = decode(&payload, path, offset)?;
+            let record = decode(&payload, version, path, offset)?;
             if record.sequence <= self.increments {
                 replay.skipped += 1;
             } else {
-                self.apply_record(record, path, offset)?;
+                self.apply_record(record, tiles, path, offset)?;
                 replay.applied += 1;
             }
             offset += 12 + len as u64;
         }
     }
 
-    /// Applies one record: removes its removed ids, adds its Gaussians, takes its counters.
-    fn apply_record(&mut self, rec: Record, path: &Path, offset: u64) -> Result<(), StoreError> {
+    /// Applies one record: the tiles paged before the bin, its removed ids, its Gaussians,
+    /// the tiles paged after it, its counters.
+    fn apply_record(
+        &mut self,
+        rec: Record,
+        tiles: &Path,
+        path: &Path,
+        offset: u64,
+    ) -> Result<(), StoreError> {
         let bad = |what| StoreError::Invalid {
             path: path.to_path_buf(),
             offset: offset as usize,
@@ -381,6 +460,8 @@ impl GlobalMap {
         if rec.sequence != self.increments + 1 {
             return Err(bad("journal record out of sequence with the map"));
         }
+        self.apply_paging(&rec.before, tiles)
+            .map_err(|e| e.or(bad))?;
         for id in &rec.removed {
             let g = self
                 .gaussians
@@ -399,11 +480,63 @@ impl GlobalMap {
             self.cells.push(key, id, g.confidence);
             self.gaussians.insert(id, g);
         }
+        self.apply_paging(&rec.after, tiles)
+            .map_err(|e| e.or(bad))?;
         self.increments = rec.sequence;
         self.epoch = rec.epoch;
         self.last_bin_id = Some(rec.bin_id);
         self.next_id = rec.next_id;
         self.latest_origin = rec.latest_origin;
+        Ok(())
+    }
+}
+
+/// Why a record's paged tile could not be applied: a tile file that does not read, or a
+/// record that does not follow the map (said by the caller, which knows where it is).
+enum PagingError {
+    File(StoreError),
+    Record(&'static str),
+}
+
+impl PagingError {
+    fn or(self, bad: impl FnOnce(&'static str) -> StoreError) -> StoreError {
+        match self {
+            PagingError::File(e) => e,
+            PagingError::Record(what) => bad(what),
+        }
+    }
+}
+
+impl GlobalMap {
+    /// Pages tiles in (reading their files from `tiles`) and out (dropping them from memory)
+    /// as a record says.
+    fn apply_paging(&mut self, events: &[PageEvent], tiles: &Path) -> Result<(), PagingError> {
+        for event in events {
+            match *event {
+                PageEvent::In(tile, paged) => {
+                    if self.paged.get(&tile) != Some(&paged) {
+                        return Err(PagingError::Record(
+                            "pages in a tile the map has not paged out",
+                        ));
+                    }
+                    let tile_m = self.config.tile_side();
+                    let gaussians =
+                        read_tile(tiles, tile, paged, tile_m).map_err(PagingError::File)?;
+                    self.put_tile(tile, gaussians)
+                        .map_err(PagingError::Record)?;
+                }
+                PageEvent::Out(tile, paged) => {
+                    let taken = self
+                        .take_tile(tile, paged.version)
+                        .map_err(PagingError::Record)?;
+                    if taken.len() as u64 != paged.count {
+                        return Err(PagingError::Record(
+                            "pages out a tile holding another count than the record's",
+                        ));
+                    }
+                }
+            }
+        }
         Ok(())
     }
 }

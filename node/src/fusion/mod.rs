@@ -17,17 +17,20 @@
 //! distant matches with little support) render the bin's own views well but, fused into the
 //! world, float above the road that later bins see from close by.
 //!
-//! Budget: after a bin is fused, while the map holds more than `max_gaussians`, whole cells
-//! are evicted: ground column by ground column (x-y squares of about 16 m), the farthest
-//! (column centre) from the latest bin's origin first, and within a column the farthest cell
-//! (centre) first, ties by key. Ids are u64, assigned in increasing order in the bin's input
-//! order, never reused.
+//! Budget: after a bin is fused, while the map holds more than `max_gaussians` in memory,
+//! whole cells are evicted: ground column by ground column (x-y squares of about 16 m), the
+//! farthest (column centre) from the latest bin's origin first, and within a column the
+//! farthest cell (centre) first, ties by key. A map kept on disk pages far tiles out
+//! instead ([`tiles`], `crate::service::map_store`), so its budget bounds what is in memory
+//! and eviction is only the last resort. Ids are u64, assigned in increasing order in the
+//! bin's input order, never reused.
 
 mod cells;
 mod export;
 mod increments;
 mod journal;
 mod snapshot;
+mod tiles;
 mod wire;
 
 use std::collections::BTreeMap;
@@ -43,6 +46,10 @@ pub use export::{bev_image, local_set, save_bev_png, BevView, ExportError};
 pub use increments::{Increment, InsertStats, MapReplica, ReplicaError, Snapshot};
 pub use journal::{segment_path, segments, AtTornTail, JournalWriter, Replay, TornTail};
 pub use snapshot::StoreError;
+pub use tiles::{
+    collect_garbage, read_tile, tile_distance, tile_of, tile_path, write_tile, PageEvent,
+    PagedTile, TileKey,
+};
 pub use wire::{decode_update, increment_message, snapshot_message, Update, WireError};
 
 use cells::{eviction_order, CellIndex};
@@ -152,16 +159,21 @@ pub struct FusionConfig {
     pub max_gaussians: usize,
     /// Which Gaussians of a bin map are fused at all.
     pub keep: Keep,
+    /// Side of the square ground tiles a long drive's map is paged to disk by, metres
+    /// (rounded to whole 16 m ground columns: [`FusionConfig::tile_side`]).
+    pub tile_m: f64,
 }
 
 impl Default for FusionConfig {
-    /// 0.2 m cells, opacity floor 0.01, two million Gaussians, [`Keep::default`].
+    /// 0.2 m cells, opacity floor 0.01, two million Gaussians, [`Keep::default`], 64 m
+    /// tiles.
     fn default() -> Self {
         Self {
             cell_size: 0.2,
             opacity_floor: 0.01,
             max_gaussians: 2_000_000,
             keep: Keep::default(),
+            tile_m: 64.0,
         }
     }
 }
@@ -177,6 +189,8 @@ impl FusionConfig {
             "keep.max_range_m must be positive"
         } else if !(0.0..=1.0).contains(&self.keep.min_confidence) {
             "keep.min_confidence must be in [0, 1]"
+        } else if !(self.tile_m.is_finite() && self.tile_m > 0.0 && self.tile_m <= 1.0e5) {
+            "tile_m must be positive and at most 100 km"
         } else {
             return Ok(());
         };
@@ -236,6 +250,7 @@ pub struct GlobalMap {
     config: FusionConfig,
     gaussians: BTreeMap<GaussianId, WorldGaussian>,
     cells: CellIndex,
+    paged: BTreeMap<TileKey, PagedTile>,
     next_id: u64,
     last_bin_id: Option<u64>,
     latest_origin: Option<DVec3>,
@@ -251,6 +266,7 @@ impl GlobalMap {
             config,
             gaussians: BTreeMap::new(),
             cells: CellIndex::new(config.cell_size),
+            paged: BTreeMap::new(),
             next_id: 0,
             last_bin_id: None,
             latest_origin: None,
@@ -264,7 +280,7 @@ impl GlobalMap {
         &self.config
     }
 
-    /// Number of Gaussians in the map.
+    /// Number of Gaussians in memory (paged-out tiles not counted: [`GlobalMap::total_len`]).
     pub fn len(&self) -> usize {
         self.gaussians.len()
     }
@@ -510,6 +526,7 @@ impl GlobalMap {
             config: parts.config,
             gaussians: parts.gaussians,
             cells,
+            paged: parts.paged,
             next_id: parts.next_id,
             last_bin_id: parts.last_bin_id,
             latest_origin: parts.latest_origin,
@@ -523,6 +540,7 @@ impl GlobalMap {
 struct Stored {
     config: FusionConfig,
     gaussians: BTreeMap<GaussianId, WorldGaussian>,
+    paged: BTreeMap<TileKey, PagedTile>,
     next_id: u64,
     last_bin_id: Option<u64>,
     latest_origin: Option<DVec3>,

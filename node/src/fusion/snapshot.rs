@@ -1,12 +1,14 @@
 //! Saving the global map to a file and restoring it, so a restarted node continues with
 //! the same Gaussians and ids it had published.
 //!
-//! Format (all little endian): magic `SSGMAP\0\n`, version u32 (3), cell size f64, opacity
-//! floor f32, budget u64, keep range f32 and keep confidence f32 (version 3; a version-2
-//! file has neither and gets [`super::Keep::default`]), next id u64, increments u64 (the sequence number of the last
-//! published increment), epoch u64 (times resumed), last bin flag u8 + id u64, latest
-//! origin flag u8 +
-//! 3 x f64, count u64, then per Gaussian: id u64, bin id u64, position 3 x f64, log scale
+//! Format (all little endian): magic `SSGMAP\0\n`, version u32 (4), cell size f64, opacity
+//! floor f32, budget u64, keep range f32 and keep confidence f32 (from version 3; a version-2
+//! file has neither and gets [`super::Keep::default`]), tile side f64 (from version 4;
+//! older files get the default), next id u64, increments u64 (the sequence number of the
+//! last published increment), epoch u64 (times resumed), last bin flag u8 + id u64, latest
+//! origin flag u8 + 3 x f64, the paged-out tiles (from version 4: count u64, then per tile x
+//! i64, y i64, file version u64, Gaussian count u64, in tile order), count u64 of the
+//! Gaussians in memory, then per Gaussian: id u64, bin id u64, position 3 x f64, log scale
 //! 3 x f32, rotation 4 x f32 (x, y, z, w), opacity f32, colour 3 x f32, confidence f32;
 //! last an FNV-1a 64 checksum (u64) of every byte before it. Version 1 (without increments
 //! and epoch) is not read: its sequence numbers cannot be continued. Files are replaced
@@ -18,10 +20,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Quat, Vec3};
 
-use super::{FusionConfig, GaussianId, GlobalMap, Keep, Stored, WorldGaussian};
+use super::{FusionConfig, GaussianId, GlobalMap, Keep, PagedTile, Stored, WorldGaussian};
 
 const MAGIC: &[u8; 8] = b"SSGMAP\0\n";
-const VERSION: u32 = 3;
+const VERSION: u32 = 4;
 /// The oldest version still read (without the keep rule).
 const OLDEST_VERSION: u32 = 2;
 /// Bytes per stored Gaussian.
@@ -98,6 +100,7 @@ impl GlobalMap {
         b.extend_from_slice(&(self.config.max_gaussians as u64).to_le_bytes());
         b.extend_from_slice(&self.config.keep.max_range_m.to_le_bytes());
         b.extend_from_slice(&self.config.keep.min_confidence.to_le_bytes());
+        b.extend_from_slice(&self.config.tile_m.to_le_bytes());
         b.extend_from_slice(&self.next_id.to_le_bytes());
         b.extend_from_slice(&self.increments.to_le_bytes());
         b.extend_from_slice(&self.epoch.to_le_bytes());
@@ -108,6 +111,12 @@ impl GlobalMap {
             &mut b,
             &self.latest_origin.unwrap_or(DVec3::ZERO).to_array(),
         );
+        b.extend_from_slice(&(self.paged.len() as u64).to_le_bytes());
+        for (tile, p) in &self.paged {
+            for v in [tile.0 as u64, tile.1 as u64, p.version, p.count] {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
+        }
         b.extend_from_slice(&(self.len() as u64).to_le_bytes());
         for (id, g) in self.gaussians() {
             put_gaussian(&mut b, id, g);
@@ -119,8 +128,9 @@ impl GlobalMap {
 
     /// The size of the map's file ([`GlobalMap::to_bytes`]) in bytes, without writing it.
     pub fn stored_bytes(&self) -> u64 {
-        // Header (106 bytes) and checksum (8) besides the records.
-        114 + (self.len() * RECORD_BYTES) as u64
+        // Header (122 bytes with the tile count), paged tiles (32 each) and checksum (8)
+        // besides the records.
+        130 + 32 * self.paged.len() as u64 + (self.len() * RECORD_BYTES) as u64
     }
 
     /// Writes the map to `path` atomically (see the module doc): a crash at any moment
@@ -186,6 +196,10 @@ impl GlobalMap {
                     min_confidence: r.f32()?,
                 },
             },
+            tile_m: match version {
+                2 | 3 => FusionConfig::default().tile_m,
+                _ => r.f64()?,
+            },
         };
         config
             .validate()
@@ -197,6 +211,29 @@ impl GlobalMap {
         let latest_origin = r.flagged(|r| r.f64s::<3>().map(DVec3::from_array))?;
         if latest_origin.is_some_and(|o| !o.is_finite()) {
             return Err(r.invalid(r.pos - 24, "latest origin is not finite"));
+        }
+        let mut paged = BTreeMap::new();
+        if version >= 4 {
+            let tiles = r.u64()?;
+            if tiles > (r.bytes.len() / 32) as u64 {
+                return Err(r.invalid(r.pos - 8, "paged tile count does not fit the file"));
+            }
+            for _ in 0..tiles {
+                let at = r.pos;
+                let tile = (r.u64()? as i64, r.u64()? as i64);
+                let p = PagedTile {
+                    version: r.u64()?,
+                    count: r.u64()?,
+                };
+                if paged
+                    .last_key_value()
+                    .is_some_and(|(last, _)| *last >= tile)
+                    || p.version > increments
+                {
+                    return Err(r.invalid(at, "paged tiles out of order or from the future"));
+                }
+                paged.insert(tile, p);
+            }
         }
         let count = r.u64()?;
         let left = (r.bytes.len() - r.pos) as u64;
@@ -219,6 +256,7 @@ impl GlobalMap {
         Ok(GlobalMap::from_parts(Stored {
             config,
             gaussians,
+            paged,
             next_id,
             last_bin_id,
             latest_origin,

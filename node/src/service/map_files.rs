@@ -2,8 +2,10 @@
 //! fused and resumes from when it starts again, and the exports it writes when it stops.
 //!
 //! The checkpoint is a base file (`global_map.ssgmap`) plus a journal folder
-//! (`global_map.journal/`) of what each bin changed since the base was written
-//! ([`super::map_store`] writes both; [`crate::fusion::JournalWriter`] has the format).
+//! (`global_map.journal/`) of what each bin changed since the base was written, plus a
+//! tiles folder (`global_map.tiles/`) of the tiles paged out of memory
+//! ([`super::map_store`] writes all three; [`crate::fusion::JournalWriter`] and
+//! [`crate::fusion::PagedTile`] have the formats).
 //! Restoring loads the base and replays the journal ([`restore`]); a record torn by a crash
 //! at the journal's end is cut, and the node says how much it kept.
 //!
@@ -13,7 +15,7 @@
 //! sequence numbers; its epoch goes up by one. A checkpoint that does not load (damaged,
 //! truncated, another version, a journal without its base) stops the node with
 //! [`RestoreError::Unreadable`], naming the file and why, and the files are left as they
-//! are; a fresh start moves the base and the journal aside (to `<name>.replaced-<unix
+//! are; a fresh start moves the base, the journal and the tiles aside (to `<name>.replaced-<unix
 //! seconds>`) rather than overwriting them, so no saved map is ever replaced by an empty one.
 //! The exported map file is in the format `run --format` names (PLY by default).
 //! Every file is replaced atomically ([`renderer::atomic`]).
@@ -26,8 +28,8 @@ use glam::{DAffine3, DVec2};
 use renderer::formats::MapFormat;
 
 use crate::fusion::{
-    bev_image, local_set, save_bev_png, segments, AtTornTail, BevView, GlobalMap, Replay,
-    StoreError,
+    bev_image, collect_garbage, local_set, read_tile, save_bev_png, segments, AtTornTail, BevView,
+    GlobalMap, Replay, StoreError, WorldGaussian,
 };
 
 /// The checkpoint's base file name in the out folder.
@@ -35,6 +37,9 @@ pub const CHECKPOINT: &str = "global_map.ssgmap";
 
 /// The checkpoint's journal folder name in the out folder.
 pub const JOURNAL: &str = "global_map.journal";
+
+/// The checkpoint's folder of paged-out tiles in the out folder.
+pub const TILES: &str = "global_map.tiles";
 
 /// How a node with an out folder starts its global map.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -133,7 +138,7 @@ pub fn restore_files(
         };
     }
     let mut map = GlobalMap::load(base)?;
-    let replay = map.replay_journal(&journal, at_torn)?;
+    let replay = map.replay_journal(&journal, &tiles_of(base), at_torn)?;
     Ok(Some(Restored { map, replay }))
 }
 
@@ -141,6 +146,23 @@ pub fn restore_files(
 /// (`global_map.ssgmap` -> `global_map.journal`).
 pub fn journal_of(base: &Path) -> PathBuf {
     base.with_extension("journal")
+}
+
+/// The tiles folder beside a checkpoint's base file: `<stem>.tiles`.
+pub fn tiles_of(base: &Path) -> PathBuf {
+    base.with_extension("tiles")
+}
+
+/// Every Gaussian of the map whose base file is `base`: those in memory and those of its
+/// paged-out tiles, read from the tiles folder beside it (in memory at once: the whole map).
+pub fn whole_map(map: &GlobalMap, base: &Path) -> Result<Vec<WorldGaussian>, StoreError> {
+    let mut out: Vec<WorldGaussian> = map.gaussians().map(|(_, g)| *g).collect();
+    let dir = tiles_of(base);
+    for (tile, paged) in map.paged_tiles() {
+        let tile = read_tile(&dir, *tile, *paged, map.config().tile_side())?;
+        out.extend(tile.into_iter().map(|(_, g)| g));
+    }
+    Ok(out)
 }
 
 /// The map to start with under `out_dir` (`None`: no files, `empty`), by the rule in the
@@ -159,7 +181,7 @@ pub fn start_map(
     let Some(dir) = out_dir else {
         return Ok(start);
     };
-    let files = [dir.join(CHECKPOINT), dir.join(JOURNAL)];
+    let files = [dir.join(CHECKPOINT), dir.join(JOURNAL), dir.join(TILES)];
     match how {
         StartMap::Resume => {
             let restored = restore(dir, AtTornTail::Cut)
@@ -191,8 +213,8 @@ pub fn start_map(
 }
 
 /// Saves `map` as the checkpoint's base in `dir` (created if missing), atomically, then
-/// removes the journal's segments, which the base now holds. A crash between the two leaves
-/// segments that a restore skips.
+/// removes the journal's segments, which the base now holds, and the tile files the base
+/// does not name. A crash between the two leaves files that a restore skips.
 pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
     std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
         path: dir.to_path_buf(),
@@ -202,12 +224,14 @@ pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
     for path in segments(&dir.join(JOURNAL))? {
         std::fs::remove_file(&path).map_err(|source| StoreError::Io { path, source })?;
     }
+    collect_garbage(&dir.join(TILES), map.paged_tiles(), map.increments())?;
     Ok(())
 }
 
-/// Writes the checkpoint, the global map as `global_map.<ply|spz|glb>` in `format` (positions
-/// relative to the latest bin's origin, which `global_map_origin.json` records; see
-/// [`renderer::formats`]) and a bird's-eye PNG, each atomically.
+/// Writes the checkpoint, the whole global map (in memory and paged out) as
+/// `global_map.<ply|spz|glb>` in `format` (positions relative to the latest bin's origin,
+/// which `global_map_origin.json` records; see [`renderer::formats`]) and a bird's-eye PNG,
+/// each atomically.
 pub fn export(map: &GlobalMap, dir: &Path, format: MapFormat) -> Result<(), ExportError> {
     let err = |e: &dyn std::fmt::Display| ExportError(e.to_string());
     checkpoint(map, dir).map_err(|e| err(&e))?;
@@ -215,7 +239,8 @@ pub fn export(map: &GlobalMap, dir: &Path, format: MapFormat) -> Result<(), Expo
         return Ok(());
     };
     let frame = DAffine3::from_translation(origin);
-    let set = local_set(map.gaussians().map(|(_, g)| g), frame).map_err(|e| err(&e))?;
+    let whole = whole_map(map, &dir.join(CHECKPOINT)).map_err(|e| err(&e))?;
+    let set = local_set(whole.iter(), frame).map_err(|e| err(&e))?;
     let file = dir.join(format!("global_map.{format}"));
     renderer::formats::save_map(&set, &file, format)
         .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
@@ -227,7 +252,7 @@ pub fn export(map: &GlobalMap, dir: &Path, format: MapFormat) -> Result<(), Expo
     renderer::atomic::write_bytes_atomic(&origin_file, json.as_bytes())
         .map_err(|e| err(&format!("{}: {e}", origin_file.display())))?;
     let view = BevView::export(DVec2::new(origin.x, origin.y));
-    let image = bev_image(map.gaussians().map(|(_, g)| g), &view).map_err(|e| err(&e))?;
+    let image = bev_image(whole.iter(), &view).map_err(|e| err(&e))?;
     let bev = dir.join("global_map_bev.png");
     save_bev_png(&image, &bev).map_err(|e| err(&format!("{}: {e}", bev.display())))
 }

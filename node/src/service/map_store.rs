@@ -12,16 +12,46 @@
 //! base atomically and only then removes the segments, so a crash at any point leaves a
 //! base and segments that restore every published bin ([`super::map_files::restore`]). While
 //! it works, the base's copy in memory adds to the node's resident size.
+//!
+//! Paging ([`Paging`], [`crate::fusion::PagedTile`]): before a bin is fused, every tile on
+//! disk within the paging radius of the bin's origin is read back into the map
+//! ([`MapStore::prepare`]); after it, every tile in memory farther than the radius plus one
+//! tile is written to its file and dropped from memory, and, while the map holds more than
+//! three quarters of its budget in memory, the farthest tiles beyond the keep range too, so
+//! the next bins fuse without evicting anything. Tile files are written and synced before
+//! the journal record that names them. The base then holds only the tiles in memory, so
+//! its size, the compactor's work and a restore's follow the resident map, not the whole
+//! drive's.
 
 use std::path::{Path, PathBuf};
+
+use glam::DVec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use crate::fusion::{segments, AtTornTail, GlobalMap, Increment, JournalWriter, StoreError};
+use crate::fusion::{
+    collect_garbage, read_tile, segments, tile_distance, write_tile, AtTornTail, GlobalMap,
+    Increment, JournalWriter, PageEvent, StoreError, TileKey,
+};
 
-use super::map_files::{checkpoint, CHECKPOINT, JOURNAL};
+use super::map_files::{checkpoint, CHECKPOINT, JOURNAL, TILES};
+
+/// Which tiles of the map stay in memory while the node runs (the module doc has the rule).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Paging {
+    /// Ground distance from a bin's origin within which tiles are in memory, metres (at
+    /// least the keep range, so a bin never fuses into a tile on disk).
+    pub radius_m: f64,
+}
+
+impl Default for Paging {
+    /// 200 m: the map around the vehicle that a bin can meet, with room for the view.
+    fn default() -> Self {
+        Self { radius_m: 200.0 }
+    }
+}
 
 /// When the journal is folded into the base.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,6 +90,9 @@ pub struct MapStore {
     empty: Option<GlobalMap>,
     unsynced_bins: u64,
     journal_bytes: u64,
+    paging: Option<Paging>,
+    paged_in: Vec<PageEvent>,
+    tile_counts: [u64; 3],
     tx: Option<mpsc::Sender<PathBuf>>,
     thread: Option<JoinHandle<()>>,
     folded: Arc<Folded>,
@@ -67,13 +100,15 @@ pub struct MapStore {
 
 impl MapStore {
     /// A store in `dir` for `map` (new or resumed), syncing the journal after every `every`
-    /// bins (0: nothing is written while running; the node saves the map when it stops).
+    /// bins (0: nothing is written while running and nothing is paged; the node saves the
+    /// map when it stops), paging tiles by `paging` (`None`: the whole map stays in memory).
     /// Segments a previous run left (after a crash) are handed to the compactor at once.
     pub fn new(
         dir: PathBuf,
         map: &GlobalMap,
         every: u64,
         compaction: Compaction,
+        paging: Option<Paging>,
     ) -> Result<Self, StoreError> {
         let empty = match dir.join(CHECKPOINT).exists() {
             true => None,
@@ -83,13 +118,14 @@ impl MapStore {
         let (tx, rx) = mpsc::channel::<PathBuf>();
         let base = dir.join(CHECKPOINT);
         let journal = dir.join(JOURNAL);
+        let tiles = dir.join(TILES);
         let shared = folded.clone();
         let thread = std::thread::Builder::new()
             .name("map-compactor".into())
             .spawn(move || {
                 while let Ok(upto) = rx.recv() {
                     let start = Instant::now();
-                    match compact(&base, &journal, &upto) {
+                    match compact(&base, &journal, &tiles, &upto) {
                         Ok(bytes) => {
                             shared.compactions.fetch_add(1, Ordering::Relaxed);
                             shared.base_bytes.fetch_add(bytes, Ordering::Relaxed);
@@ -118,23 +154,118 @@ impl MapStore {
             empty,
             unsynced_bins: 0,
             journal_bytes: 0,
+            paging: paging.filter(|_| every > 0),
+            paged_in: Vec::new(),
+            tile_counts: [0; 3],
             tx: Some(tx),
             thread: Some(thread),
             folded,
         })
     }
 
-    /// Journals `inc`, which `map` has just taken in, and makes it durable when due (see
+    /// Reads back into `map` every tile on disk within the paging radius of `origin` (the
+    /// next bin's), before the bin is fused; the next record names them. On an error the
+    /// tiles read so far stay in and are recorded; the rest stay on disk.
+    pub fn prepare(&mut self, map: &mut GlobalMap, origin: DVec3) -> Result<(), StoreError> {
+        let Some(paging) = self.paging else {
+            return Ok(());
+        };
+        let side = map.config().tile_side();
+        let radius = paging
+            .radius_m
+            .max(f64::from(map.config().keep.max_range_m));
+        let near: Vec<TileKey> = map
+            .paged_tiles()
+            .keys()
+            .filter(|t| tile_distance(**t, side, origin) <= radius)
+            .copied()
+            .collect();
+        for tile in near {
+            self.page_in(map, tile)?;
+        }
+        Ok(())
+    }
+
+    /// Reads one paged-out tile back into the map and remembers it for the next record.
+    fn page_in(&mut self, map: &mut GlobalMap, tile: TileKey) -> Result<(), StoreError> {
+        let Some(&paged) = map.paged_tiles().get(&tile) else {
+            return Ok(());
+        };
+        let dir = self.dir.join(TILES);
+        let gaussians = read_tile(&dir, tile, paged, map.config().tile_side())?;
+        map.put_tile(tile, gaussians)
+            .map_err(|what| StoreError::Invalid {
+                path: crate::fusion::tile_path(&dir, tile, paged.version),
+                offset: 0,
+                what,
+            })?;
+        self.paged_in.push(PageEvent::In(tile, paged));
+        self.tile_counts[0] += 1;
+        Ok(())
+    }
+
+    /// Writes the tiles the paging rule sends to disk (see the module doc) and drops them
+    /// from `map`; the events, for the record.
+    fn page_out(&mut self, map: &mut GlobalMap) -> Result<Vec<PageEvent>, StoreError> {
+        let mut events = Vec::new();
+        let (Some(paging), Some(anchor)) = (self.paging, map.latest_origin()) else {
+            return Ok(events);
+        };
+        let config = *map.config();
+        let side = config.tile_side();
+        let keep = f64::from(config.keep.max_range_m).max(side);
+        let resident = map.resident_tiles();
+        let mut far: Vec<(f64, TileKey, u64)> = resident
+            .iter()
+            .map(|(t, n)| (tile_distance(*t, side, anchor), *t, *n))
+            .filter(|(d, _, _)| *d > keep)
+            .collect();
+        far.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let mut in_memory = map.len() as u64;
+        let room = (config.max_gaussians as u64 / 4) * 3;
+        let version = map.increments();
+        let dir = self.dir.join(TILES);
+        for (distance, tile, count) in far {
+            if distance <= paging.radius_m + side && in_memory <= room {
+                break;
+            }
+            if map.paged_tiles().contains_key(&tile) {
+                // Bins fused into a tile whose file is on disk (a keep range beyond the
+                // paging radius): read it in so the tile goes out whole.
+                self.page_in(map, tile)?;
+                events.push(self.paged_in.pop().expect("page_in recorded it"));
+            }
+            let gaussians = map
+                .take_tile(tile, version)
+                .expect("a tile read back in is not paged out");
+            if let Err(e) = write_tile(&dir, tile, version, &gaussians) {
+                map.put_tile(tile, gaussians)
+                    .expect("the tile was paged out just now");
+                return Err(e);
+            }
+            let paged = map.paged_tiles()[&tile];
+            events.push(PageEvent::Out(tile, paged));
+            in_memory -= count.min(in_memory);
+            self.tile_counts[1] += 1;
+            self.tile_counts[2] += paged.count;
+        }
+        Ok(events)
+    }
+
+    /// Journals `inc`, which `map` has just taken in, with the tiles paged in before it
+    /// ([`MapStore::prepare`]) and out after it, and makes it durable when due (see
     /// [`MapStore::new`]); closes the segment for the compactor when it is large enough.
     /// Returns whether the record is durable.
-    pub fn record(&mut self, map: &GlobalMap, inc: &Increment) -> Result<bool, StoreError> {
+    pub fn record(&mut self, map: &mut GlobalMap, inc: &Increment) -> Result<bool, StoreError> {
         if self.every == 0 {
             return Ok(false);
         }
         if let Some(empty) = self.empty.take() {
             checkpoint(&empty, &self.dir)?;
         }
-        self.journal_bytes += self.writer.append(map, inc)?;
+        let after = self.page_out(map)?;
+        let before = std::mem::take(&mut self.paged_in);
+        self.journal_bytes += self.writer.append(map, inc, &before, &after)?;
         self.unsynced_bins += 1;
         if self.unsynced_bins < self.every {
             return Ok(false);
@@ -150,11 +281,14 @@ impl MapStore {
         Ok(true)
     }
 
-    /// The store's counters: bytes journaled, base rewrites, bytes they wrote, failures and
-    /// the last one's duration.
-    pub fn counts(&self) -> [(&'static str, u64); 5] {
+    /// The store's counters: bytes journaled, base rewrites, bytes they wrote, failures, the
+    /// last one's duration, tiles paged in and out, and the Gaussians paged out.
+    pub fn counts(&self) -> [(&'static str, u64); 8] {
         let f = &self.folded;
         [
+            ("map/tiles_paged_in", self.tile_counts[0]),
+            ("map/tiles_paged_out", self.tile_counts[1]),
+            ("map/gaussians_paged_out", self.tile_counts[2]),
             ("map/journal_bytes", self.journal_bytes),
             ("map/compactions", f.compactions.load(Ordering::Relaxed)),
             ("map/compacted_bytes", f.base_bytes.load(Ordering::Relaxed)),
@@ -182,14 +316,15 @@ impl Drop for MapStore {
 }
 
 /// Folds the segments of `journal` up to `upto` (inclusive) into the base: loads it,
-/// replays them, saves it atomically, then removes them. Returns the base's size in bytes.
-fn compact(base: &Path, journal: &Path, upto: &Path) -> Result<u64, StoreError> {
+/// replays them (reading paged-in tiles from `tiles`), saves it atomically, then removes them
+/// and the tile files no later record can name. Returns the base's size in bytes.
+fn compact(base: &Path, journal: &Path, tiles: &Path, upto: &Path) -> Result<u64, StoreError> {
     let mut map = GlobalMap::load(base)?;
     let folded: Vec<PathBuf> = segments(journal)?
         .into_iter()
         .filter(|p| p.as_path() <= upto)
         .collect();
-    map.replay_journal(&folded, AtTornTail::Fail)?;
+    map.replay_journal(&folded, tiles, AtTornTail::Fail)?;
     let bytes = map.to_bytes();
     renderer::atomic::write_bytes_atomic(base, &bytes).map_err(|source| StoreError::Io {
         path: base.to_path_buf(),
@@ -201,5 +336,6 @@ fn compact(base: &Path, journal: &Path, upto: &Path) -> Result<u64, StoreError> 
             source,
         })?;
     }
+    collect_garbage(tiles, map.paged_tiles(), map.increments())?;
     Ok(bytes.len() as u64)
 }

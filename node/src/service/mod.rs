@@ -33,7 +33,7 @@ pub use keys::Keys;
 pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
 pub use limits::{InputLimits, Refusal};
 pub use map_files::{ExportError, RestoreError, StartMap};
-pub use map_store::Compaction;
+pub use map_store::{Compaction, Paging};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
 pub use node::{run, run_announced, run_with, NodeConfig};
 pub use outputs::NodeSummary;

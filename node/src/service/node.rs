@@ -14,7 +14,7 @@ use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
 use super::map_files::{export, start_map, StartMap};
-use super::map_store::{Compaction, MapStore};
+use super::map_store::{Compaction, MapStore, Paging};
 use super::outputs::{NodeSummary, Outputs, RegionPages};
 use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
@@ -68,6 +68,9 @@ pub struct NodeConfig {
     pub checkpoint_every: u64,
     /// When the journal is folded into the checkpoint's base ([`super::map_store`]).
     pub compaction: Compaction,
+    /// Which tiles of the map stay in memory while a journal is kept (`None`: all of it;
+    /// [`super::map_store`]).
+    pub paging: Option<Paging>,
     /// A global map snapshot is published after every this many bins (0: only on request).
     pub snapshot_every: u64,
     /// Per-bin renders: the bin map seen from its input view (drawn on the worker with this
@@ -123,6 +126,7 @@ impl Default for NodeConfig {
             start_map: StartMap::Resume,
             checkpoint_every: 1,
             compaction: Compaction::default(),
+            paging: Some(Paging::default()),
             snapshot_every: 10,
             renders: RenderWith::Auto,
             name: "stereosplat_node".into(),
@@ -254,6 +258,7 @@ pub async fn run_with(
             &start.map,
             config.checkpoint_every,
             config.compaction,
+            config.paging,
         )?),
         None => None,
     };
@@ -372,7 +377,7 @@ pub async fn run_with(
         export(&outputs.map, dir, config.map_format)?;
     }
     let mut summary = std::mem::take(&mut outputs.summary);
-    summary.global_gaussians = outputs.map.len();
+    summary.global_gaussians = outputs.map.total_len() as usize;
     summary.counters = std::mem::take(&mut outputs.counters);
     drop(outputs);
     if let Some(mut f) = foxglove {

@@ -61,7 +61,7 @@ use crate::transport::Outlet;
 pub struct NodeSummary {
     /// Bins whose maps were published.
     pub bins_published: u64,
-    /// Gaussians in the global map at the end.
+    /// Gaussians in the global map at the end (in memory and in tiles paged out).
     pub global_gaussians: usize,
     /// The counters at the end.
     pub counters: Counters,
@@ -184,6 +184,12 @@ impl<'a> Outputs<'a> {
                 } else {
                     &set
                 };
+                if let Some(store) = &mut self.store {
+                    if let Err(e) = store.prepare(&mut self.map, out.bin_to_world.translation) {
+                        eprintln!("reading paged tiles back failed: {e}");
+                        self.counters.add("error/checkpoint", 1);
+                    }
+                }
                 let fused = self.map.insert_bin(out.bin_id, to_fuse, out.bin_to_world);
                 self.latest_source_ns = stamps.source_ns;
                 if let Ok(inc) = &fused {
@@ -215,7 +221,7 @@ impl<'a> Outputs<'a> {
                                 "sequence": sequence,
                                 "added": inc.added.len(),
                                 "removed": inc.removed.len(),
-                                "total": self.map.len(),
+                                "total": self.map.total_len(),
                             });
                             let origin = out.bin_to_world.translation;
                             f.map_increment(summary, &inc.added, origin, stamps.source_ns);
@@ -371,15 +377,14 @@ impl<'a> Outputs<'a> {
         self.put(keys::TF_STATIC, msg.encode()).await
     }
 
-    /// Saves the map when `every` bins were fused since the last save. A failed save is
-    /// counted (`error/checkpoint`) and reported on stderr; the node goes on.
-    /// Journals a fused bin's change before the bin is published; a failure is reported
-    /// and counted, and the bin is still published.
+    /// Journals a fused bin's change (and the tiles paged with it) before the bin is
+    /// published; a failure is reported on stderr and counted (`error/checkpoint`), and the
+    /// bin is still published.
     fn journal(&mut self, inc: &Increment) {
         let Some(store) = &mut self.store else {
             return;
         };
-        match store.record(&self.map, inc) {
+        match store.record(&mut self.map, inc) {
             Ok(true) => self.counters.add("map/checkpoints", 1),
             Ok(false) => {}
             Err(e) => {

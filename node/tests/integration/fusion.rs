@@ -39,6 +39,7 @@ pub(crate) fn map_with(cell_size: f64, opacity_floor: f32, max_gaussians: usize)
         opacity_floor,
         max_gaussians,
         keep: Keep::ALL,
+        ..FusionConfig::default()
     })
     .unwrap()
 }

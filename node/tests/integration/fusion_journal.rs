@@ -49,7 +49,7 @@ fn journaled_drive(dir: &Path, bins: u64, writer: &mut JournalWriter) -> Vec<Vec
             pose = DAffine3::from_translation(DVec3::new(1.0e6, -2.0e5, 3.0)) * pose;
         }
         let inc = map.insert_bin(k, &set, pose).unwrap();
-        writer.append(&map, &inc).unwrap();
+        writer.append(&map, &inc, &[], &[]).unwrap();
         writer.sync().unwrap();
         states.push(map.to_bytes());
     }
@@ -68,7 +68,7 @@ fn a_base_and_its_journal_restore_the_map_bit_for_bit_after_every_bin() {
         let (set, pose) = random_bin(&mut rng, k);
         let inc = map.insert_bin(k, &set, pose).unwrap();
         (evicted, replaced) = (evicted + inc.stats.evicted, replaced + inc.stats.replaced);
-        writer.append(&map, &inc).unwrap();
+        writer.append(&map, &inc, &[], &[]).unwrap();
         writer.sync().unwrap();
         // A crash here (after the record, before any compaction) restores this map.
         assert_eq!(restored(&dir).to_bytes(), map.to_bytes(), "bin {k}");
@@ -173,7 +173,7 @@ fn damage_before_the_journal_s_end_and_a_journal_without_base_are_typed_errors()
     let mut rng = ChaCha8Rng::seed_from_u64(99);
     let (set, pose) = random_bin(&mut rng, 6);
     let inc = more.insert_bin(6, &set, pose).unwrap();
-    writer.append(&more, &inc).unwrap();
+    writer.append(&more, &inc, &[], &[]).unwrap();
     writer.sync().unwrap();
     let journal = segments(&dir.join(JOURNAL)).unwrap();
     assert_eq!(journal.len(), 2);
@@ -214,7 +214,7 @@ fn the_compactor_folds_the_journal_into_the_base_within_the_bytes_journaled() {
     let dir = scratch("compactor");
     let mut map = map_with(1.0, 0.1, 100_000);
     let compaction = Compaction { min_bytes: 0 };
-    let mut store = MapStore::new(dir.clone(), &map, 1, compaction).unwrap();
+    let mut store = MapStore::new(dir.clone(), &map, 1, compaction, None).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let mut increments = 0u64;
     for k in 0..200u64 {
@@ -222,7 +222,7 @@ fn the_compactor_folds_the_journal_into_the_base_within_the_bytes_journaled() {
         let inc = map.insert_bin(k, &set, pose).unwrap();
         increments += (inc.added.len() * 88 + inc.removed.len() * 8) as u64;
         assert!(
-            store.record(&map, &inc).unwrap(),
+            store.record(&mut map, &inc).unwrap(),
             "synced before publishing"
         );
     }
@@ -235,7 +235,7 @@ fn the_compactor_folds_the_journal_into_the_base_within_the_bytes_journaled() {
     // Each rewrite waited for as many journal bytes as the base it wrote.
     assert!(compacted <= journal, "{compacted} > {journal}");
     assert!(
-        journal <= increments + 200 * 100,
+        journal <= increments + 200 * 120,
         "{journal} for {increments}"
     );
     assert!(segments(&dir.join(JOURNAL)).unwrap().len() <= 2);

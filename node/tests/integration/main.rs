@@ -36,6 +36,7 @@ mod foxglove_client;
 mod fusion;
 mod fusion_journal;
 mod fusion_keep;
+mod fusion_tiles;
 #[cfg(unix)]
 mod launch;
 mod msg_codec;

@@ -1,0 +1,293 @@
+//! Tiles: the world map's ground cut into squares of [`FusionConfig::tile_m`] metres (whole
+//! ground columns of the cell index), the unit in which a long drive's map is kept on disk
+//! and out of memory.
+//!
+//! A tile is *paged out* by taking all its Gaussians out of the map ([`GlobalMap::take_tile`])
+//! and writing them to a tile file ([`write_tile`]); the map remembers it as
+//! [`PagedTile`] (its version and count) and saves that table with its base. A tile the
+//! vehicle comes back to is *paged in* ([`GlobalMap::put_tile`]): the same ids and Gaussians
+//! return, so later bins fuse into it by the usual rule instead of layering a copy on top.
+//! Paging is no change to the map's content: increments never mention it, and nothing paged
+//! out is removed from what subscribers hold.
+//!
+//! Tile files are versioned: `<x>_<y>_<version>.sstile` in the tiles folder, the version being
+//! the map's sequence number when the tile went out. A journal record names the versions it
+//! paged in and out, so replaying any stretch of the journal reads the files as they were
+//! then; files no base or journal record can still name are removed by
+//! [`collect_garbage`]. Format (little endian): magic `SSGTILE\n`, version u32 (1), tile x
+//! i64, tile y i64, count u64, the Gaussians in the base file's record layout (ids
+//! increasing), an FNV-1a 64 checksum (u64) of everything before it.
+
+use std::collections::BTreeMap;
+use std::io::ErrorKind;
+use std::path::{Path, PathBuf};
+
+use glam::{DVec2, DVec3};
+
+use super::snapshot::{fnv1a, put_gaussian, Reader, RECORD_BYTES};
+use super::{cell_of, FusionConfig, GaussianId, GlobalMap, StoreError, WorldGaussian};
+
+const MAGIC: &[u8; 8] = b"SSGTILE\n";
+const VERSION: u32 = 1;
+const EXT: &str = "sstile";
+
+/// A tile's integer ground coordinates: `floor(x / tile side)`, `floor(y / tile side)`.
+pub type TileKey = (i64, i64);
+
+/// A tile that is on disk, not in memory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PagedTile {
+    /// The version of its file (the map's sequence number when it was paged out).
+    pub version: u64,
+    /// Gaussians in it.
+    pub count: u64,
+}
+
+/// One tile moving between memory and disk, as a journal record lists it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PageEvent {
+    /// The tile's file of this version was read into the map.
+    In(TileKey, PagedTile),
+    /// The tile was taken out of the map and written to the file of this version.
+    Out(TileKey, PagedTile),
+}
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> StoreError + '_ {
+    move |source| StoreError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// The file of `tile` at `version` in the tiles folder `dir`.
+pub fn tile_path(dir: &Path, tile: TileKey, version: u64) -> PathBuf {
+    dir.join(format!("{}_{}_{version}.{EXT}", tile.0, tile.1))
+}
+
+/// The tile and version a tile file's name gives (`None` for other files).
+fn parse_name(path: &Path) -> Option<(TileKey, u64)> {
+    if path.extension().is_none_or(|e| e != EXT) {
+        return None;
+    }
+    let stem = path.file_stem()?.to_str()?;
+    let mut parts = stem.rsplitn(3, '_');
+    let version = parts.next()?.parse().ok()?;
+    let y = parts.next()?.parse().ok()?;
+    let x = parts.next()?.parse().ok()?;
+    Some(((x, y), version))
+}
+
+/// Writes a tile's Gaussians to its file of `version` in `dir` (created if missing),
+/// atomically and durably: the file is whole on disk before this returns.
+pub fn write_tile(
+    dir: &Path,
+    tile: TileKey,
+    version: u64,
+    gaussians: &[(GaussianId, WorldGaussian)],
+) -> Result<u64, StoreError> {
+    std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+    let mut b = Vec::with_capacity(40 + gaussians.len() * RECORD_BYTES);
+    b.extend_from_slice(MAGIC);
+    b.extend_from_slice(&VERSION.to_le_bytes());
+    b.extend_from_slice(&tile.0.to_le_bytes());
+    b.extend_from_slice(&tile.1.to_le_bytes());
+    b.extend_from_slice(&(gaussians.len() as u64).to_le_bytes());
+    for (id, g) in gaussians {
+        put_gaussian(&mut b, *id, g);
+    }
+    let sum = fnv1a(&b);
+    b.extend_from_slice(&sum.to_le_bytes());
+    let path = tile_path(dir, tile, version);
+    renderer::atomic::write_bytes_atomic(&path, &b).map_err(io_error(&path))?;
+    Ok(b.len() as u64)
+}
+
+/// Reads the file of `tile` at `paged.version` from `dir`; it must hold `paged.count`
+/// Gaussians of that tile (side `tile_m`), ids increasing, every field finite.
+pub fn read_tile(
+    dir: &Path,
+    tile: TileKey,
+    paged: PagedTile,
+    tile_m: f64,
+) -> Result<Vec<(GaussianId, WorldGaussian)>, StoreError> {
+    let path = tile_path(dir, tile, paged.version);
+    let bytes = std::fs::read(&path).map_err(io_error(&path))?;
+    let mut r = Reader {
+        bytes: &bytes,
+        pos: 0,
+        path: &path,
+    };
+    if r.take(MAGIC.len())? != MAGIC {
+        return Err(StoreError::BadMagic { path });
+    }
+    let version = r.u32()?;
+    if version != VERSION {
+        return Err(StoreError::UnsupportedVersion { path, version });
+    }
+    if bytes.len() < r.pos + 8 {
+        return Err(r.invalid(r.pos, "tile file shorter than its checksum"));
+    }
+    let (body, sum) = bytes.split_at(bytes.len() - 8);
+    if fnv1a(body) != u64::from_le_bytes(sum.try_into().unwrap_or_default()) {
+        return Err(StoreError::Checksum { path });
+    }
+    r.bytes = body;
+    let at = r.pos;
+    let key = (r.u64()? as i64, r.u64()? as i64);
+    let count = r.u64()?;
+    if key != tile || count != paged.count {
+        return Err(r.invalid(at, "tile file of another tile or another count"));
+    }
+    if count.checked_mul(RECORD_BYTES as u64) != Some((r.bytes.len() - r.pos) as u64) {
+        return Err(r.invalid(at + 16, "count does not match the file length"));
+    }
+    let mut out = Vec::with_capacity(count as usize);
+    for _ in 0..count {
+        let at = r.pos;
+        let (id, g) = r.gaussian()?;
+        if out.last().is_some_and(|(last, _)| id <= *last) || tile_of(g.position, tile_m) != tile {
+            return Err(r.invalid(at, "ids not increasing or a Gaussian outside its tile"));
+        }
+        out.push((id, g));
+    }
+    Ok(out)
+}
+
+/// Removes every tile file in `dir` that neither `keep` (a map's paged tiles) names nor is
+/// newer than `upto` (the sequence number of the base that `keep` belongs to): no record
+/// past that base can name it. Returns how many files were removed.
+pub fn collect_garbage(
+    dir: &Path,
+    keep: &BTreeMap<TileKey, PagedTile>,
+    upto: u64,
+) -> Result<usize, StoreError> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(io_error(dir)(e)),
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let path = entry.map_err(io_error(dir))?.path();
+        let Some((tile, version)) = parse_name(&path) else {
+            continue;
+        };
+        let named = keep.get(&tile).is_some_and(|p| p.version == version);
+        if !named && version <= upto {
+            std::fs::remove_file(&path).map_err(io_error(&path))?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
+/// The tile holding a world position, for tiles of side `tile_m` (finite positions).
+pub fn tile_of(position: DVec3, tile_m: f64) -> TileKey {
+    let k = (position.truncate() / tile_m).floor();
+    (k.x as i64, k.y as i64)
+}
+
+/// Ground distance from `point` to the tile's square (0 inside it).
+pub fn tile_distance(tile: TileKey, tile_m: f64, point: DVec3) -> f64 {
+    let lo = DVec2::new(tile.0 as f64, tile.1 as f64) * tile_m;
+    let hi = lo + tile_m;
+    let p = point.truncate();
+    (p.clamp(lo, hi) - p).length()
+}
+
+impl FusionConfig {
+    /// The tile side actually used: [`FusionConfig::tile_m`] rounded to whole ground columns
+    /// of the cell index, so that every cell lies in exactly one tile.
+    pub fn tile_side(&self) -> f64 {
+        let column = super::cells::column_side(self.cell_size);
+        (self.tile_m / column).round().max(1.0) * column
+    }
+}
+
+impl GlobalMap {
+    /// The tiles on disk, with their versions and counts.
+    pub fn paged_tiles(&self) -> &BTreeMap<TileKey, PagedTile> {
+        &self.paged
+    }
+
+    /// Gaussians in the whole map: those in memory plus those in paged-out tiles.
+    pub fn total_len(&self) -> u64 {
+        self.len() as u64 + self.paged.values().map(|p| p.count).sum::<u64>()
+    }
+
+    /// The tiles with Gaussians in memory, with their counts, in tile order.
+    pub fn resident_tiles(&self) -> BTreeMap<TileKey, u64> {
+        let per_tile = self.columns_per_tile();
+        let mut out = BTreeMap::new();
+        for (column, cells) in self.cells.columns() {
+            let tile = (column.0.div_euclid(per_tile), column.1.div_euclid(per_tile));
+            let n: usize = cells.map(|c| c.ids.len()).sum();
+            *out.entry(tile).or_insert(0) += n as u64;
+        }
+        out
+    }
+
+    fn columns_per_tile(&self) -> i64 {
+        let column = super::cells::column_side(self.config.cell_size);
+        (self.config.tile_side() / column).round() as i64
+    }
+
+    /// Takes every Gaussian of `tile` out of memory (in id order) and records the tile as
+    /// paged out at `version`; the caller writes them to the tile's file. A tile with
+    /// nothing in memory gives nothing and is not recorded. A tile already paged out must be
+    /// paged in first (its file would be forgotten): an error, changing nothing.
+    pub fn take_tile(
+        &mut self,
+        tile: TileKey,
+        version: u64,
+    ) -> Result<Vec<(GaussianId, WorldGaussian)>, &'static str> {
+        if self.paged.contains_key(&tile) {
+            return Err("the tile is paged out already");
+        }
+        let per_tile = self.columns_per_tile();
+        let mut ids = Vec::new();
+        for cx in tile.0 * per_tile..(tile.0 + 1) * per_tile {
+            for cy in tile.1 * per_tile..(tile.1 + 1) * per_tile {
+                for key in self.cells.column_cells((cx, cy)) {
+                    ids.extend(self.cells.remove(key));
+                }
+            }
+        }
+        ids.sort_unstable();
+        let out: Vec<_> = ids
+            .into_iter()
+            .filter_map(|id| self.gaussians.remove(&id).map(|g| (id, g)))
+            .collect();
+        if !out.is_empty() {
+            let count = out.len() as u64;
+            self.paged.insert(tile, PagedTile { version, count });
+        }
+        Ok(out)
+    }
+
+    /// Puts a paged-out tile's Gaussians (as [`read_tile`] gives them) back into memory,
+    /// with their ids and cells as they were, and forgets the tile's file. Errors, changing
+    /// nothing, when the tile is not paged out or an id is already in the map.
+    pub fn put_tile(
+        &mut self,
+        tile: TileKey,
+        gaussians: Vec<(GaussianId, WorldGaussian)>,
+    ) -> Result<(), &'static str> {
+        if !self.paged.contains_key(&tile) {
+            return Err("the tile is not paged out");
+        }
+        if gaussians
+            .iter()
+            .any(|(id, _)| id.0 >= self.next_id || self.gaussians.contains_key(id))
+        {
+            return Err("a paged-in id is in the map or was never assigned");
+        }
+        self.paged.remove(&tile);
+        for (id, g) in gaussians {
+            let key = cell_of(g.position, self.config.cell_size);
+            self.cells.push(key, id, g.confidence);
+            self.gaussians.insert(id, g);
+        }
+        Ok(())
+    }
+}

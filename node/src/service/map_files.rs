@@ -17,19 +17,21 @@
 //! [`RestoreError::Unreadable`], naming the file and why, and the files are left as they
 //! are; a fresh start moves the base, the journal and the tiles aside (to `<name>.replaced-<unix
 //! seconds>`) rather than overwriting them, so no saved map is ever replaced by an empty one.
-//! The exported map file is in the format `run --format` names (PLY by default).
+//! The exported map file is in the format `run --format` names (PLY by default); a map of
+//! more than [`ONE_FILE_MAX`] Gaussians is exported one file per tile, with an index.
 //! Every file is replaced atomically ([`renderer::atomic`]).
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use glam::{DAffine3, DVec2};
+use glam::{DAffine3, DVec2, DVec3};
 
 use renderer::formats::MapFormat;
 
 use crate::fusion::{
-    bev_image, collect_garbage, local_set, read_tile, save_bev_png, segments, AtTornTail, BevView,
-    GlobalMap, Replay, StoreError, WorldGaussian,
+    bev_image, collect_garbage, local_set, read_tile, save_bev_png, segments, tile_of, AtTornTail,
+    BevView, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
 };
 
 /// The checkpoint's base file name in the out folder.
@@ -228,22 +230,35 @@ pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
     Ok(())
 }
 
-/// Writes the checkpoint, the whole global map (in memory and paged out) as
-/// `global_map.<ply|spz|glb>` in `format` (positions relative to the latest bin's origin,
-/// which `global_map_origin.json` records; see [`renderer::formats`]) and a bird's-eye PNG,
-/// each atomically.
+/// The most Gaussians [`export`] writes as one map file: a larger map is written one file per
+/// tile plus an index (`global_map_tiles/`). 4 M Gaussians are a PLY of 288 MB, about what
+/// desktop splat viewers open.
+pub const ONE_FILE_MAX: u64 = 4_000_000;
+
+/// Writes the checkpoint, the whole global map (in memory and paged out) and a bird's-eye PNG,
+/// each atomically: [`export_with_limit`] at [`ONE_FILE_MAX`].
 pub fn export(map: &GlobalMap, dir: &Path, format: MapFormat) -> Result<(), ExportError> {
+    export_with_limit(map, dir, format, ONE_FILE_MAX)
+}
+
+/// Writes the checkpoint, the whole global map in `format` (positions relative to the latest
+/// bin's origin, which `global_map_origin.json` records; see [`renderer::formats`]) and a
+/// bird's-eye PNG, each atomically. A map of at most `one_file_max` Gaussians is one file,
+/// `global_map.<ply|spz|glb>`; a larger one is one file per tile, `global_map_tiles/<x>_<y>.<ext>`
+/// (the same origin, so the tiles overlay), plus `global_map_tiles/index.json` (origin, tile
+/// side, format, and per tile its key, file, count and world bounds), read one tile at a time.
+pub fn export_with_limit(
+    map: &GlobalMap,
+    dir: &Path,
+    format: MapFormat,
+    one_file_max: u64,
+) -> Result<(), ExportError> {
     let err = |e: &dyn std::fmt::Display| ExportError(e.to_string());
     checkpoint(map, dir).map_err(|e| err(&e))?;
     let Some(origin) = map.latest_origin() else {
         return Ok(());
     };
     let frame = DAffine3::from_translation(origin);
-    let whole = whole_map(map, &dir.join(CHECKPOINT)).map_err(|e| err(&e))?;
-    let set = local_set(whole.iter(), frame).map_err(|e| err(&e))?;
-    let file = dir.join(format!("global_map.{format}"));
-    renderer::formats::save_map(&set, &file, format)
-        .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
     let json = format!(
         "{{\"x\": {}, \"y\": {}, \"z\": {}}}\n",
         origin.x, origin.y, origin.z
@@ -252,7 +267,87 @@ pub fn export(map: &GlobalMap, dir: &Path, format: MapFormat) -> Result<(), Expo
     renderer::atomic::write_bytes_atomic(&origin_file, json.as_bytes())
         .map_err(|e| err(&format!("{}: {e}", origin_file.display())))?;
     let view = BevView::export(DVec2::new(origin.x, origin.y));
-    let image = bev_image(whole.iter(), &view).map_err(|e| err(&e))?;
+    let image = if map.total_len() <= one_file_max {
+        let whole = whole_map(map, &dir.join(CHECKPOINT)).map_err(|e| err(&e))?;
+        let set = local_set(whole.iter(), frame).map_err(|e| err(&e))?;
+        let file = dir.join(format!("global_map.{format}"));
+        renderer::formats::save_map(&set, &file, format)
+            .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
+        bev_image(whole.iter(), &view)
+    } else {
+        export_tiles(map, dir, format, frame)?;
+        // The view's 128 m around the latest bin lie within the tiles kept in memory.
+        let (min, max) = view.ground_box();
+        bev_image(
+            map.gaussians_in(min, max).into_iter().map(|(_, g)| g),
+            &view,
+        )
+    };
+    let image = image.map_err(|e| err(&e))?;
     let bev = dir.join("global_map_bev.png");
     save_bev_png(&image, &bev).map_err(|e| err(&format!("{}: {e}", bev.display())))
+}
+
+/// The tile files and index of [`export_with_limit`], in `dir/global_map_tiles/` (emptied
+/// first).
+fn export_tiles(
+    map: &GlobalMap,
+    dir: &Path,
+    format: MapFormat,
+    frame: DAffine3,
+) -> Result<(), ExportError> {
+    let err = |e: &dyn std::fmt::Display| ExportError(e.to_string());
+    let out = dir.join("global_map_tiles");
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).map_err(|e| err(&format!("{}: {e}", out.display())))?;
+    let side = map.config().tile_side();
+    let mut in_memory: BTreeMap<TileKey, Vec<WorldGaussian>> = BTreeMap::new();
+    for (_, g) in map.gaussians() {
+        in_memory
+            .entry(tile_of(g.position, side))
+            .or_default()
+            .push(*g);
+    }
+    let keys: BTreeSet<TileKey> = in_memory
+        .keys()
+        .chain(map.paged_tiles().keys())
+        .copied()
+        .collect();
+    let tiles_dir = dir.join(TILES);
+    let mut index = Vec::with_capacity(keys.len());
+    for key in keys {
+        let mut gaussians = in_memory.remove(&key).unwrap_or_default();
+        if let Some(paged) = map.paged_tiles().get(&key) {
+            let read = read_tile(&tiles_dir, key, *paged, side).map_err(|e| err(&e))?;
+            gaussians.extend(read.into_iter().map(|(_, g)| g));
+        }
+        let set = local_set(gaussians.iter(), frame).map_err(|e| err(&e))?;
+        let name = format!("{}_{}.{format}", key.0, key.1);
+        let file = out.join(&name);
+        renderer::formats::save_map(&set, &file, format)
+            .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
+        let (min, max) = gaussians.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), g| (lo.min(g.position), hi.max(g.position)),
+        );
+        index.push(serde_json::json!({
+            "tile": [key.0, key.1],
+            "file": name,
+            "count": gaussians.len(),
+            "min": min.to_array(),
+            "max": max.to_array(),
+        }));
+    }
+    let origin = frame.translation;
+    let json = serde_json::json!({
+        "origin": origin.to_array(),
+        "tile_m": side,
+        "format": format.to_string(),
+        "gaussians": map.total_len(),
+        "tiles": index,
+    });
+    let file = out.join("index.json");
+    let text = serde_json::to_string_pretty(&json).map_err(|e| err(&e))?;
+    renderer::atomic::write_bytes_atomic(&file, text.as_bytes())
+        .map_err(|e| err(&format!("{}: {e}", file.display())))
 }

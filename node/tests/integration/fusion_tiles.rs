@@ -2,7 +2,8 @@
 //! loop driven twice with far tiles paged out fuses its second pass into the first pass's
 //! tiles (read back from disk) instead of layering a copy; the map in memory stays bounded
 //! while the whole map grows; base, journal and tile files restore the live map bit for bit
-//! after every bin and after compaction; damaged or missing tile files are typed errors.
+//! after every bin and after compaction; the export holds every tile, as one file or one
+//! file per tile with an index; damaged or missing tile files are typed errors.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -12,11 +13,12 @@ use node::fusion::{
     read_tile, tile_of, tile_path, write_tile, AtTornTail, FusionConfig, GlobalMap, Keep,
     PagedTile, StoreError, TileKey,
 };
-use node::service::map_files::{restore, whole_map, CHECKPOINT, TILES};
+use node::service::map_files::{export_with_limit, restore, whole_map, CHECKPOINT, TILES};
 use node::service::map_store::MapStore;
 use node::service::{Compaction, Paging};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use renderer::formats::{load_map, MapFormat};
 use renderer::{Gaussian, GaussianSet};
 
 fn scratch(name: &str) -> PathBuf {
@@ -263,6 +265,32 @@ fn compaction_with_paged_tiles_restores_the_live_map_and_bad_tile_files_are_type
     let restored = restore(&dir, AtTornTail::Stop).unwrap().unwrap().map;
     assert_eq!(restored.to_bytes(), map.to_bytes());
     assert!(!map.paged_tiles().is_empty());
+
+    // The export holds every tile: as one file, and one file per tile with an index.
+    export_with_limit(&map, &dir, MapFormat::Ply, u64::MAX).unwrap();
+    let (_, one) = load_map(&dir.join("global_map.ply")).unwrap();
+    assert_eq!(one.len() as u64, map.total_len());
+    export_with_limit(&map, &dir, MapFormat::Ply, 100).unwrap();
+    let tiles = dir.join("global_map_tiles");
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(tiles.join("index.json")).unwrap()).unwrap();
+    let origin = DVec3::from_array(serde_json::from_value(index["origin"].clone()).unwrap());
+    let side = map.config().tile_side();
+    let mut total = 0;
+    for t in index["tiles"].as_array().unwrap() {
+        let (_, set) = load_map(&tiles.join(t["file"].as_str().unwrap())).unwrap();
+        assert_eq!(set.len() as u64, t["count"].as_u64().unwrap());
+        let key = (
+            t["tile"][0].as_i64().unwrap(),
+            t["tile"][1].as_i64().unwrap(),
+        );
+        for m in &set.means {
+            assert_eq!(tile_of(origin + m.as_dvec3(), side), key, "{m}");
+        }
+        total += set.len() as u64;
+    }
+    assert_eq!(total, map.total_len());
+    assert_eq!(index["gaussians"].as_u64(), Some(map.total_len()));
 
     // A flipped byte in a tile file the map names: its checksum says so, naming the file.
     let (&tile, &paged) = map.paged_tiles().iter().next().unwrap();

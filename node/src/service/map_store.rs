@@ -125,7 +125,9 @@ impl MapStore {
             .spawn(move || {
                 while let Ok(upto) = rx.recv() {
                     let start = Instant::now();
-                    match compact(&base, &journal, &tiles, &upto) {
+                    let folded = compact(&base, &journal, &tiles, &upto);
+                    release_freed_memory();
+                    match folded {
                         Ok(bytes) => {
                             shared.compactions.fetch_add(1, Ordering::Relaxed);
                             shared.base_bytes.fetch_add(bytes, Ordering::Relaxed);
@@ -312,6 +314,18 @@ impl MapStore {
 impl Drop for MapStore {
     fn drop(&mut self) {
         let _ = self.finish();
+    }
+}
+
+/// Hands the memory the compactor freed (its copy of the base) back to the system: glibc
+/// keeps freed heap pages otherwise, and the node's resident size would stay at the
+/// compaction's peak instead of following the map in memory.
+fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `malloc_trim` only returns the allocator's free pages to the system; it takes
+    // no pointer and is thread-safe.
+    unsafe {
+        libc::malloc_trim(0);
     }
 }
 

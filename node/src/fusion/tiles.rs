@@ -210,6 +210,21 @@ impl GlobalMap {
         &self.paged
     }
 
+    /// The paged-out tiles whose squares meet the ground box `min`-`max` (world x-y, metres),
+    /// in tile order.
+    pub fn paged_tiles_in(&self, min: DVec2, max: DVec2) -> Vec<(TileKey, PagedTile)> {
+        let side = self.config.tile_side();
+        self.paged
+            .iter()
+            .filter(|(t, _)| {
+                let lo = DVec2::new(t.0 as f64, t.1 as f64) * side;
+                let hi = lo + side;
+                lo.cmple(max).all() && hi.cmpge(min).all()
+            })
+            .map(|(t, p)| (*t, *p))
+            .collect()
+    }
+
     /// Gaussians in the whole map: those in memory plus those in paged-out tiles.
     pub fn total_len(&self) -> u64 {
         self.len() as u64 + self.paged.values().map(|p| p.count).sum::<u64>()

@@ -31,7 +31,7 @@ use renderer::formats::MapFormat;
 
 use crate::fusion::{
     bev_image, collect_garbage, local_set, read_tile, save_bev_png, segments, tile_of, AtTornTail,
-    BevView, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
+    BevView, GaussianId, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
 };
 
 /// The checkpoint's base file name in the out folder.
@@ -148,6 +148,55 @@ pub fn restore_files(
 /// (`global_map.ssgmap` -> `global_map.journal`).
 pub fn journal_of(base: &Path) -> PathBuf {
     base.with_extension("journal")
+}
+
+/// Why a region of the whole map was not read.
+#[derive(Debug, thiserror::Error)]
+pub enum RegionReadError {
+    /// The region may hold more Gaussians than one answer holds.
+    #[error("the region may hold {upper} Gaussians, more than the {at_most} one answer holds: ask for a smaller region")]
+    TooLarge {
+        /// Gaussians in memory in the region plus every Gaussian of the tiles on disk it meets.
+        upper: u64,
+        /// The most one answer holds.
+        at_most: u64,
+    },
+    /// A tile file the region meets does not read.
+    #[error("reading the region's tiles: {0}")]
+    Tile(#[from] StoreError),
+}
+
+/// The Gaussians whose centres lie in the ground box `min`-`max` (world x-y, metres), in id
+/// order: those in memory and those of the paged-out tiles the box meets, read from the
+/// tiles folder `tiles`. Refused before anything is read when the box may hold more than
+/// `at_most` (counting the whole of each tile on disk it meets).
+pub fn gaussians_in_whole(
+    map: &GlobalMap,
+    tiles: &Path,
+    min: DVec2,
+    max: DVec2,
+    at_most: u64,
+) -> Result<Vec<(GaussianId, WorldGaussian)>, RegionReadError> {
+    let mut found: Vec<(GaussianId, WorldGaussian)> = map
+        .gaussians_in(min, max)
+        .into_iter()
+        .map(|(id, g)| (id, *g))
+        .collect();
+    let on_disk = map.paged_tiles_in(min, max);
+    let upper = found.len() as u64 + on_disk.iter().map(|(_, p)| p.count).sum::<u64>();
+    if upper > at_most {
+        return Err(RegionReadError::TooLarge { upper, at_most });
+    }
+    let side = map.config().tile_side();
+    for (tile, paged) in on_disk {
+        let read = read_tile(tiles, tile, paged, side)?;
+        found.extend(read.into_iter().filter(|(_, g)| {
+            let p = g.position.truncate();
+            p.cmpge(min).all() && p.cmple(max).all()
+        }));
+    }
+    found.sort_unstable_by_key(|(id, _)| *id);
+    Ok(found)
 }
 
 /// The tiles folder beside a checkpoint's base file: `<stem>.tiles`.

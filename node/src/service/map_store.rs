@@ -165,6 +165,11 @@ impl MapStore {
         })
     }
 
+    /// The folder of the map's paged-out tiles.
+    pub fn tiles_dir(&self) -> PathBuf {
+        self.dir.join(TILES)
+    }
+
     /// Reads back into `map` every tile on disk within the paging radius of `origin` (the
     /// next bin's), before the bin is fused; the next record names them. On an error the
     /// tiles read so far stay in and are recorded; the rest stay on disk.

@@ -13,7 +13,7 @@ use super::error::ServiceError;
 use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
-use super::map_files::{export, start_map, StartMap};
+use super::map_files::{export, start_map, RegionReadError, StartMap};
 use super::map_store::{Compaction, MapStore, Paging};
 use super::outputs::{NodeSummary, Outputs, RegionPages};
 use super::region::RegionQuery;
@@ -322,7 +322,18 @@ pub async fn run_with(
                     }
                     continue;
                 };
-                let RegionPages { pages, total } = outputs.region_pages(&region);
+                let RegionPages { pages, total } = match outputs.region_pages(&region) {
+                    Ok(pages) => pages,
+                    Err(e) => {
+                        let counter = match e {
+                            RegionReadError::TooLarge { .. } => "refused/snapshot_region",
+                            RegionReadError::Tile(_) => "error/region_tiles",
+                        };
+                        outputs.counters.add(counter, 1);
+                        q.reply_err(e.to_string()).await.map_err(zenoh_err)?;
+                        continue;
+                    }
+                };
                 let count = pages.len();
                 for (i, page) in pages.into_iter().enumerate() {
                     let attachment = region.attachment(i, count, total);

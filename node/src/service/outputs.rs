@@ -34,6 +34,7 @@ use super::counters::Counters;
 use super::error::ServiceError;
 use super::inputs::CameraPose;
 use super::keys::{self, Topic};
+use super::map_files::{gaussians_in_whole, RegionReadError};
 use super::map_store::MapStore;
 use super::region::RegionQuery;
 use crate::foxglove::messages::latency_json;
@@ -318,18 +319,23 @@ impl<'a> Outputs<'a> {
     }
 
     /// The Gaussians of `region`, in id order, cut into pages of its page size (one empty
-    /// page when there are none).
-    pub fn region_pages(&self, region: &RegionQuery) -> RegionPages {
-        let found = self.map.gaussians_in(region.min, region.max);
+    /// page when there are none): those in memory and those of the tiles on disk the region
+    /// meets. Refused when the region may hold more than the map's budget in memory.
+    pub fn region_pages(&self, region: &RegionQuery) -> Result<RegionPages, RegionReadError> {
+        let budget = self.map.config().max_gaussians as u64;
+        let tiles = self
+            .store
+            .as_ref()
+            .map(MapStore::tiles_dir)
+            .unwrap_or_default();
+        let found = gaussians_in_whole(&self.map, &tiles, region.min, region.max, budget)?;
         let total = found.len();
-        let mut pages: Vec<Vec<(GaussianId, WorldGaussian)>> = found
-            .chunks(region.page_size)
-            .map(|c| c.iter().map(|&(id, g)| (id, *g)).collect())
-            .collect();
+        let mut pages: Vec<Vec<(GaussianId, WorldGaussian)>> =
+            found.chunks(region.page_size).map(|c| c.to_vec()).collect();
         if pages.is_empty() {
             pages.push(Vec::new());
         }
-        RegionPages { pages, total }
+        Ok(RegionPages { pages, total })
     }
 
     /// One page of a region as a MapUpdate snapshot at the current sequence number.

@@ -8,12 +8,14 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use glam::{DAffine3, DQuat, DVec3, Quat, Vec3};
+use glam::{DAffine3, DQuat, DVec2, DVec3, Quat, Vec3};
 use node::fusion::{
     read_tile, tile_of, tile_path, write_tile, AtTornTail, FusionConfig, GlobalMap, Keep,
     PagedTile, StoreError, TileKey,
 };
-use node::service::map_files::{export_with_limit, restore, whole_map, CHECKPOINT, TILES};
+use node::service::map_files::{
+    export_with_limit, gaussians_in_whole, restore, whole_map, RegionReadError, CHECKPOINT, TILES,
+};
 use node::service::map_store::MapStore;
 use node::service::{Compaction, Paging};
 use rand::{Rng, SeedableRng};
@@ -268,7 +270,7 @@ fn compaction_with_paged_tiles_restores_the_live_map_and_bad_tile_files_are_type
 
     // The export holds every tile: as one file, and one file per tile with an index.
     export_with_limit(&map, &dir, MapFormat::Ply, u64::MAX).unwrap();
-    let (_, one) = load_map(&dir.join("global_map.ply")).unwrap();
+    let (_, one) = load_map(dir.join("global_map.ply")).unwrap();
     assert_eq!(one.len() as u64, map.total_len());
     export_with_limit(&map, &dir, MapFormat::Ply, 100).unwrap();
     let tiles = dir.join("global_map_tiles");
@@ -278,7 +280,7 @@ fn compaction_with_paged_tiles_restores_the_live_map_and_bad_tile_files_are_type
     let side = map.config().tile_side();
     let mut total = 0;
     for t in index["tiles"].as_array().unwrap() {
-        let (_, set) = load_map(&tiles.join(t["file"].as_str().unwrap())).unwrap();
+        let (_, set) = load_map(tiles.join(t["file"].as_str().unwrap())).unwrap();
         assert_eq!(set.len() as u64, t["count"].as_u64().unwrap());
         let key = (
             t["tile"][0].as_i64().unwrap(),
@@ -291,6 +293,25 @@ fn compaction_with_paged_tiles_restores_the_live_map_and_bad_tile_files_are_type
     }
     assert_eq!(total, map.total_len());
     assert_eq!(index["gaussians"].as_u64(), Some(map.total_len()));
+
+    // A region over the whole road reads the tiles on disk it meets; one that may hold more
+    // than an answer holds is refused before anything is read.
+    let (min, max) = (DVec2::splat(-1e4), DVec2::splat(1e4));
+    let region = gaussians_in_whole(&map, &dir.join(TILES), min, max, u64::MAX).unwrap();
+    assert_eq!(region.len() as u64, map.total_len());
+    assert!(region.windows(2).all(|w| w[0].0 < w[1].0), "in id order");
+    let near = DVec2::new(8.0, 0.0);
+    let part =
+        gaussians_in_whole(&map, &dir.join(TILES), near - 4.0, near + 4.0, u64::MAX).unwrap();
+    assert!(!part.is_empty() && part.len() < region.len());
+    assert!(part
+        .iter()
+        .all(|(_, g)| (g.position.truncate() - near).abs().max_element() <= 4.0));
+    let e = gaussians_in_whole(&map, &dir.join(TILES), min, max, 100).unwrap_err();
+    assert!(
+        matches!(e, RegionReadError::TooLarge { at_most: 100, .. }),
+        "{e}"
+    );
 
     // A flipped byte in a tile file the map names: its checksum says so, naming the file.
     let (&tile, &paged) = map.paged_tiles().iter().next().unwrap();

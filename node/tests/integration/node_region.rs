@@ -2,7 +2,9 @@
 //! loopback) answers `box=` and `around=;radius=` queries with exactly the Gaussians whose
 //! centres lie in the region, in pages of at most `page_size`, each page saying which it is;
 //! a region with nothing in it gets one empty page; bad parameters get an error reply naming
-//! them, counted as `refused/snapshot_region`, and do not use up the rate limit.
+//! them, counted as `refused/snapshot_region`, and do not use up the rate limit. On a drive
+//! whose first tiles were paged to disk, a region over the whole drive is answered with
+//! those tiles too (the whole snapshot holds only the tiles in memory).
 
 use crate::drive_support;
 
@@ -11,11 +13,14 @@ use std::time::Duration;
 
 use drive_support::{Collector, Drive, Player, RunningNode};
 use glam::{DAffine3, DVec2};
+use model::synth::SynthConfig;
 use node::fusion::{decode_update, GaussianId, Snapshot, Update};
+use node::fusion::{read_tile, AtTornTail, FusionConfig, Keep};
 use node::msg::map_update::MapUpdate;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig};
+use node::service::map_files::{restore, TILES};
+use node::service::{Keys, NodeConfig, Paging};
 use zenoh::query::ConsolidationMode;
 
 /// One reply: the page's snapshot and its attachment, or the error text.
@@ -148,4 +153,74 @@ async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refu
 
     let summary = node.stop().await;
     assert_eq!(summary.counters.get("refused/snapshot_region"), 4);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
+    // 150 frames (about 120 m) with 16 m tiles, a 5 m keep range and tiles kept in memory
+    // only within 1 m (plus one tile) of the vehicle: the first tiles go to disk.
+    let drive = Drive::generate(
+        "region_paged",
+        &SynthConfig {
+            seed: 29,
+            frames: 150,
+            width: 272,
+            height: 72,
+            supersample: 1,
+            lidar_azimuth_steps: 64,
+            ..SynthConfig::default()
+        },
+    );
+    let out = drive.dir("out");
+    let keys = Keys::new("region_paged");
+    let node = RunningNode::start(NodeConfig {
+        keys: keys.clone(),
+        method: "sgm".into(),
+        queue_capacity: 64,
+        renders: RenderWith::Off,
+        out_dir: Some(out.clone()),
+        fusion: FusionConfig {
+            keep: Keep {
+                max_range_m: 5.0,
+                min_confidence: 0.0,
+            },
+            tile_m: 16.0,
+            ..FusionConfig::default()
+        },
+        paging: Some(Paging { radius_m: 1.0 }),
+        ..NodeConfig::default()
+    })
+    .await;
+    let poses = Collector::connect(&node, &[keys.bin_pose()]).await;
+    let player = Player::connect(&node).await;
+    player.drive(&drive, DAffine3::IDENTITY, 0).await;
+    assert!(
+        poses
+            .wait_count(&keys.bin_pose(), drive.bins_opened(8.0))
+            .await
+    );
+    let key = keys.snapshot_request();
+    let in_memory = query(&player, &key).await;
+    let in_memory = in_memory[0].as_ref().unwrap().0.gaussians.len();
+    tokio::time::sleep(Duration::from_millis(1100)).await;
+    let replies = query(&player, &format!("{key}?box=-1e4,-1e4,1e4,1e4")).await;
+    let got = pages_ids(&replies, usize::MAX);
+    let summary = node.stop().await;
+    let paged_out = summary.counters.get("map/tiles_paged_out");
+    assert!(paged_out >= 2, "{paged_out} tiles paged out");
+
+    // The region holds the whole map: what the node saved when it stopped, tiles included.
+    let map = restore(&out, AtTornTail::Fail).unwrap().unwrap().map;
+    let mut want: Vec<GaussianId> = map.gaussians().map(|(id, _)| id).collect();
+    for (tile, paged) in map.paged_tiles() {
+        let read = read_tile(&out.join(TILES), *tile, *paged, map.config().tile_side()).unwrap();
+        want.extend(read.into_iter().map(|(id, _)| id));
+    }
+    want.sort_unstable();
+    eprintln!(
+        "{} Gaussians in the region, {in_memory} in memory, {paged_out} tiles paged out",
+        got.len()
+    );
+    assert_eq!(got, want);
+    assert!(in_memory < got.len(), "{in_memory} vs {}", got.len());
 }

@@ -71,6 +71,19 @@ fn pages_ids(replies: &[Reply], page_size: usize) -> Vec<GaussianId> {
     ids
 }
 
+/// Plays `drive` into `node` and waits until every bin's pose was published; the player.
+async fn drive_through(node: &RunningNode, keys: &Keys, drive: &Drive) -> Player {
+    let poses = Collector::connect(node, &[keys.bin_pose()]).await;
+    let player = Player::connect(node).await;
+    player.drive(drive, DAffine3::IDENTITY, 0).await;
+    assert!(
+        poses
+            .wait_count(&keys.bin_pose(), drive.bins_opened(8.0))
+            .await
+    );
+    player
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refused() {
     let drive = Drive::small("region");
@@ -83,14 +96,7 @@ async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refu
         ..NodeConfig::default()
     })
     .await;
-    let poses = Collector::connect(&node, &[keys.bin_pose()]).await;
-    let player = Player::connect(&node).await;
-    player.drive(&drive, DAffine3::IDENTITY, 0).await;
-    assert!(
-        poses
-            .wait_count(&keys.bin_pose(), drive.bins_opened(8.0))
-            .await
-    );
+    let player = drive_through(&node, &keys, &drive).await;
 
     let key = keys.snapshot_request();
     let whole = query(&player, &key).await;
@@ -191,14 +197,7 @@ async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
         ..NodeConfig::default()
     })
     .await;
-    let poses = Collector::connect(&node, &[keys.bin_pose()]).await;
-    let player = Player::connect(&node).await;
-    player.drive(&drive, DAffine3::IDENTITY, 0).await;
-    assert!(
-        poses
-            .wait_count(&keys.bin_pose(), drive.bins_opened(8.0))
-            .await
-    );
+    let player = drive_through(&node, &keys, &drive).await;
     let key = keys.snapshot_request();
     let in_memory = query(&player, &key).await;
     let in_memory = in_memory[0].as_ref().unwrap().0.gaussians.len();

@@ -17,7 +17,8 @@ pub fn column_side(cell_size: f64) -> f64 {
     cells_per_column(cell_size) as f64 * cell_size
 }
 
-fn cells_per_column(cell_size: f64) -> i64 {
+/// Cells per side of a ground column, for cells of `cell_size`.
+pub fn cells_per_column(cell_size: f64) -> i64 {
     ((COLUMN_M / cell_size).round() as i64).max(1)
 }
 

@@ -28,7 +28,7 @@ use glam::DVec3;
 
 use super::cells::cell_of;
 use super::snapshot::{fnv1a, put_f64s, put_gaussian, Reader, RECORD_BYTES};
-use super::tiles::{read_tile, PageEvent, PagedTile};
+use super::tiles::{PageEvent, PagedTile};
 use super::{GaussianId, GlobalMap, Increment, StoreError, WorldGaussian};
 
 const MAGIC: &[u8; 8] = b"SSGJRNL\n";
@@ -519,11 +519,7 @@ impl GlobalMap {
                             "pages in a tile the map has not paged out",
                         ));
                     }
-                    let tile_m = self.config.tile_side();
-                    let gaussians =
-                        read_tile(tiles, tile, paged, tile_m).map_err(PagingError::File)?;
-                    self.put_tile(tile, gaussians)
-                        .map_err(PagingError::Record)?;
+                    self.page_in(tiles, tile).map_err(PagingError::File)?;
                 }
                 PageEvent::Out(tile, paged) => {
                     let taken = self

@@ -47,8 +47,7 @@ pub use increments::{Increment, InsertStats, MapReplica, ReplicaError, Snapshot}
 pub use journal::{segment_path, segments, AtTornTail, JournalWriter, Replay, TornTail};
 pub use snapshot::StoreError;
 pub use tiles::{
-    collect_garbage, read_tile, tile_distance, tile_of, tile_path, write_tile, PageEvent,
-    PagedTile, TileKey,
+    collect_garbage, read_tile, tile_distance, tile_path, write_tile, PageEvent, PagedTile, TileKey,
 };
 pub use wire::{decode_update, increment_message, snapshot_message, Update, WireError};
 

@@ -24,6 +24,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec2, DVec3};
 
+use super::cells::{cells_per_column, column_side};
 use super::snapshot::{fnv1a, put_gaussian, Reader, RECORD_BYTES};
 use super::{cell_of, FusionConfig, GaussianId, GlobalMap, StoreError, WorldGaussian};
 
@@ -84,7 +85,7 @@ pub fn write_tile(
     tile: TileKey,
     version: u64,
     gaussians: &[(GaussianId, WorldGaussian)],
-) -> Result<u64, StoreError> {
+) -> Result<(), StoreError> {
     std::fs::create_dir_all(dir).map_err(io_error(dir))?;
     let mut b = Vec::with_capacity(40 + gaussians.len() * RECORD_BYTES);
     b.extend_from_slice(MAGIC);
@@ -98,17 +99,16 @@ pub fn write_tile(
     let sum = fnv1a(&b);
     b.extend_from_slice(&sum.to_le_bytes());
     let path = tile_path(dir, tile, version);
-    renderer::atomic::write_bytes_atomic(&path, &b).map_err(io_error(&path))?;
-    Ok(b.len() as u64)
+    renderer::atomic::write_bytes_atomic(&path, &b).map_err(io_error(&path))
 }
 
 /// Reads the file of `tile` at `paged.version` from `dir`; it must hold `paged.count`
-/// Gaussians of that tile (side `tile_m`), ids increasing, every field finite.
+/// Gaussians of that tile (tiles of `config`), ids increasing, every field finite.
 pub fn read_tile(
     dir: &Path,
     tile: TileKey,
     paged: PagedTile,
-    tile_m: f64,
+    config: &FusionConfig,
 ) -> Result<Vec<(GaussianId, WorldGaussian)>, StoreError> {
     let path = tile_path(dir, tile, paged.version);
     let bytes = std::fs::read(&path).map_err(io_error(&path))?;
@@ -145,7 +145,7 @@ pub fn read_tile(
     for _ in 0..count {
         let at = r.pos;
         let (id, g) = r.gaussian()?;
-        if out.last().is_some_and(|(last, _)| id <= *last) || tile_of(g.position, tile_m) != tile {
+        if out.last().is_some_and(|(last, _)| id <= *last) || config.tile_of(g.position) != tile {
             return Err(r.invalid(at, "ids not increasing or a Gaussian outside its tile"));
         }
         out.push((id, g));
@@ -181,12 +181,6 @@ pub fn collect_garbage(
     Ok(removed)
 }
 
-/// The tile holding a world position, for tiles of side `tile_m` (finite positions).
-pub fn tile_of(position: DVec3, tile_m: f64) -> TileKey {
-    let k = (position.truncate() / tile_m).floor();
-    (k.x as i64, k.y as i64)
-}
-
 /// Ground distance from `point` to the tile's square (0 inside it).
 pub fn tile_distance(tile: TileKey, tile_m: f64, point: DVec3) -> f64 {
     let lo = DVec2::new(tile.0 as f64, tile.1 as f64) * tile_m;
@@ -199,8 +193,25 @@ impl FusionConfig {
     /// The tile side actually used: [`FusionConfig::tile_m`] rounded to whole ground columns
     /// of the cell index, so that every cell lies in exactly one tile.
     pub fn tile_side(&self) -> f64 {
-        let column = super::cells::column_side(self.cell_size);
-        (self.tile_m / column).round().max(1.0) * column
+        self.cells_per_tile() as f64 * self.cell_size
+    }
+
+    /// Ground columns per tile side.
+    fn columns_per_tile(&self) -> i64 {
+        (self.tile_m / column_side(self.cell_size)).round().max(1.0) as i64
+    }
+
+    fn cells_per_tile(&self) -> i64 {
+        self.columns_per_tile() * cells_per_column(self.cell_size)
+    }
+
+    /// The tile holding a world position (finite): the tile of its cell, so a Gaussian is
+    /// always in the tile it is paged with, whatever rounding a division of its position
+    /// by the tile side would make at a tile's edge.
+    pub fn tile_of(&self, position: DVec3) -> TileKey {
+        let cell = cell_of(position, self.cell_size);
+        let n = self.cells_per_tile();
+        (cell.0.div_euclid(n), cell.1.div_euclid(n))
     }
 }
 
@@ -225,6 +236,36 @@ impl GlobalMap {
             .collect()
     }
 
+    /// Reads paged-out `tile`'s file from the tiles folder `dir`, as the map recorded it (its
+    /// version and count).
+    pub fn read_paged_tile(
+        &self,
+        dir: &Path,
+        tile: TileKey,
+    ) -> Result<Vec<(GaussianId, WorldGaussian)>, StoreError> {
+        let paged = self.paged.get(&tile).ok_or_else(|| StoreError::Invalid {
+            path: dir.to_path_buf(),
+            offset: 0,
+            what: "the tile is not paged out",
+        })?;
+        read_tile(dir, tile, *paged, &self.config)
+    }
+
+    /// Reads paged-out `tile` back into memory from the tiles folder `dir`
+    /// ([`GlobalMap::read_paged_tile`], [`GlobalMap::put_tile`]); what the map had recorded
+    /// of it.
+    pub fn page_in(&mut self, dir: &Path, tile: TileKey) -> Result<PagedTile, StoreError> {
+        let gaussians = self.read_paged_tile(dir, tile)?;
+        let paged = self.paged[&tile];
+        self.put_tile(tile, gaussians)
+            .map_err(|what| StoreError::Invalid {
+                path: tile_path(dir, tile, paged.version),
+                offset: 0,
+                what,
+            })?;
+        Ok(paged)
+    }
+
     /// Gaussians in the whole map: those in memory plus those in paged-out tiles.
     pub fn total_len(&self) -> u64 {
         self.len() as u64 + self.paged.values().map(|p| p.count).sum::<u64>()
@@ -232,7 +273,7 @@ impl GlobalMap {
 
     /// The tiles with Gaussians in memory, with their counts, in tile order.
     pub fn resident_tiles(&self) -> BTreeMap<TileKey, u64> {
-        let per_tile = self.columns_per_tile();
+        let per_tile = self.config.columns_per_tile();
         let mut out = BTreeMap::new();
         for (column, cells) in self.cells.columns() {
             let tile = (column.0.div_euclid(per_tile), column.1.div_euclid(per_tile));
@@ -240,11 +281,6 @@ impl GlobalMap {
             *out.entry(tile).or_insert(0) += n as u64;
         }
         out
-    }
-
-    fn columns_per_tile(&self) -> i64 {
-        let column = super::cells::column_side(self.config.cell_size);
-        (self.config.tile_side() / column).round() as i64
     }
 
     /// Takes every Gaussian of `tile` out of memory (in id order) and records the tile as
@@ -259,7 +295,7 @@ impl GlobalMap {
         if self.paged.contains_key(&tile) {
             return Err("the tile is paged out already");
         }
-        let per_tile = self.columns_per_tile();
+        let per_tile = self.config.columns_per_tile();
         let mut ids = Vec::new();
         for cx in tile.0 * per_tile..(tile.0 + 1) * per_tile {
             for cy in tile.1 * per_tile..(tile.1 + 1) * per_tile {

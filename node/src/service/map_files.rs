@@ -30,8 +30,8 @@ use glam::{DAffine3, DVec2, DVec3};
 use renderer::formats::MapFormat;
 
 use crate::fusion::{
-    bev_image, collect_garbage, local_set, read_tile, save_bev_png, segments, tile_of, AtTornTail,
-    BevView, GaussianId, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
+    bev_image, collect_garbage, local_set, save_bev_png, segments, AtTornTail, BevView, GaussianId,
+    GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
 };
 
 /// The checkpoint's base file name in the out folder.
@@ -187,9 +187,8 @@ pub fn gaussians_in_whole(
     if upper > at_most {
         return Err(RegionReadError::TooLarge { upper, at_most });
     }
-    let side = map.config().tile_side();
-    for (tile, paged) in on_disk {
-        let read = read_tile(tiles, tile, paged, side)?;
+    for (tile, _) in on_disk {
+        let read = map.read_paged_tile(tiles, tile)?;
         found.extend(read.into_iter().filter(|(_, g)| {
             let p = g.position.truncate();
             p.cmpge(min).all() && p.cmple(max).all()
@@ -209,9 +208,9 @@ pub fn tiles_of(base: &Path) -> PathBuf {
 pub fn whole_map(map: &GlobalMap, base: &Path) -> Result<Vec<WorldGaussian>, StoreError> {
     let mut out: Vec<WorldGaussian> = map.gaussians().map(|(_, g)| *g).collect();
     let dir = tiles_of(base);
-    for (tile, paged) in map.paged_tiles() {
-        let tile = read_tile(&dir, *tile, *paged, map.config().tile_side())?;
-        out.extend(tile.into_iter().map(|(_, g)| g));
+    for tile in map.paged_tiles().keys() {
+        let read = map.read_paged_tile(&dir, *tile)?;
+        out.extend(read.into_iter().map(|(_, g)| g));
     }
     Ok(out)
 }
@@ -318,10 +317,12 @@ pub fn export_with_limit(
     let view = BevView::export(DVec2::new(origin.x, origin.y));
     let image = if map.total_len() <= one_file_max {
         let whole = whole_map(map, &dir.join(CHECKPOINT)).map_err(|e| err(&e))?;
-        let set = local_set(whole.iter(), frame).map_err(|e| err(&e))?;
-        let file = dir.join(format!("global_map.{format}"));
-        renderer::formats::save_map(&set, &file, format)
-            .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
+        save_local(
+            &whole,
+            frame,
+            &dir.join(format!("global_map.{format}")),
+            format,
+        )?;
         bev_image(whole.iter(), &view)
     } else {
         export_tiles(map, dir, format, frame)?;
@@ -337,6 +338,20 @@ pub fn export_with_limit(
     save_bev_png(&image, &bev).map_err(|e| err(&format!("{}: {e}", bev.display())))
 }
 
+/// Writes `gaussians` to `file` in `format`, positions in `frame` (world to file).
+fn save_local(
+    gaussians: &[WorldGaussian],
+    frame: DAffine3,
+    file: &Path,
+    format: MapFormat,
+) -> Result<(), ExportError> {
+    let err = |e: &dyn std::fmt::Display| ExportError(e.to_string());
+    let set = local_set(gaussians.iter(), frame).map_err(|e| err(&e))?;
+    renderer::formats::save_map(&set, file, format)
+        .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
+    Ok(())
+}
+
 /// The tile files and index of [`export_with_limit`], in `dir/global_map_tiles/` (emptied
 /// first).
 fn export_tiles(
@@ -349,11 +364,11 @@ fn export_tiles(
     let out = dir.join("global_map_tiles");
     let _ = std::fs::remove_dir_all(&out);
     std::fs::create_dir_all(&out).map_err(|e| err(&format!("{}: {e}", out.display())))?;
-    let side = map.config().tile_side();
+    let config = map.config();
     let mut in_memory: BTreeMap<TileKey, Vec<WorldGaussian>> = BTreeMap::new();
     for (_, g) in map.gaussians() {
         in_memory
-            .entry(tile_of(g.position, side))
+            .entry(config.tile_of(g.position))
             .or_default()
             .push(*g);
     }
@@ -366,15 +381,12 @@ fn export_tiles(
     let mut index = Vec::with_capacity(keys.len());
     for key in keys {
         let mut gaussians = in_memory.remove(&key).unwrap_or_default();
-        if let Some(paged) = map.paged_tiles().get(&key) {
-            let read = read_tile(&tiles_dir, key, *paged, side).map_err(|e| err(&e))?;
+        if map.paged_tiles().contains_key(&key) {
+            let read = map.read_paged_tile(&tiles_dir, key).map_err(|e| err(&e))?;
             gaussians.extend(read.into_iter().map(|(_, g)| g));
         }
-        let set = local_set(gaussians.iter(), frame).map_err(|e| err(&e))?;
         let name = format!("{}_{}.{format}", key.0, key.1);
-        let file = out.join(&name);
-        renderer::formats::save_map(&set, &file, format)
-            .map_err(|e| err(&format!("{}: {}", file.display(), error_chain(&e))))?;
+        save_local(&gaussians, frame, &out.join(&name), format)?;
         let (min, max) = gaussians.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), g| (lo.min(g.position), hi.max(g.position)),
@@ -390,7 +402,7 @@ fn export_tiles(
     let origin = frame.translation;
     let json = serde_json::json!({
         "origin": origin.to_array(),
-        "tile_m": side,
+        "tile_m": config.tile_side(),
         "format": format.to_string(),
         "gaussians": map.total_len(),
         "tiles": index,

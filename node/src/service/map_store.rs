@@ -24,16 +24,16 @@
 //! drive's.
 
 use std::path::{Path, PathBuf};
-
-use glam::DVec3;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
+use glam::DVec3;
+
 use crate::fusion::{
-    collect_garbage, read_tile, segments, tile_distance, write_tile, AtTornTail, GlobalMap,
-    Increment, JournalWriter, PageEvent, StoreError, TileKey,
+    collect_garbage, segments, tile_distance, write_tile, AtTornTail, GlobalMap, Increment,
+    JournalWriter, PageEvent, StoreError, TileKey,
 };
 
 use super::map_files::{checkpoint, CHECKPOINT, JOURNAL, TILES};
@@ -195,17 +195,7 @@ impl MapStore {
 
     /// Reads one paged-out tile back into the map and remembers it for the next record.
     fn page_in(&mut self, map: &mut GlobalMap, tile: TileKey) -> Result<(), StoreError> {
-        let Some(&paged) = map.paged_tiles().get(&tile) else {
-            return Ok(());
-        };
-        let dir = self.dir.join(TILES);
-        let gaussians = read_tile(&dir, tile, paged, map.config().tile_side())?;
-        map.put_tile(tile, gaussians)
-            .map_err(|what| StoreError::Invalid {
-                path: crate::fusion::tile_path(&dir, tile, paged.version),
-                offset: 0,
-                what,
-            })?;
+        let paged = map.page_in(&self.tiles_dir(), tile)?;
         self.paged_in.push(PageEvent::In(tile, paged));
         self.tile_counts[0] += 1;
         Ok(())
@@ -231,7 +221,7 @@ impl MapStore {
         let mut in_memory = map.len() as u64;
         let room = (config.max_gaussians as u64 / 4) * 3;
         let version = map.increments();
-        let dir = self.dir.join(TILES);
+        let dir = self.tiles_dir();
         for (distance, tile, count) in far {
             if distance <= paging.radius_m + side && in_memory <= room {
                 break;

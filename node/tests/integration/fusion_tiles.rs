@@ -10,8 +10,8 @@ use std::path::PathBuf;
 
 use glam::{DAffine3, DQuat, DVec2, DVec3, Quat, Vec3};
 use node::fusion::{
-    read_tile, tile_of, tile_path, write_tile, AtTornTail, FusionConfig, GlobalMap, Keep,
-    PagedTile, StoreError, TileKey,
+    read_tile, tile_path, write_tile, AtTornTail, FusionConfig, GlobalMap, Keep, PagedTile,
+    StoreError, TileKey,
 };
 use node::service::map_files::{
     export_with_limit, gaussians_in_whole, restore, whole_map, RegionReadError, CHECKPOINT, TILES,
@@ -105,10 +105,10 @@ fn world_road_bin(rng: &mut ChaCha8Rng, pose: DAffine3) -> GaussianSet {
 
 /// Gaussians per tile of the whole map (in memory and on disk).
 fn per_tile(map: &GlobalMap, dir: &std::path::Path) -> BTreeMap<TileKey, u64> {
-    let side = map.config().tile_side();
+    let config = map.config();
     let mut out = BTreeMap::new();
     for g in whole_map(map, &dir.join(CHECKPOINT)).unwrap() {
-        *out.entry(tile_of(g.position, side)).or_insert(0) += 1;
+        *out.entry(config.tile_of(g.position)).or_insert(0) += 1;
     }
     out
 }
@@ -125,17 +125,19 @@ fn a_tile_paged_out_and_back_in_is_bit_identical() {
     let before = map.to_bytes();
     let tiles = map.resident_tiles();
     assert!(tiles.len() >= 6, "{tiles:?}");
-    let side = map.config().tile_side();
+    let config = *map.config();
     for (&tile, &count) in &tiles {
         let version = map.increments();
         let taken = map.take_tile(tile, version).unwrap();
         assert_eq!(taken.len() as u64, count);
-        assert!(taken.iter().all(|(_, g)| tile_of(g.position, side) == tile));
+        assert!(taken
+            .iter()
+            .all(|(_, g)| config.tile_of(g.position) == tile));
         let paged = map.paged_tiles()[&tile];
         assert_eq!(paged, PagedTile { version, count });
         assert!(map.take_tile(tile, version).is_err(), "taken twice");
         write_tile(&dir, tile, version, &taken).unwrap();
-        let back = read_tile(&dir, tile, paged, side).unwrap();
+        let back = read_tile(&dir, tile, paged, &config).unwrap();
         assert_eq!(back, taken);
         map.put_tile(tile, back).unwrap();
     }
@@ -219,7 +221,6 @@ fn a_loop_driven_twice_fuses_into_its_paged_tiles_and_memory_stays_bounded() {
         .map(|e| e.unwrap().path())
         .collect();
     files.sort();
-    let side = map.config().tile_side();
     let mut named: Vec<_> = map
         .paged_tiles()
         .iter()
@@ -230,7 +231,6 @@ fn a_loop_driven_twice_fuses_into_its_paged_tiles_and_memory_stays_bounded() {
     let restored = restore(&dir, AtTornTail::Cut).unwrap().unwrap().map;
     assert_eq!(restored.to_bytes(), map.to_bytes());
     assert_eq!(per_tile(&restored, &dir), after_second);
-    assert!(side > 0.0);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -277,7 +277,7 @@ fn compaction_with_paged_tiles_restores_the_live_map_and_bad_tile_files_are_type
     let index: serde_json::Value =
         serde_json::from_slice(&std::fs::read(tiles.join("index.json")).unwrap()).unwrap();
     let origin = DVec3::from_array(serde_json::from_value(index["origin"].clone()).unwrap());
-    let side = map.config().tile_side();
+    let config = map.config();
     let mut total = 0;
     for t in index["tiles"].as_array().unwrap() {
         let (_, set) = load_map(tiles.join(t["file"].as_str().unwrap())).unwrap();
@@ -287,7 +287,7 @@ fn compaction_with_paged_tiles_restores_the_live_map_and_bad_tile_files_are_type
             t["tile"][1].as_i64().unwrap(),
         );
         for m in &set.means {
-            assert_eq!(tile_of(origin + m.as_dvec3(), side), key, "{m}");
+            assert_eq!(config.tile_of(origin + m.as_dvec3()), key, "{m}");
         }
         total += set.len() as u64;
     }
@@ -331,7 +331,7 @@ fn compaction_with_paged_tiles_restores_the_live_map_and_bad_tile_files_are_type
         version: paged.version,
         count: paged.count + 1,
     };
-    assert!(read_tile(&dir.join(TILES), tile, other, map.config().tile_side()).is_err());
+    assert!(read_tile(&dir.join(TILES), tile, other, map.config()).is_err());
     // A missing tile file: an I/O error naming it.
     std::fs::remove_file(&file).unwrap();
     let e = whole_map(&map, &dir.join(CHECKPOINT)).unwrap_err();

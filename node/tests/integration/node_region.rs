@@ -15,7 +15,7 @@ use drive_support::{Collector, Drive, Player, RunningNode};
 use glam::{DAffine3, DVec2};
 use model::synth::SynthConfig;
 use node::fusion::{decode_update, GaussianId, Snapshot, Update};
-use node::fusion::{read_tile, AtTornTail, FusionConfig, Keep};
+use node::fusion::{AtTornTail, FusionConfig, Keep};
 use node::msg::map_update::MapUpdate;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
@@ -211,8 +211,8 @@ async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
     // The region holds the whole map: what the node saved when it stopped, tiles included.
     let map = restore(&out, AtTornTail::Fail).unwrap().unwrap().map;
     let mut want: Vec<GaussianId> = map.gaussians().map(|(id, _)| id).collect();
-    for (tile, paged) in map.paged_tiles() {
-        let read = read_tile(&out.join(TILES), *tile, *paged, map.config().tile_side()).unwrap();
+    for tile in map.paged_tiles().keys() {
+        let read = map.read_paged_tile(&out.join(TILES), *tile).unwrap();
         want.extend(read.into_iter().map(|(id, _)| id));
     }
     want.sort_unstable();

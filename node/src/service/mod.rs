@@ -26,6 +26,7 @@ pub mod region;
 pub mod replay;
 pub mod replay_bag;
 pub mod snapshot_gate;
+pub mod static_frames;
 
 pub use counters::Counters;
 pub use error::ServiceError;

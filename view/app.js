@@ -1,6 +1,12 @@
 // The StereoSplat live view's script: polls the node's /api/state, keeps the splat viewer
-// (@mkkellogg/gaussian-splats-3d on three.js, both served by the node) on the latest fused
-// map, swaps in the latest bin's pictures and draws a latency chart per stage.
+// (@mkkellogg/gaussian-splats-3d on three.js, both served by the node) on the fused map's
+// tiles near its camera, swaps in the latest bin's pictures and draws a latency chart per
+// stage.
+//
+// The map is loaded tile by tile (/api/tiles lists the tiles within RADIUS_M of the camera,
+// nearest first, within BUDGET Gaussians; /map/tile.ply serves one), each tile its own splat
+// scene: a change reloads only the tiles whose version changed, and what the page draws is
+// bounded by the budget however large the map grows. `?radius=R&budget=N` override both.
 //
 // Test mode (`?pinhole=fx,fy,cx,cy,width,height&pose=r00,..,r22,x,y,z`): only the splat
 // canvas, at exactly width x height, seen by that pinhole camera (OpenCV axes, camera to
@@ -15,7 +21,12 @@ const params = new URLSearchParams(location.search);
 const pinhole = params.get('pinhole')?.split(',').map(Number);
 const pose = params.get('pose')?.split(',').map(Number);
 const test = Boolean(pinhole && pose);
-window.__view = { splatReady: false, mapVersion: null, loads: 0, plottedBins: 0, error: null };
+const RADIUS_M = Number(params.get('radius') ?? 160);
+const BUDGET = Number(params.get('budget') ?? 1000000);
+window.__view = {
+  splatReady: false, mapVersion: null, loads: 0, plottedBins: 0, error: null,
+  tiles: 0, gaussians: 0, tileLoads: 0,
+};
 
 const $ = (id) => document.getElementById(id);
 const splatEl = $('splat');
@@ -101,25 +112,57 @@ let loading = false;
 let loadedVersion = null;
 let lastLoad = 0;
 let followedBin = null;
+// The tiles shown, in the viewer's scene order: { key, version, gaussians }.
+let shown = [];
+// Where the camera was when the tiles were last listed; moving a quarter of a tile from
+// there lists them again.
+let listedAt = null;
+let tileM = 64;
 
+// Brings the viewer to the tiles near its camera at map `version`: drops the tiles no
+// longer listed or changed, adds the new and changed ones (a tile still being fetched from
+// the node is left for the next round). Counts as loaded only when every listed tile is.
 async function loadMap(version) {
   loading = true;
   try {
-    const res = await fetch(`/map.ply?v=${version}`, { cache: 'no-store' });
+    const p = viewer.camera.position;
+    listedAt = p.clone();
+    const res = await fetch(`/api/tiles?x=${p.x}&y=${p.y}&radius=${RADIUS_M}&budget=${BUDGET}`,
+      { cache: 'no-store' });
     if (!res.ok) return;
-    const got = Number(res.headers.get('X-Map-Version'));
-    const url = URL.createObjectURL(await res.blob());
-    if (viewer.getSceneCount() > 0) await viewer.removeSplatScene(0, false);
-    await viewer.addSplatScene(url, {
-      format: GS.SceneFormat.Ply,
-      showLoadingUI: false,
-      progressiveLoad: false,
-      splatAlphaRemovalThreshold: 1,
-    });
-    URL.revokeObjectURL(url);
-    loadedVersion = got;
-    window.__view.loads += 1;
-    if (test) await settle(got);
+    const listing = await res.json();
+    tileM = listing.tile_m;
+    const want = new Map(listing.tiles.map((t) => [`${t.x}_${t.y}`, t]));
+    const keep = shown.filter((s) => want.get(s.key)?.version === s.version);
+    const drop = shown.map((s, i) => (keep.includes(s) ? -1 : i)).filter((i) => i >= 0);
+    const have = new Set(keep.map((s) => s.key));
+    const added = [];
+    let complete = true;
+    for (const [key, t] of want) {
+      if (have.has(key)) continue;
+      const r = await fetch(`/map/tile.ply?x=${t.x}&y=${t.y}&v=${t.version}`, { cache: 'no-store' });
+      if (!r.ok) { complete = false; continue; }
+      const v = Number(r.headers.get('X-Tile-Version'));
+      added.push({ key, version: v, gaussians: t.gaussians, url: URL.createObjectURL(await r.blob()) });
+    }
+    if (drop.length) await viewer.removeSplatScenes(drop, false);
+    if (added.length) {
+      await viewer.addSplatScenes(added.map((a) => ({
+        path: a.url,
+        format: GS.SceneFormat.Ply,
+        splatAlphaRemovalThreshold: 1,
+      })), false);
+    }
+    for (const a of added) URL.revokeObjectURL(a.url);
+    shown = keep.concat(added.map(({ key, version, gaussians }) => ({ key, version, gaussians })));
+    window.__view.tiles = shown.length;
+    window.__view.gaussians = shown.reduce((n, s) => n + s.gaussians, 0);
+    window.__view.tileLoads += added.length;
+    if (complete) {
+      loadedVersion = listing.version;
+      window.__view.loads += 1;
+      if (test) await settle(listing.version);
+    }
   } catch (e) {
     window.__view.error = String(e);
   } finally {
@@ -217,9 +260,11 @@ async function poll() {
     const map = s.map;
     $('status').textContent =
       `${s.bins_seen} bins · ${map.gaussians} Gaussians · map version ${map.version}`;
-    $('map-info').textContent = loadedVersion === null ? '' : `(showing version ${loadedVersion})`;
+    $('map-info').textContent = loadedVersion === null ? '' :
+      `(showing version ${loadedVersion}: ${shown.length} tiles, ${window.__view.gaussians} Gaussians)`;
     const due = test ? loadedVersion === null : performance.now() - lastLoad > MAP_RELOAD_MS;
-    if (map.gaussians > 0 && map.version !== loadedVersion && !loading && due) loadMap(map.version);
+    const moved = listedAt !== null && viewer.camera.position.distanceTo(listedAt) > tileM / 4;
+    if (map.origin && (map.version !== loadedVersion || moved) && !loading && due) loadMap(map.version);
     if (!test) {
       const latest = s.bins[s.bins.length - 1];
       if (latest && $('follow').checked && followedBin !== latest.position.join()) {

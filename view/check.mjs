@@ -82,7 +82,7 @@ for (let stable = 0; stable < 3 && left() > 0; await sleep(1000)) {
   stable = next.map.version === s.map.version ? stable + 1 : 0;
   s = next;
 }
-while (left() > 0 && !(await page.locator('#map-info').textContent()).includes(`version ${s.map.version})`)) {
+while (left() > 0 && !(await page.locator('#map-info').textContent()).includes(`version ${s.map.version}:`)) {
   await sleep(300);
 }
 await sleep(3000);
@@ -128,6 +128,8 @@ const summary = {
   console_errors: consoleErrors,
   map_version: ply.version,
   splat_version: shown.mapVersion,
+  splat_tiles: shown.tiles,
+  splat_gaussians: shown.gaussians,
   viewer_error: shown.error,
   webgl,
   camera: { bin_id: bin.bin_id, intrinsics: k },

@@ -5,8 +5,9 @@ use clap::{Parser, Subcommand};
 
 use node::cli::{
     bench, bench_check, bench_drive, bench_export, bench_fusion, bench_model, bench_node,
-    bench_pareto, demo, enhancer_data, eval, eval_enhancer, eval_map, export, interpolate_weights,
-    launch, logs, reconstruct, render, stream, synth, train, train_enhancer, view,
+    bench_pareto, bench_view, demo, enhancer_data, eval, eval_enhancer, eval_map, export,
+    interpolate_weights, launch, logs, reconstruct, render, stream, synth, train, train_enhancer,
+    view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -63,8 +64,8 @@ enum Command {
     Record(logs::RecordArgs),
     /// Print the node's per-bin latency live, with percentiles.
     Monitor(logs::MonitorArgs),
-    /// A live page on loopback for a running node: the fused map as splats, renders,
-    /// latency charts.
+    /// A live page on loopback for a running node (the fused map as splats, renders,
+    /// latency charts), or for a saved map with `--map`.
     View(view::ViewArgs),
     /// Benchmarks that print JSON on stdout.
     #[command(subcommand)]
@@ -89,6 +90,9 @@ enum BenchCommand {
     Check(bench_check::BenchCheckArgs),
     /// Each map format (PLY, SPZ, glTF binary) on one map: bytes, write and read time.
     Export(bench_export::BenchExportArgs),
+    /// The live view's page on a large saved map in headless Chromium: frame times when it
+    /// loads every tile and when it loads the tiles near its camera.
+    View(bench_view::BenchViewArgs),
     /// Operating points from a TOML list on the same held-out bins: latency, memory,
     /// Gaussians and quality side by side, the Pareto front, a chart.
     Pareto(bench_pareto::BenchParetoArgs),
@@ -137,5 +141,6 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),
         Command::Bench(BenchCommand::Pareto(args)) => bench_pareto::run(&args),
         Command::Bench(BenchCommand::Export(args)) => bench_export::run(&args),
+        Command::Bench(BenchCommand::View(args)) => bench_view::run(&args),
     }
 }

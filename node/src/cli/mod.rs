@@ -8,6 +8,7 @@ pub mod bench_fusion;
 pub mod bench_model;
 pub mod bench_node;
 pub mod bench_pareto;
+pub mod bench_view;
 pub mod demo;
 pub mod enhancer_data;
 pub mod eval;

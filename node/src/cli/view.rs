@@ -2,19 +2,21 @@
 //! the `--view` flags of `run` and `demo`, which serve the same page beside their node.
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::Args;
 
 use super::shutdown::shutdown_signal;
 use super::zenoh_args::ZenohArgs;
 use zenoh::Session;
 
+use crate::fusion::AtTornTail;
+use crate::service::map_files::{restore, whole_map, CHECKPOINT};
 use crate::service::Keys;
 use crate::transport::open;
-use crate::view::{default_node_modules, Bound, View, ViewConfig};
+use crate::view::{default_node_modules, Bound, View, ViewConfig, ViewState};
 
 /// Flags of `view`.
 #[derive(Args, Clone, Debug)]
@@ -30,6 +32,14 @@ pub struct ViewArgs {
     /// The `node_modules` folder `npm ci` filled in `view/` (default: the checkout's).
     #[arg(long, env = "STEREOSPLAT_VIEW_MODULES")]
     node_modules: Option<PathBuf>,
+    /// Show a saved map instead of a running node: a folder `run --out` wrote (its
+    /// checkpoint, journal and tiles on disk: the whole map) or a PLY, SPZ or glTF binary
+    /// map file.
+    #[arg(long)]
+    map: Option<PathBuf>,
+    /// Side of the tiles the page loads, metres.
+    #[arg(long, default_value_t = 64.0)]
+    tile_m: f64,
 }
 
 /// The `--view` flags of `run` and `demo`.
@@ -68,6 +78,16 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         node_modules: default_modules(args.node_modules.as_ref()),
     };
     let runtime = tokio::runtime::Runtime::new()?;
+    if let Some(path) = &args.map {
+        let state = saved_view(path, args.tile_m)?;
+        return runtime.block_on(async {
+            let view = Bound::bind(&config).await?.serve_saved(state);
+            announce(&view);
+            shutdown_signal().await;
+            view.stop().await;
+            anyhow::Ok(())
+        });
+    }
     runtime.block_on(async {
         let bound = Bound::bind(&config).await?;
         let session = open(&args.zenoh.transport()).await?;
@@ -76,6 +96,30 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         shutdown_signal().await;
         view.stop().await;
         anyhow::Ok(())
+    })
+}
+
+/// The view of the saved map at `path`: a folder `run --out` wrote (the whole map: its
+/// checkpoint, journal and paged tiles) or a PLY, SPZ or glTF binary file (in its own
+/// frame).
+pub fn saved_view(path: &Path, tile_m: f64) -> Result<ViewState> {
+    let gaussians = saved_view_gaussians(path)?;
+    ViewState::saved(gaussians, tile_m)
+        .with_context(|| format!("{} holds no Gaussian", path.display()))
+}
+
+/// Every Gaussian of the saved map at `path` (see [`saved_view`]).
+pub fn saved_view_gaussians(path: &Path) -> Result<Vec<crate::fusion::WorldGaussian>> {
+    Ok(if path.is_dir() {
+        let restored = restore(path, AtTornTail::Cut)?
+            .with_context(|| format!("{} holds no saved map", path.display()))?;
+        whole_map(&restored.map, &path.join(CHECKPOINT))?
+    } else {
+        let file =
+            std::fs::File::open(path).with_context(|| format!("opening {}", path.display()))?;
+        let (_, set) = renderer::formats::read_map(std::io::BufReader::new(file))
+            .with_context(|| format!("reading {}", path.display()))?;
+        world_gaussians(&set)
     })
 }
 
@@ -114,4 +158,19 @@ pub async fn beside(
 /// Takes the view out of its slot (to stop it).
 pub fn take(slot: &ViewSlot) -> Option<View> {
     slot.lock().unwrap_or_else(|e| e.into_inner()).take()
+}
+
+/// A map file's Gaussians as map Gaussians in the file's own frame (bin 0).
+fn world_gaussians(set: &renderer::GaussianSet) -> Vec<crate::fusion::WorldGaussian> {
+    (0..set.len())
+        .map(|i| crate::fusion::WorldGaussian {
+            position: set.means[i].as_dvec3(),
+            log_scale: set.log_scales[i],
+            rotation: set.rotations[i],
+            opacity: set.opacities[i],
+            color: set.colors[i],
+            confidence: set.confidences[i],
+            bin_id: 0,
+        })
+        .collect()
 }

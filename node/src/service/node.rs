@@ -317,7 +317,11 @@ pub async fn run_with(
                 }
                 let Some(region) = region else {
                     match outputs.snapshot(outputs.snapshot_header()) {
-                        Ok(m) => q.reply(q.key_expr().clone(), m.encode()).await.map_err(zenoh_err)?,
+                        Ok(m) => q
+                            .reply(q.key_expr().clone(), m.encode())
+                            .attachment(outputs.snapshot_attachment())
+                            .await
+                            .map_err(zenoh_err)?,
                         Err(_) => outputs.counters.add("error/encode_map_update", 1),
                     }
                     continue;

@@ -37,6 +37,7 @@ use super::keys::{self, Topic};
 use super::map_files::{gaussians_in_whole, RegionReadError};
 use super::map_store::MapStore;
 use super::region::RegionQuery;
+use super::static_frames::StaticFrames;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
 use crate::fusion::{
@@ -44,7 +45,6 @@ use crate::fusion::{
     Snapshot, WorldGaussian,
 };
 use crate::msg::gaussians::cloud_from_gaussians;
-use crate::msg::geometry_msgs::TransformStamped;
 use crate::msg::image::image_from_rgb;
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
@@ -80,6 +80,9 @@ pub(super) struct RegionPages {
 /// the latest bin's origin.
 const BEV: (u32, f64) = (256, 0.25);
 
+/// Paged tiles a whole-map snapshot reply lists at most (about 30 bytes each).
+pub const MAX_LISTED_TILES: usize = 100_000;
+
 /// The node's outputs and the state they are made from.
 pub(super) struct Outputs<'a> {
     outlet: &'a Outlet,
@@ -101,8 +104,8 @@ pub(super) struct Outputs<'a> {
     published: BTreeMap<u64, (Stamps, CheckOutcome)>,
     /// Published bins whose render is still to come.
     awaiting_render: BTreeSet<u64>,
-    /// World -> `bin_<id>` of every bin published, what `/tf_static` carries.
-    static_tf: Vec<TransformStamped>,
+    /// World -> `bin_<id>` of the most recent bins published, what `/tf_static` carries.
+    static_tf: StaticFrames,
     /// The source stamp of the latest bin fused (what a snapshot of the map is stamped
     /// with; 0 before the first).
     latest_source_ns: i64,
@@ -135,7 +138,7 @@ impl<'a> Outputs<'a> {
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
             awaiting_render: BTreeSet::new(),
-            static_tf: Vec::new(),
+            static_tf: StaticFrames::default(),
             latest_source_ns: 0,
             counters,
             summary: NodeSummary::default(),
@@ -318,6 +321,26 @@ impl<'a> Outputs<'a> {
         snapshot_message(&self.map.snapshot(), self.map.increments(), header)
     }
 
+    /// The attachment of a whole-map snapshot reply: the tiles it does not hold because
+    /// they are paged to disk, so that a subscriber resetting from it knows they exist and
+    /// can ask for them by region: `{"tile_m": side, "paged_tiles": [[x, y, gaussians],
+    /// ...]}` (tile `(x, y)` covers `[x, x + 1) * side` by `[y, y + 1) * side`, world
+    /// metres), at most [`MAX_LISTED_TILES`] of them (`"truncated": true` beyond).
+    pub fn snapshot_attachment(&self) -> String {
+        let paged = self.map.paged_tiles();
+        let listed: Vec<[i64; 3]> = paged
+            .iter()
+            .take(MAX_LISTED_TILES)
+            .map(|(k, t)| [k.0, k.1, t.count as i64])
+            .collect();
+        serde_json::json!({
+            "tile_m": self.map.config().tile_side(),
+            "paged_tiles": listed,
+            "truncated": paged.len() > MAX_LISTED_TILES,
+        })
+        .to_string()
+    }
+
     /// The Gaussians of `region`, in id order, cut into pages of its page size (one empty
     /// page when there are none): those in memory and those of the tiles on disk the region
     /// meets. Refused when the region may hold more than the map's budget in memory.
@@ -371,14 +394,15 @@ impl<'a> Outputs<'a> {
         self.put(keys::TF, msg.encode()).await
     }
 
-    /// Publishes the static transforms of every bin so far on `/tf_static` (nothing before
-    /// the first bin), so a subscriber that joined late gets them all.
+    /// Publishes the static transforms of the most recent bins on `/tf_static` (nothing
+    /// before the first bin; [`StaticFrames`] says which and why), so a subscriber that
+    /// joined late can place every bin it will receive.
     pub async fn put_static_tf(&mut self) -> Result<(), ServiceError> {
         if self.static_tf.is_empty() {
             return Ok(());
         }
         let msg = TfMessage {
-            transforms: self.static_tf.clone(),
+            transforms: self.static_tf.to_vec(),
         };
         self.put(keys::TF_STATIC, msg.encode()).await
     }

@@ -13,6 +13,7 @@ mod server;
 #[cfg(test)]
 mod server_tests;
 mod state;
+mod tiles;
 mod watch;
 
 use std::net::SocketAddr;
@@ -24,7 +25,9 @@ use tokio::task::JoinHandle;
 
 use crate::service::Keys;
 
-pub use state::{ViewState, MAX_LATENCY_ROWS};
+pub use routes::{DEFAULT_BUDGET, DEFAULT_RADIUS_M, MAX_BUDGET, MAX_RADIUS_M};
+pub use state::{TilePly, ViewState, MAX_LATENCY_ROWS};
+pub use tiles::{TileInfo, TileRules, TilesError, ViewTiles};
 
 /// Where the view listens and where its browser libraries are.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -145,6 +148,32 @@ impl Bound {
             addr,
             stop,
             tasks: vec![server, watcher],
+        }
+    }
+}
+
+impl Bound {
+    /// Serves the page on a map that does not change (`view --map`: a saved map, with no
+    /// node): `state` holds it, and nothing watches a node.
+    pub fn serve_saved(self, state: ViewState) -> View {
+        let addr = self
+            .listener
+            .local_addr()
+            .unwrap_or_else(|_| SocketAddr::from(([127, 0, 0, 1], 0)));
+        let (stop, mut stopped) = tokio::sync::watch::channel(false);
+        let router = routes::router(Arc::new(Mutex::new(state)), self.node_modules);
+        let server = tokio::spawn(server::serve(
+            self.listener,
+            router,
+            server::Limits::default(),
+            async move {
+                let _ = stopped.wait_for(|s| *s).await;
+            },
+        ));
+        View {
+            addr,
+            stop,
+            tasks: vec![server],
         }
     }
 }

@@ -8,7 +8,9 @@
 //! | `/lib/three/three.module.js`, `/lib/three/three.core.js` | three.js, from `view/node_modules` |
 //! | `/lib/splats/gaussian-splats-3d.module.js` | the splat viewer, from `view/node_modules` |
 //! | `/api/state` | JSON: map version and size, bin cameras, latency rows, counters |
-//! | `/map.ply` | the fused map as 3DGS PLY relative to the state's `map.origin`; header `X-Map-Version` |
+//! | `/map.ply` | the map the view holds as one 3DGS PLY relative to the state's `map.origin`; header `X-Map-Version` |
+//! | `/api/tiles?x=X&y=Y[&radius=R][&budget=N]` | JSON: the map's tiles within `R` metres (default [`DEFAULT_RADIUS_M`]) of the page point `(X, Y)` (relative to `map.origin`), nearest first, within `N` Gaussians (default [`DEFAULT_BUDGET`]) |
+//! | `/map/tile.ply?x=TX&y=TY` | one tile as 3DGS PLY relative to `map.origin`; header `X-Tile-Version`; 503 with `Retry-After` while a tile the view let go is fetched from the node |
 //! | `/render.png`, `/input.png`, `/bev.png` | the latest bin's render and input, the bird's-eye view; header `X-Bin-Id` |
 //!
 //! Paths are matched whole against this table and never joined onto a folder: a library
@@ -24,12 +26,12 @@ use std::sync::{Arc, Mutex, MutexGuard};
 
 use axum::body::{Body, Bytes};
 use axum::extract::State;
-use axum::http::{header, HeaderName, HeaderValue, Method, StatusCode};
+use axum::http::{header, HeaderName, HeaderValue, Method, StatusCode, Uri};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::Router;
 
-use super::state::ViewState;
+use super::state::{TilePly, ViewState};
 
 /// The page.
 const INDEX_HTML: &str = include_str!("../../../view/index.html");
@@ -74,6 +76,8 @@ pub fn router(state: Arc<Mutex<ViewState>>, node_modules: PathBuf) -> Router {
         .route("/favicon.ico", get(favicon))
         .route("/api/state", get(api_state))
         .route("/map.ply", get(map_ply))
+        .route("/api/tiles", get(api_tiles))
+        .route("/map/tile.ply", get(tile_ply))
         .route("/render.png", get(picture("render")))
         .route("/input.png", get(picture("input")))
         .route("/bev.png", get(picture("bev")));
@@ -120,6 +124,99 @@ async fn map_ply(State(s): State<Shared>) -> Response {
         ),
         None => error(StatusCode::NOT_FOUND, "no map yet"),
     }
+}
+
+/// Tiles listed by `/api/tiles` around the page's point, metres, unless it asks otherwise.
+pub const DEFAULT_RADIUS_M: f64 = 160.0;
+/// Gaussians listed by `/api/tiles` at most, unless the page asks otherwise.
+pub const DEFAULT_BUDGET: usize = 1_000_000;
+/// The largest radius a page may ask for, metres.
+pub const MAX_RADIUS_M: f64 = 100_000.0;
+/// The largest Gaussian budget a page may ask for.
+pub const MAX_BUDGET: usize = 50_000_000;
+
+async fn api_tiles(State(s): State<Shared>, uri: Uri) -> Response {
+    let params = match params(&uri, &["x", "y", "radius", "budget"]) {
+        Ok(p) => p,
+        Err(e) => return error(StatusCode::BAD_REQUEST, &e),
+    };
+    let (Some(x), Some(y)) = (params[0], params[1]) else {
+        return error(StatusCode::BAD_REQUEST, "/api/tiles needs x and y");
+    };
+    let radius = params[2].unwrap_or(DEFAULT_RADIUS_M);
+    let budget = params[3].unwrap_or(DEFAULT_BUDGET as f64);
+    if !(0.0..=MAX_RADIUS_M).contains(&radius) || !(1.0..=MAX_BUDGET as f64).contains(&budget) {
+        return error(
+            StatusCode::BAD_REQUEST,
+            &format!("radius must be in 0..={MAX_RADIUS_M} m and budget in 1..={MAX_BUDGET}"),
+        );
+    }
+    let point = glam::DVec3::new(x, y, 0.0);
+    let json = s
+        .state()
+        .tiles_near(point, radius, budget as usize)
+        .to_string();
+    ok("application/json", json)
+}
+
+async fn tile_ply(State(s): State<Shared>, uri: Uri) -> Response {
+    let params = match params(&uri, &["x", "y", "v"]) {
+        Ok(p) => p,
+        Err(e) => return error(StatusCode::BAD_REQUEST, &e),
+    };
+    let whole = |v: Option<f64>| v.filter(|v| v.fract() == 0.0 && v.abs() < 1e15);
+    let (Some(x), Some(y)) = (whole(params[0]), whole(params[1])) else {
+        return error(
+            StatusCode::BAD_REQUEST,
+            "/map/tile.ply needs whole numbers x and y",
+        );
+    };
+    let answer = s.state().tile_ply((x as i64, y as i64));
+    match answer {
+        TilePly::Ready(version, bytes) => with_header(
+            ok("application/octet-stream", bytes),
+            "x-tile-version",
+            version,
+        ),
+        TilePly::Fetching => with_header(
+            error(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "fetching the tile from the node",
+            ),
+            "retry-after",
+            1,
+        ),
+        TilePly::Unknown => error(StatusCode::NOT_FOUND, "no such tile"),
+    }
+}
+
+/// The numeric query parameters `names` of `uri`, in that order (absent: `None`). Another
+/// parameter, a repeated one or a value that is not a finite number is an error naming it.
+fn params(uri: &Uri, names: &[&str]) -> Result<Vec<Option<f64>>, String> {
+    let mut out = vec![None; names.len()];
+    for pair in uri
+        .query()
+        .unwrap_or("")
+        .split('&')
+        .filter(|p| !p.is_empty())
+    {
+        let (name, value) = pair.split_once('=').unwrap_or((pair, ""));
+        let Some(i) = names.iter().position(|n| *n == name) else {
+            return Err(format!(
+                "unknown parameter `{name}` (this path takes {})",
+                names.join(", ")
+            ));
+        };
+        let v: f64 = value
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| format!("parameter `{name}={value}` is not a finite number"))?;
+        if out[i].replace(v).is_some() {
+            return Err(format!("parameter `{name}` given twice"));
+        }
+    }
+    Ok(out)
 }
 
 /// The handler of the latest picture called `name` (see [`ViewState::picture`]).

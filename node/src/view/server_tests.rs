@@ -54,6 +54,20 @@ async fn start(limits: Limits) -> SocketAddr {
     addr
 }
 
+/// Starts a server on `state` on a free loopback port.
+async fn start_on(state: ViewState) -> SocketAddr {
+    let router = routes::router(Arc::new(Mutex::new(state)), libraries());
+    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(serve(
+        listener,
+        router,
+        Limits::default(),
+        std::future::pending(),
+    ));
+    addr
+}
+
 /// One answer: status, headers (names lower-cased) and body.
 #[derive(Debug)]
 struct Answer {
@@ -297,4 +311,99 @@ async fn connections_beyond_the_limit_wait_for_a_free_slot() {
     // One idle client leaves: its slot goes to the waiting one.
     drop(idle.pop());
     assert_eq!(read_answer(&mut waiting).await.status, 200);
+}
+
+#[tokio::test]
+async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
+    use crate::fusion::{GaussianId, Snapshot, Update, WorldGaussian};
+    use glam::{DAffine3, DVec3, Quat, Vec3};
+
+    // 64 m tiles kept within 100 m of the vehicle: Gaussians at x = 1, 2 (tile 0), 70 (tile
+    // 1) and 1001 (tile 15); the vehicle at x = 1000 lets tiles 0 and 1 go.
+    let mut state = ViewState::with_tiles(super::TileRules {
+        keep_m: 100.0,
+        ..super::TileRules::default()
+    });
+    let g = |x: f64| WorldGaussian {
+        position: DVec3::new(x, 1.0, 0.5),
+        log_scale: Vec3::splat(-2.0),
+        rotation: Quat::IDENTITY,
+        opacity: 0.8,
+        color: Vec3::new(0.2, 0.4, 0.6),
+        confidence: 0.9,
+        bin_id: 0,
+    };
+    let snapshot = Snapshot {
+        last_bin_id: Some(0),
+        gaussians: [1.0, 2.0, 70.0, 1001.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| (GaussianId(i as u64), g(x)))
+            .collect(),
+    };
+    state.map_update(1, Update::Snapshot(snapshot));
+    state.bin_pose(0, DAffine3::from_translation(DVec3::new(1000.0, 0.0, 0.0)));
+    let addr = start_on(state).await;
+
+    // Page coordinates are relative to the origin, the first Gaussian (x = 1).
+    let a = request(addr, "GET", "/api/tiles?x=999&y=0&radius=2000").await;
+    assert_eq!(a.status, 200, "{a:?}");
+    let listing: serde_json::Value = serde_json::from_slice(&a.body).unwrap();
+    let tiles: Vec<(i64, u64, bool)> = listing["tiles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            let held = t["held"].as_bool().unwrap();
+            (
+                t["x"].as_i64().unwrap(),
+                t["gaussians"].as_u64().unwrap(),
+                held,
+            )
+        })
+        .collect();
+    assert_eq!(
+        tiles,
+        vec![(15, 1, true), (1, 1, false), (0, 2, false)],
+        "nearest first"
+    );
+    let a = request(addr, "GET", "/api/tiles?x=999&y=0&radius=10").await;
+    let listing: serde_json::Value = serde_json::from_slice(&a.body).unwrap();
+    assert_eq!(listing["tiles"].as_array().unwrap().len(), 1, "within 10 m");
+
+    let a = request(addr, "GET", "/map/tile.ply?x=15&y=0&v=3").await;
+    assert_eq!(a.status, 200);
+    assert!(a.header("x-tile-version").is_some());
+    let set = renderer::ply::read_ply(a.body.as_slice()).unwrap();
+    assert_eq!(set.len(), 1);
+    assert!(
+        (set.means[0].x - 1000.0).abs() < 1e-3,
+        "relative to the origin"
+    );
+    // A tile the view let go is fetched from the node: the page is told to retry.
+    let a = request(addr, "GET", "/map/tile.ply?x=0&y=0").await;
+    assert_eq!((a.status, a.header("retry-after")), (503, Some("1")));
+    assert_eq!(
+        request(addr, "GET", "/map/tile.ply?x=7&y=7").await.status,
+        404
+    );
+
+    for bad in [
+        "/api/tiles",
+        "/api/tiles?x=1",
+        "/api/tiles?x=abc&y=0",
+        "/api/tiles?x=NaN&y=0",
+        "/api/tiles?x=0&y=0&x=1",
+        "/api/tiles?x=0&y=0&colour=red",
+        "/api/tiles?x=0&y=0&radius=-1",
+        "/api/tiles?x=0&y=0&budget=0",
+        "/api/tiles?x=0&y=0&budget=1e300",
+        "/map/tile.ply?x=0.5&y=0",
+        "/map/tile.ply?x=1e300&y=0",
+        "/map/tile.ply?y=0",
+    ] {
+        let a = request(addr, "GET", bad).await;
+        assert_eq!(a.status, 400, "{bad}: {a:?}");
+        assert!(!a.body.is_empty(), "{bad}: says why");
+    }
 }

@@ -1,5 +1,6 @@
-//! What the live view knows about the node, rebuilt from its topics: a replica of the
-//! global map (with the PLY the page's splat viewer loads, cached per map version), the
+//! What the live view knows about the node, rebuilt from its topics: a tiled copy of the
+//! global map near the vehicle ([`ViewTiles`]; the page's splat viewer loads it tile by
+//! tile, and the whole held copy as one PLY, cached per map version), the
 //! latest bin's render, input image and bird's-eye view as PNG, every bin's camera, and a
 //! bounded history of per-bin latencies and the counters. Memory is bounded: histories are
 //! capped in entries and the held input images in bytes.
@@ -7,11 +8,12 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use glam::{DAffine3, DVec3};
+use glam::{DAffine3, DVec2, DVec3};
 use renderer::Intrinsics;
 use serde_json::{json, Value};
 
-use crate::fusion::{local_set, MapReplica, Update};
+use super::tiles::{TileInfo, TileRules, ViewTiles};
+use crate::fusion::{local_set, GaussianId, TileKey, Update, WorldGaussian};
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::sensor_msgs::Image;
 use crate::service::latency_stats::bin_stages_ms;
@@ -32,22 +34,22 @@ pub struct Picture {
     pub png: Arc<Vec<u8>>,
 }
 
-/// What the map replica said about an update it was handed.
+/// What the map copy said about an update it was handed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MapSync {
     /// Applied (or already included).
     InSync,
-    /// The update does not follow what the replica holds: a snapshot is needed.
+    /// The update does not follow what the copy holds: a snapshot is needed.
     NeedsSnapshot,
 }
 
 /// The view's state; one lock guards it and every access is short.
 #[derive(Debug, Default)]
 pub struct ViewState {
-    replica: MapReplica,
-    /// Sequence number of the last update the replica includes (`None`: nothing yet).
+    tiles: ViewTiles,
+    /// Sequence number of the last update the copy includes (`None`: nothing yet).
     sequence: Option<u64>,
-    /// Bumped on every change of the replica.
+    /// Bumped on every change of the copy.
     map_version: u64,
     /// World point the served PLY is relative to (fixed once set, so the page's camera
     /// does not jump as the map grows).
@@ -70,7 +72,7 @@ pub struct ViewState {
 }
 
 impl ViewState {
-    /// Takes a map update in: a snapshot replaces the replica, an increment applies when it
+    /// Takes a map update in: a snapshot replaces the copy, an increment applies when it
     /// is the next in sequence (an older one is already included and skipped).
     pub fn map_update(&mut self, sequence: u64, update: Update) -> MapSync {
         match update {
@@ -78,14 +80,14 @@ impl ViewState {
                 if self.sequence.is_some_and(|s| s > sequence) {
                     return MapSync::InSync;
                 }
-                self.replica = MapReplica::from_snapshot(&snapshot);
+                self.tiles.replace(&snapshot, self.map_version + 1);
                 self.sequence = Some(sequence);
                 self.set_origin_from_map();
             }
             Update::Increment(inc) => match self.sequence {
                 Some(s) if sequence <= s => return MapSync::InSync,
                 Some(s) if sequence == s + 1 => {
-                    if self.replica.apply(&inc).is_err() {
+                    if self.tiles.apply(&inc, self.map_version + 1).is_err() {
                         return MapSync::NeedsSnapshot;
                     }
                     self.sequence = Some(sequence);
@@ -93,7 +95,7 @@ impl ViewState {
                 }
                 // The first increment of a map the view saw from its start.
                 None if sequence == 1 => {
-                    if self.replica.apply(&inc).is_err() {
+                    if self.tiles.apply(&inc, self.map_version + 1).is_err() {
                         return MapSync::NeedsSnapshot;
                     }
                     self.sequence = Some(sequence);
@@ -108,7 +110,7 @@ impl ViewState {
 
     fn set_origin_from_map(&mut self) {
         if self.origin.is_none() {
-            self.origin = self.replica.gaussians().next().map(|(_, g)| g.position);
+            self.origin = self.tiles.gaussians().next().map(|g| g.position);
         }
     }
 
@@ -120,6 +122,11 @@ impl ViewState {
             self.bins.pop_front();
         }
         self.bins.push_back((stamp_ns, bin_to_world));
+        let before = self.tiles.tile_counts();
+        self.tiles.let_go_far_from(bin_to_world.translation);
+        if self.tiles.tile_counts() != before {
+            self.map_version += 1;
+        }
     }
 
     /// A bin's latency message.
@@ -205,7 +212,7 @@ impl ViewState {
     /// version). `None` before the map has Gaussians.
     pub fn map_ply(&mut self) -> Option<(u64, Arc<Vec<u8>>)> {
         let origin = self.origin?;
-        if self.replica.is_empty() {
+        if self.tiles.is_empty() {
             return None;
         }
         if let Some((v, bytes)) = &self.ply_cache {
@@ -213,16 +220,128 @@ impl ViewState {
                 return Some((*v, bytes.clone()));
             }
         }
-        let set = local_set(
-            self.replica.gaussians().map(|(_, g)| g),
-            DAffine3::from_translation(origin),
-        )
-        .ok()?;
-        let mut bytes = Vec::new();
-        renderer::ply::write_ply(&set, &mut bytes).ok()?;
+        let bytes = ply_of(self.tiles.gaussians(), origin)?;
         let entry = (self.map_version, Arc::new(bytes));
         self.ply_cache = Some(entry.clone());
         Some(entry)
+    }
+
+    /// The map's tiles (held or let go) within `radius` metres of `point` (page
+    /// coordinates: relative to the origin), nearest first, as many as fit `budget`
+    /// Gaussians, as the page's JSON: `{"version", "tile_m", "tiles": [{"x", "y",
+    /// "version", "gaussians", "held"}]}`.
+    pub fn tiles_near(&self, point: DVec3, radius: f64, budget: usize) -> Value {
+        let world = self.origin.unwrap_or(DVec3::ZERO) + point;
+        let tiles: Vec<Value> = self
+            .tiles
+            .near(world, radius, budget)
+            .into_iter()
+            .map(|((x, y), info)| {
+                json!({
+                    "x": x, "y": y, "version": info.version,
+                    "gaussians": info.gaussians, "held": info.held,
+                })
+            })
+            .collect();
+        json!({
+            "version": self.map_version,
+            "tile_m": self.tiles.rules().side_m,
+            "tiles": tiles,
+        })
+    }
+
+    /// One tile as a 3DGS PLY relative to the origin, with its version.
+    pub fn tile_ply(&mut self, tile: TileKey) -> TilePly {
+        let Some(origin) = self.origin else {
+            return TilePly::Unknown;
+        };
+        match self.tiles.tile(tile) {
+            Some((version, gaussians)) => match ply_of(gaussians.iter(), origin) {
+                Some(bytes) => TilePly::Ready(version, bytes),
+                None => TilePly::Unknown,
+            },
+            None if self.tiles.is_let_go(tile) => TilePly::Fetching,
+            None => TilePly::Unknown,
+        }
+    }
+
+    /// The let-go tiles the page asked for, with their world ground boxes (lower and upper
+    /// corners), for the watcher to fetch from the node.
+    pub fn wanted_tiles(&self) -> Vec<(TileKey, (DVec2, DVec2))> {
+        let tiles = &self.tiles;
+        tiles
+            .wanted()
+            .into_iter()
+            .map(|k| (k, tiles.bounds(k)))
+            .collect()
+    }
+
+    /// What the node answered for the wanted `tiles` (see [`ViewTiles::fetched`]).
+    pub fn tiles_fetched(&mut self, tiles: &[TileKey], gaussians: &[(GaussianId, WorldGaussian)]) {
+        self.tiles.fetched(tiles, gaussians);
+    }
+
+    /// A view whose tiles follow `rules` (the default's otherwise).
+    pub fn with_tiles(rules: TileRules) -> Self {
+        Self {
+            tiles: ViewTiles::new(rules),
+            ..Self::default()
+        }
+    }
+
+    /// Takes the node's tile side (from a whole-map snapshot's reply) when the view knows
+    /// no tile yet, so that the tiles the node names map one to one onto the view's.
+    pub fn adopt_tile_side(&mut self, side_m: f64) {
+        let rules = self.tiles.rules();
+        let valid = side_m.is_finite() && side_m > 0.0;
+        if valid && self.tiles.tile_counts() == (0, 0) && side_m != rules.side_m {
+            self.tiles = ViewTiles::new(TileRules { side_m, ..rules });
+        }
+    }
+
+    /// What a whole-map snapshot's reply says the node keeps on disk: its tile side and
+    /// the tiles (key, Gaussians), known from then on as let-go tiles to fetch when the
+    /// page comes near. A view on another grid ignores them (it still fetches what it let
+    /// go itself).
+    pub fn paged_on_node(&mut self, side_m: f64, tiles: &[(TileKey, usize)]) {
+        if self.tiles.rules().side_m != side_m || tiles.is_empty() {
+            return;
+        }
+        self.map_version += 1;
+        self.tiles.paged_on_node(tiles, self.map_version);
+        // A map wholly on disk gives the view no Gaussian to take its origin from.
+        if self.origin.is_none() {
+            let (lo, hi) = self.tiles.bounds(tiles[0].0);
+            self.origin = Some(((lo + hi) / 2.0).extend(0.0));
+        }
+    }
+
+    /// A view of a saved map that will not change: every Gaussian held (whatever the
+    /// rules' keep range), the origin at the first one. `None` for an empty map.
+    pub fn saved(gaussians: Vec<WorldGaussian>, side_m: f64) -> Option<Self> {
+        let mut st = Self::with_tiles(TileRules {
+            side_m,
+            keep_m: f64::MAX,
+            ..TileRules::default()
+        });
+        let snapshot = crate::fusion::Snapshot {
+            last_bin_id: None,
+            gaussians: (0u64..).map(GaussianId).zip(gaussians).collect(),
+        };
+        st.map_update(0, Update::Snapshot(snapshot));
+        st.origin?;
+        Some(st)
+    }
+
+    /// The world point the page's coordinates are relative to (`None` before the map or a
+    /// bin arrived).
+    pub fn origin(&self) -> Option<DVec3> {
+        self.origin
+    }
+
+    /// What the view knows of one tile.
+    pub fn tile_info(&self, tile: TileKey) -> Option<TileInfo> {
+        self.tiles.info(tile)
     }
 
     /// Everything but the pictures and the map, as the page's JSON.
@@ -275,7 +394,11 @@ impl ViewState {
             "map": {
                 "version": self.map_version,
                 "sequence": self.sequence,
-                "gaussians": self.replica.len(),
+                "gaussians": self.tiles.len(),
+                "tile_m": self.tiles.rules().side_m,
+                "tiles_held": self.tiles.tile_counts().0,
+                "tiles_let_go": self.tiles.tile_counts().1,
+                "skipped_removals": self.tiles.skipped_removals(),
                 "origin": self.origin.map(|o| o.to_array()),
             },
             "bins": bins,
@@ -294,6 +417,28 @@ impl ViewState {
             "undecodable": self.undecodable,
         })
     }
+}
+
+/// What [`ViewState::tile_ply`] has for a tile.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum TilePly {
+    /// The tile's PLY, with its version.
+    Ready(u64, Vec<u8>),
+    /// A let-go tile being fetched from the node: ask again.
+    Fetching,
+    /// No such tile (or no map yet).
+    Unknown,
+}
+
+/// World Gaussians as a 3DGS PLY relative to `origin` (`None` if they do not convert).
+fn ply_of<'a>(
+    gaussians: impl IntoIterator<Item = &'a WorldGaussian>,
+    origin: DVec3,
+) -> Option<Vec<u8>> {
+    let set = local_set(gaussians, DAffine3::from_translation(origin)).ok()?;
+    let mut bytes = Vec::new();
+    renderer::ply::write_ply(&set, &mut bytes).ok()?;
+    Some(bytes)
 }
 
 /// An `rgb8`/`bgr8`/`mono8` image message as PNG (`None` if it does not decode).

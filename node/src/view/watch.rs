@@ -2,7 +2,9 @@
 //! renders, bird's-eye views, latency, diagnostics) and to its left input images and camera
 //! info, decodes them and updates the [`ViewState`]. A view that starts after the node, or
 //! misses an update, asks the node's snapshot queryable for the whole map (at most every
-//! two seconds; the node rate-limits it too).
+//! two seconds; the node rate-limits it too). Tiles the page asked for that the view has let
+//! go are fetched from the same queryable as a region (a box of at most 5 x 5 tiles per
+//! query, one query per [`FETCH_EVERY`]).
 
 use std::future::Future;
 use std::sync::{Arc, Mutex};
@@ -12,7 +14,9 @@ use tokio::sync::mpsc;
 use zenoh::Session;
 
 use super::state::{rgb_png, MapSync, ViewState};
-use crate::fusion::decode_update;
+use zenoh::query::ConsolidationMode;
+
+use crate::fusion::{decode_update, TileKey, Update};
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
 use crate::msg::latency::{BinLatency, Diagnostics};
@@ -26,6 +30,11 @@ use crate::transport::TransportError;
 
 /// Least time between two snapshot queries.
 const SNAPSHOT_RETRY: Duration = Duration::from_secs(2);
+
+/// Least time between two fetches of let-go tiles.
+pub const FETCH_EVERY: Duration = Duration::from_secs(1);
+/// Tiles one fetch reaches at most in x and in y from its first tile.
+const FETCH_REACH: i64 = 2;
 
 /// Messages waiting to be taken in at most (beyond it they are dropped).
 const QUEUE: usize = 256;
@@ -67,6 +76,8 @@ pub async fn watch(
     drop(tx);
     let mut last_query: Option<Instant> = None;
     let mut want_snapshot = true;
+    let mut fetch = tokio::time::interval(FETCH_EVERY);
+    fetch.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     tokio::pin!(stop);
     loop {
         if want_snapshot && last_query.is_none_or(|t| t.elapsed() >= SNAPSHOT_RETRY) {
@@ -76,6 +87,10 @@ pub async fn watch(
         let (topic, payload) = tokio::select! {
             _ = &mut stop => break,
             _ = tokio::time::sleep(SNAPSHOT_RETRY), if want_snapshot => continue,
+            _ = fetch.tick() => {
+                fetch_tiles(session, keys, &state).await;
+                continue;
+            }
             received = rx.recv() => match received {
                 Some(r) => r,
                 None => break,
@@ -103,12 +118,100 @@ async fn query_snapshot(session: &Session, keys: &Keys, state: &Mutex<ViewState>
             continue;
         };
         let payload = sample.payload().to_bytes();
+        let paged = sample.attachment().and_then(|a| paged_tiles(&a.to_bytes()));
         let mut st = state.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((side, _)) = &paged {
+            st.adopt_tile_side(*side);
+        }
         if take(&mut st, keys::MAP_UPDATE, &payload) == Some(MapSync::InSync) {
+            if let Some((side, tiles)) = paged {
+                st.paged_on_node(side, &tiles);
+            }
             return true;
         }
     }
     false
+}
+
+/// The tile side and the paged tiles a whole-snapshot reply's attachment names (`None`
+/// when it names none or does not parse).
+fn paged_tiles(attachment: &[u8]) -> Option<(f64, Vec<(TileKey, usize)>)> {
+    let json: serde_json::Value = serde_json::from_slice(attachment).ok()?;
+    let side = json["tile_m"].as_f64()?;
+    let tiles = json["paged_tiles"]
+        .as_array()?
+        .iter()
+        .filter_map(|t| {
+            let t = t.as_array()?;
+            let n = |i: usize| t.get(i).and_then(|v| v.as_i64());
+            Some(((n(0)?, n(1)?), usize::try_from(n(2)?).ok()?))
+        })
+        .collect();
+    Some((side, tiles))
+}
+
+/// Fetches the first wanted let-go tile, and the wanted ones near it, from the node's
+/// region query, and hands what came to the state (nothing when none is wanted; a failed
+/// query leaves them wanted for the next try).
+async fn fetch_tiles(session: &Session, keys: &Keys, state: &Mutex<ViewState>) {
+    let wanted = state
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .wanted_tiles();
+    let Some(&(first, _)) = wanted.first() else {
+        return;
+    };
+    let batch: Vec<_> = wanted
+        .into_iter()
+        .filter(|(k, _)| {
+            (k.0 - first.0).abs() <= FETCH_REACH && (k.1 - first.1).abs() <= FETCH_REACH
+        })
+        .collect();
+    let lo = batch
+        .iter()
+        .map(|(_, b)| b.0)
+        .reduce(|a, b| a.min(b))
+        .unwrap_or_default();
+    let hi = batch
+        .iter()
+        .map(|(_, b)| b.1)
+        .reduce(|a, b| a.max(b))
+        .unwrap_or_default();
+    let selector = format!(
+        "{}?box={},{},{},{}",
+        keys.snapshot_request(),
+        lo.x,
+        lo.y,
+        hi.x,
+        hi.y
+    );
+    // The pages share one key: consolidation would keep only the last.
+    let Ok(replies) = session
+        .get(selector)
+        .consolidation(ConsolidationMode::None)
+        .timeout(Duration::from_secs(5))
+        .await
+    else {
+        return;
+    };
+    let mut gaussians = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        let Ok(sample) = reply.result() else {
+            return;
+        };
+        let page = MapUpdate::decode(&sample.payload().to_bytes())
+            .ok()
+            .and_then(|m| decode_update(&m).ok());
+        match page {
+            Some(Update::Snapshot(s)) => gaussians.extend(s.gaussians),
+            _ => return,
+        }
+    }
+    let tiles: Vec<TileKey> = batch.iter().map(|(k, _)| *k).collect();
+    state
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .tiles_fetched(&tiles, &gaussians);
 }
 
 /// Decodes one message of `topic` into the state. Returns how the map fared for map

@@ -4,7 +4,8 @@
 //! a region with nothing in it gets one empty page; bad parameters get an error reply naming
 //! them, counted as `refused/snapshot_region`, and do not use up the rate limit. On a drive
 //! whose first tiles were paged to disk, a region over the whole drive is answered with
-//! those tiles too (the whole snapshot holds only the tiles in memory).
+//! those tiles too (the whole snapshot holds only the tiles in memory, and names the others
+//! in its attachment, through which a live view started late lists them and fetches one).
 
 use crate::drive_support;
 
@@ -161,12 +162,12 @@ async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refu
     assert_eq!(summary.counters.get("refused/snapshot_region"), 4);
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
-    // 150 frames (about 120 m) with 16 m tiles, a 5 m keep range and tiles kept in memory
-    // only within 1 m (plus one tile) of the vehicle: the first tiles go to disk.
+/// A node whose first tiles go to disk as `name`'s drive goes on: 150 frames (about 120 m)
+/// with 16 m tiles, a 5 m keep range and tiles kept in memory only within 1 m (plus one
+/// tile) of the vehicle. The drive, the node's keys, the node and its output folder.
+async fn paged_node(name: &str) -> (Drive, Keys, RunningNode, std::path::PathBuf) {
     let drive = Drive::generate(
-        "region_paged",
+        name,
         &SynthConfig {
             seed: 29,
             frames: 150,
@@ -178,7 +179,7 @@ async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
         },
     );
     let out = drive.dir("out");
-    let keys = Keys::new("region_paged");
+    let keys = Keys::new(name);
     let node = RunningNode::start(NodeConfig {
         keys: keys.clone(),
         method: "sgm".into(),
@@ -197,6 +198,12 @@ async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
         ..NodeConfig::default()
     })
     .await;
+    (drive, keys, node, out)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
+    let (drive, keys, node, out) = paged_node("region_paged").await;
     let player = drive_through(&node, &keys, &drive).await;
     let key = keys.snapshot_request();
     let in_memory = query(&player, &key).await;
@@ -222,4 +229,68 @@ async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
     );
     assert_eq!(got, want);
     assert!(in_memory < got.len(), "{in_memory} vs {}", got.len());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_late_view_lists_the_tiles_on_disk_and_serves_them_from_the_node() {
+    use drive_support::net_support::{http_get, http_json};
+    use node::view::{default_node_modules, Bound, ViewConfig};
+
+    let (drive, keys, node, out) = paged_node("view_paged").await;
+    let player = drive_through(&node, &keys, &drive).await;
+    // A view started after the drive: its whole-snapshot query names the tiles on disk.
+    let view = Bound::bind(&ViewConfig {
+        bind: ([127, 0, 0, 1], 0).into(),
+        node_modules: default_node_modules(),
+    })
+    .await
+    .expect("the view's libraries are installed (bash .ci/setup)")
+    .serve(&player.session, keys.clone());
+    let port = view.addr().port();
+    let listing = || http_json(port, "/api/tiles?x=0&y=0&radius=1e4&budget=5e7");
+    let mut tiles = Vec::new();
+    for _ in 0..100 {
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let Some(l) = listing() else { continue };
+        tiles = l["tiles"].as_array().cloned().unwrap_or_default();
+        if tiles.iter().any(|t| t["held"] == false) {
+            assert_eq!(l["tile_m"], 16.0, "the node's tile side");
+            break;
+        }
+    }
+    let on_disk: Vec<(i64, i64)> = tiles
+        .iter()
+        .filter(|t| t["held"] == false)
+        .map(|t| (t["x"].as_i64().unwrap(), t["y"].as_i64().unwrap()))
+        .collect();
+    assert!(on_disk.len() >= 2, "tiles listed: {tiles:?}");
+
+    // A tile on disk is fetched from the node when the page asks (503 until it came).
+    let (x, y) = on_disk[0];
+    let mut served = None;
+    for _ in 0..100 {
+        match http_get(port, &format!("/map/tile.ply?x={x}&y={y}")) {
+            Some((200, body)) => {
+                served = Some(body);
+                break;
+            }
+            Some((503, _)) => tokio::time::sleep(Duration::from_millis(200)).await,
+            other => panic!("tile ({x}, {y}): {other:?}"),
+        }
+    }
+    let served = served.expect("the tile came from the node within 20 s");
+    let set = renderer::ply::read_ply(served.as_slice()).unwrap();
+    view.stop().await;
+    node.stop().await;
+
+    // It holds exactly what the node's tile file holds.
+    let map = restore(&out, AtTornTail::Fail).unwrap().unwrap().map;
+    let file = map.read_paged_tile(&out.join(TILES), (x, y)).unwrap();
+    eprintln!(
+        "tile ({x}, {y}): {} Gaussians served, {} in its file",
+        set.len(),
+        file.len()
+    );
+    assert!(!file.is_empty());
+    assert_eq!(set.len(), file.len());
 }

@@ -20,6 +20,7 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::Duration;
 
+use drive_support::net_support::http_json;
 use drive_support::{free_port, Drive};
 use glam::{Mat3, Quat, Vec3};
 use model::synth::SynthConfig;
@@ -275,6 +276,14 @@ fn the_live_view_shows_the_map_as_splats_and_charts_bins_as_they_arrive() {
     assert_eq!(late_map["sequence"], state["map"]["sequence"], "{late_map}");
     let set = renderer::ply::load_ply(checked.join("map.ply")).expect("the served PLY loads");
     assert!(set.len() > 1000, "{} Gaussians", set.len());
+    // The page loaded the map tile by tile: every tile of this short drive is within its
+    // radius and budget, so it drew every Gaussian of the map.
+    assert_eq!(
+        summary["splat_gaussians"].as_u64(),
+        Some(set.len() as u64),
+        "{summary}"
+    );
+    assert!(summary["splat_tiles"].as_u64().unwrap() >= 1, "{summary}");
     let camera = first_bin_camera(&state);
     let ShotScore {
         lit,
@@ -321,20 +330,6 @@ fn first_bin_camera(state: &Value) -> Camera {
     let rotation = Mat3::from_cols(rows[0], rows[1], rows[2]).transpose();
     let position = Vec3::from_array(std::array::from_fn(|i| f(&bin["position"][i])));
     Camera::from_camera_to_world(intrinsics, Quat::from_mat3(&rotation), position)
-}
-
-/// GET `path` from 127.0.0.1:`port` and parse the body as JSON (`None` on any failure).
-fn http_json(port: u16, path: &str) -> Option<Value> {
-    use std::io::{Read, Write};
-    let mut stream = std::net::TcpStream::connect(("127.0.0.1", port)).ok()?;
-    stream.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
-    write!(stream, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").ok()?;
-    let mut response = Vec::new();
-    stream.read_to_end(&mut response).ok()?;
-    let text = String::from_utf8(response).ok()?;
-    let (head, body) = text.split_once("\r\n\r\n")?;
-    head.starts_with("HTTP/1.1 200").then_some(())?;
-    serde_json::from_str(body).ok()
 }
 
 /// A browser's screenshot of a map against the CPU rasterizer.

@@ -40,3 +40,26 @@ pub async fn connected_pair() -> (Session, Session) {
     }
     (a, b)
 }
+
+/// GET `path` from 127.0.0.1:`port` on a fresh connection: the status and the body (`None`
+/// when the exchange fails).
+pub fn http_get(port: u16, path: &str) -> Option<(u16, Vec<u8>)> {
+    use std::io::{Read, Write};
+    let mut stream = std::net::TcpStream::connect(("127.0.0.1", port)).ok()?;
+    stream.set_read_timeout(Some(Duration::from_secs(5))).ok()?;
+    write!(stream, "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n").ok()?;
+    let mut response = Vec::new();
+    stream.read_to_end(&mut response).ok()?;
+    let split = response.windows(4).position(|w| w == b"\r\n\r\n")?;
+    let head = std::str::from_utf8(&response[..split]).ok()?;
+    let status = head.split(' ').nth(1)?.parse().ok()?;
+    Some((status, response[split + 4..].to_vec()))
+}
+
+/// GET `path` from 127.0.0.1:`port` and parse a 200 answer's body as JSON (`None`
+/// otherwise).
+pub fn http_json(port: u16, path: &str) -> Option<serde_json::Value> {
+    let (status, body) = http_get(port, path)?;
+    (status == 200).then_some(())?;
+    serde_json::from_slice(&body).ok()
+}

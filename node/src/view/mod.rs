@@ -13,6 +13,8 @@ mod server;
 #[cfg(test)]
 mod server_tests;
 mod state;
+#[cfg(test)]
+mod test_gaussian;
 mod tiles;
 mod watch;
 

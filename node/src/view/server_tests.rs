@@ -315,8 +315,8 @@ async fn connections_beyond_the_limit_wait_for_a_free_slot() {
 
 #[tokio::test]
 async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
-    use crate::fusion::{GaussianId, Snapshot, Update, WorldGaussian};
-    use glam::{DAffine3, DVec3, Quat, Vec3};
+    use crate::fusion::{GaussianId, Snapshot, Update};
+    use glam::{DAffine3, DVec3};
 
     // 64 m tiles kept within 100 m of the vehicle: Gaussians at x = 1, 2 (tile 0), 70 (tile
     // 1) and 1001 (tile 15); the vehicle at x = 1000 lets tiles 0 and 1 go.
@@ -324,15 +324,7 @@ async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
         keep_m: 100.0,
         ..super::TileRules::default()
     });
-    let g = |x: f64| WorldGaussian {
-        position: DVec3::new(x, 1.0, 0.5),
-        log_scale: Vec3::splat(-2.0),
-        rotation: Quat::IDENTITY,
-        opacity: 0.8,
-        color: Vec3::new(0.2, 0.4, 0.6),
-        confidence: 0.9,
-        bin_id: 0,
-    };
+    let g = |x: f64| super::test_gaussian::at(DVec3::new(x, 1.0, 0.5));
     let snapshot = Snapshot {
         last_bin_id: Some(0),
         gaussians: [1.0, 2.0, 70.0, 1001.0]

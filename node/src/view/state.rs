@@ -457,21 +457,11 @@ pub fn rgb_png(width: u32, height: u32, rgb: Vec<u8>) -> Option<Vec<u8>> {
 
 #[cfg(test)]
 mod tests {
-    use glam::{Quat, Vec3};
-
     use super::*;
     use crate::fusion::{GaussianId, Increment, Snapshot, WorldGaussian};
 
     fn gaussian(x: f64) -> WorldGaussian {
-        WorldGaussian {
-            position: DVec3::new(x, 2.0, 3.0),
-            log_scale: Vec3::splat(-2.0),
-            rotation: Quat::IDENTITY,
-            opacity: 0.8,
-            color: Vec3::new(0.2, 0.4, 0.6),
-            confidence: 0.9,
-            bin_id: 0,
-        }
+        super::super::test_gaussian::at(DVec3::new(x, 2.0, 3.0))
     }
 
     fn increment(bin_id: u64, ids: &[u64]) -> Update {

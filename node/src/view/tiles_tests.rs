@@ -1,19 +1,9 @@
 //! Tests of the view's tiled copy of the map.
 
-use glam::{Quat, Vec3};
-
 use super::*;
 
 fn g(x: f64, y: f64) -> WorldGaussian {
-    WorldGaussian {
-        position: DVec3::new(x, y, 1.0),
-        log_scale: Vec3::splat(-2.0),
-        rotation: Quat::IDENTITY,
-        opacity: 0.8,
-        color: Vec3::new(0.2, 0.4, 0.6),
-        confidence: 0.9,
-        bin_id: 0,
-    }
+    crate::view::test_gaussian::at(DVec3::new(x, y, 1.0))
 }
 
 fn inc(bin_id: u64, added: &[(u64, f64, f64)], removed: &[u64]) -> Increment {

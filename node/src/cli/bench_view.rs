@@ -18,7 +18,7 @@ use glam::DVec3;
 use serde_json::{json, Value};
 
 use super::view::saved_view_gaussians;
-use crate::view::{default_node_modules, Bound, ViewConfig, ViewState};
+use crate::view::{default_node_modules, ground_tile, Bound, ViewConfig, ViewState};
 
 /// Height of the camera above the densest tile's mean height, metres.
 pub const ALTITUDE_M: f64 = 60.0;
@@ -72,7 +72,7 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
         runtime.block_on(async { anyhow::Ok(Bound::bind(&config).await?.serve_saved(state)) })?;
     let url = view.url();
     let page = |radius: f64, budget: usize| -> Result<Value> {
-        let script = default_node_modules().join("../frame_time.mjs");
+        let script = default_node_modules().with_file_name("frame_time.mjs");
         let out = Command::new("node")
             .arg(&script)
             .args([
@@ -129,11 +129,7 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
 fn densest_tile(gaussians: &[crate::fusion::WorldGaussian], side: f64) -> Option<(DVec3, f64)> {
     let mut tiles: HashMap<(i64, i64), (usize, f64)> = HashMap::new();
     for g in gaussians.iter().filter(|g| g.position.is_finite()) {
-        let key = (
-            (g.position.x / side).floor() as i64,
-            (g.position.y / side).floor() as i64,
-        );
-        let entry = tiles.entry(key).or_default();
+        let entry = tiles.entry(ground_tile(g.position, side)).or_default();
         entry.0 += 1;
         entry.1 += g.position.z;
     }

@@ -29,7 +29,7 @@ use crate::service::Keys;
 
 pub use routes::{DEFAULT_BUDGET, DEFAULT_RADIUS_M, MAX_BUDGET, MAX_RADIUS_M};
 pub use state::{TilePly, ViewState, MAX_LATENCY_ROWS};
-pub use tiles::{TileInfo, TileRules, TilesError, ViewTiles};
+pub use tiles::{ground_tile, TileInfo, TileRules, TilesError, ViewTiles};
 
 /// Where the view listens and where its browser libraries are.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -47,24 +47,19 @@ fn libraries() -> PathBuf {
 async fn start(limits: Limits) -> SocketAddr {
     let mut state = ViewState::default();
     state.render(7, 0, b"not really a png".to_vec());
+    start_with(state, limits).await
+}
+
+/// Starts a server on `state` on a free loopback port, with the default limits.
+async fn start_on(state: ViewState) -> SocketAddr {
+    start_with(state, Limits::default()).await
+}
+
+async fn start_with(state: ViewState, limits: Limits) -> SocketAddr {
     let router = routes::router(Arc::new(Mutex::new(state)), libraries());
     let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     tokio::spawn(serve(listener, router, limits, std::future::pending()));
-    addr
-}
-
-/// Starts a server on `state` on a free loopback port.
-async fn start_on(state: ViewState) -> SocketAddr {
-    let router = routes::router(Arc::new(Mutex::new(state)), libraries());
-    let listener = TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(serve(
-        listener,
-        router,
-        Limits::default(),
-        std::future::pending(),
-    ));
     addr
 }
 

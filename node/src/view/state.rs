@@ -12,7 +12,7 @@ use glam::{DAffine3, DVec2, DVec3};
 use renderer::Intrinsics;
 use serde_json::{json, Value};
 
-use super::tiles::{TileInfo, TileRules, ViewTiles};
+use super::tiles::{TileRules, ViewTiles};
 use crate::fusion::{local_set, GaussianId, TileKey, Update, WorldGaussian};
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::sensor_msgs::Image;
@@ -339,14 +339,10 @@ impl ViewState {
         self.origin
     }
 
-    /// What the view knows of one tile.
-    pub fn tile_info(&self, tile: TileKey) -> Option<TileInfo> {
-        self.tiles.info(tile)
-    }
-
     /// Everything but the pictures and the map, as the page's JSON.
     pub fn to_json(&self) -> Value {
         let origin = self.origin.unwrap_or(DVec3::ZERO);
+        let (held, let_go) = self.tiles.tile_counts();
         let bins: Vec<Value> = self
             .bins
             .iter()
@@ -396,8 +392,8 @@ impl ViewState {
                 "sequence": self.sequence,
                 "gaussians": self.tiles.len(),
                 "tile_m": self.tiles.rules().side_m,
-                "tiles_held": self.tiles.tile_counts().0,
-                "tiles_let_go": self.tiles.tile_counts().1,
+                "tiles_held": held,
+                "tiles_let_go": let_go,
                 "skipped_removals": self.tiles.skipped_removals(),
                 "origin": self.origin.map(|o| o.to_array()),
             },

@@ -27,6 +27,20 @@ const MAX_LET_GO: usize = 1 << 16;
 /// Tiles waiting to be fetched at most.
 const MAX_WANTED: usize = 64;
 
+/// The `side`-metre ground tile of a world position: `floor` of x and y over the side (a
+/// non-finite coordinate lands in tile 0; casts saturate far out).
+pub fn ground_tile(p: DVec3, side: f64) -> TileKey {
+    let k = |v: f64| {
+        let t = (v / side).floor();
+        if t.is_finite() {
+            t as i64
+        } else {
+            0
+        }
+    };
+    (k(p.x), k(p.y))
+}
+
 /// The view's tile settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TileRules {
@@ -149,15 +163,7 @@ impl ViewTiles {
     /// The tile of a world position (`floor` of x and y over the side; a non-finite
     /// coordinate lands in tile 0).
     pub fn tile_of(&self, p: DVec3) -> TileKey {
-        let k = |v: f64| {
-            let t = (v / self.rules.side_m).floor();
-            if t.is_finite() {
-                t as i64
-            } else {
-                0
-            }
-        };
-        (k(p.x), k(p.y))
+        ground_tile(p, self.rules.side_m)
     }
 
     /// A tile's ground box, world metres.

@@ -276,7 +276,8 @@ async function poll() {
       setPicture($('bev'), 'bev', s.pictures.bev === null ? null : `${s.pictures.bev}-${map.version}`);
       const l = s.latency[s.latency.length - 1];
       $('bin-info').textContent = s.pictures.render === null ? '' : `bin ${s.pictures.render}` +
-        (l ? ` · check ${['not run', 'pass', 'FAIL', 'undetermined'][l.check_verdict] ?? '?'} ${l.check_score.toFixed(2)}` : '');
+        (l ? ` · check ${['not run', 'pass', 'FAIL', 'undetermined'][l.check_verdict] ?? '?'} ${l.check_score.toFixed(2)}` : '') +
+        (l && l.operating_point ? ` · point ${l.operating_point}` : '');
       drawCharts(s.latency);
       drawCounters(s.counters);
     }

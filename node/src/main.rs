@@ -4,10 +4,10 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_drive, bench_export, bench_fusion, bench_model, bench_node,
-    bench_pareto, bench_view, demo, enhancer_data, eval, eval_enhancer, eval_map, export,
-    interpolate_weights, launch, logs, reconstruct, render, stream, synth, train, train_enhancer,
-    view,
+    bench, bench_check, bench_drive, bench_export, bench_fusion, bench_keep_up, bench_model,
+    bench_node, bench_pareto, bench_view, demo, enhancer_data, eval, eval_enhancer, eval_map,
+    export, interpolate_weights, launch, logs, reconstruct, render, stream, synth, train,
+    train_enhancer, view,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -93,6 +93,10 @@ enum BenchCommand {
     /// The live view's page on a large saved map in headless Chromium: frame times when it
     /// loads every tile and when it loads the tiles near its camera.
     View(bench_view::BenchViewArgs),
+    /// Whether the node keeps up with a camera at KITTI-360's frame size: the latency budget
+    /// `auto` against fixed operating points, bins dropped and the PSNR of what was
+    /// published.
+    KeepUp(bench_keep_up::BenchKeepUpArgs),
     /// Operating points from a TOML list on the same held-out bins: latency, memory,
     /// Gaussians and quality side by side, the Pareto front, a chart.
     Pareto(bench_pareto::BenchParetoArgs),
@@ -136,6 +140,7 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args),
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
         Command::Bench(BenchCommand::Drive(args)) => bench_drive::run(&args),
+        Command::Bench(BenchCommand::KeepUp(args)) => bench_keep_up::run(&args),
         Command::Bench(BenchCommand::Fusion(args)) => bench_fusion::run(&args),
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
         Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),

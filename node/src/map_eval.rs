@@ -1,6 +1,6 @@
 //! The fused global map's own quality (`stereosplat eval-map`): a drive cut into bins as the
 //! node's binner cuts it (consecutive, 8 m), each bin's first stereo pair through the
-//! worker's path ([`crate::pipeline::worker::bin_map`]), the bin maps fused by the node's
+//! worker's path ([`crate::pipeline::bin_map::bin_map`]), the bin maps fused by the node's
 //! [`GlobalMap`], and the fused map rendered at every (`frame_stride`-th) frame's left
 //! camera and scored against the recorded image and LiDAR with the evaluation protocol's
 //! metrics ([`model::eval::score_frame`]). The bin maps are made once and fused again per
@@ -17,8 +17,8 @@ use renderer::GaussianSet;
 use serde::Serialize;
 
 use crate::fusion::{local_set, ExportError, FusionConfig, FusionError, GlobalMap, Keep};
+use crate::pipeline::bin_map::bin_map;
 use crate::pipeline::self_check::{OnCheckFail, SelfCheck};
-use crate::pipeline::worker::bin_map;
 
 /// Gaussians farther than this from a camera are left out of its render (they project to
 /// nothing, or to less than a pixel, at the drives' sizes), metres.

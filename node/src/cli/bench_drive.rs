@@ -143,15 +143,18 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     let name = cached_drive(&drive_dir, &synth)?;
     let sequence = Sequence::open(&drive_dir, &name)?;
     let map_dir = args.out.join("map");
-    let config = args.node.node_config(NodeConfig {
-        out_dir: Some(map_dir.clone()),
-        start_map: StartMap::Fresh,
-        checkpoint_every: args.checkpoint_every,
-        compaction: Compaction {
-            min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
+    let config = args.node.node_config(
+        NodeConfig {
+            out_dir: Some(map_dir.clone()),
+            start_map: StartMap::Fresh,
+            checkpoint_every: args.checkpoint_every,
+            compaction: Compaction {
+                min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
+            },
+            ..NodeConfig::default()
         },
-        ..NodeConfig::default()
-    });
+        &args.out,
+    )?;
     // A fresh start keeps an earlier run's files aside; this benchmark's own do not pile up.
     let _ = std::fs::remove_dir_all(&map_dir);
     let runtime = tokio::runtime::Runtime::new()?;

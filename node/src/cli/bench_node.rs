@@ -6,7 +6,7 @@
 //! its peak. The node, the replay and the listener share the process (three zenoh sessions
 //! over loopback TCP), so memory figures cover all three.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Result;
@@ -16,6 +16,7 @@ use model::synth::SynthConfig;
 use serde::Serialize;
 
 use super::method_args::MethodArgs;
+use super::operating_args::OperatingArgs;
 use super::progress;
 use super::stream::{rate_of, RenderArg};
 use super::synth::{cached_drive, first_sequence};
@@ -66,20 +67,24 @@ pub struct BenchNodeSettings {
     /// The global map's Gaussian budget (its memory bound).
     #[arg(long, default_value_t = FusionConfig::default().max_gaussians)]
     pub max_gaussians: usize,
+    /// A latency budget and the operating points that meet it.
+    #[command(flatten)]
+    pub operating: OperatingArgs,
 }
 
 impl BenchNodeSettings {
-    /// `base` with these settings.
-    pub fn node_config(&self, base: NodeConfig) -> NodeConfig {
-        self.method.node_config(NodeConfig {
+    /// `base` with these settings (a calibration, when asked, goes into `out`).
+    pub fn node_config(&self, base: NodeConfig, out: &Path) -> Result<NodeConfig> {
+        Ok(self.method.node_config(NodeConfig {
             renders: self.renders.into(),
             queue_capacity: self.queue,
             fusion: FusionConfig {
                 max_gaussians: self.max_gaussians,
                 ..base.fusion
             },
+            operating: self.operating.operating(out)?,
             ..base
-        })
+        }))
     }
 
     /// The settings as JSON fields of a report.
@@ -90,6 +95,7 @@ impl BenchNodeSettings {
             "settings": self.method.settings,
             "renders": format!("{:?}", self.renders).to_lowercase(),
             "max_gaussians": self.max_gaussians,
+            "latency_budget": self.operating.latency_budget.map(|b| format!("{b:?}")),
         })
     }
 }
@@ -121,10 +127,13 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
     let runtime = tokio::runtime::Runtime::new()?;
     let mut runs = Vec::new();
     for &rate in &args.rate {
-        let config = args.node.node_config(NodeConfig {
-            binner: BinnerConfig::default(),
-            ..NodeConfig::default()
-        });
+        let config = args.node.node_config(
+            NodeConfig {
+                binner: BinnerConfig::default(),
+                ..NodeConfig::default()
+            },
+            &args.cache,
+        )?;
         let bar = progress::bar(sequence.frames().len(), &format!("rate {rate}"));
         let report = runtime.block_on(run_loopback(
             config,

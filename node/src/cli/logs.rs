@@ -210,8 +210,12 @@ fn bin_line(l: &BinLatency) -> String {
             None => format!("{name} -"),
         })
         .collect();
+    let point = match l.operating_point.as_str() {
+        "" => String::new(),
+        p => format!("point {p}; "),
+    };
     format!(
-        "bin {:>4}: {} ms; queue {}, drops {}, bad {}; {check}",
+        "bin {:>4}: {point}{} ms; queue {}, drops {}, bad {}; {check}",
         l.bin_id,
         stages.join(", "),
         l.queue_depth,

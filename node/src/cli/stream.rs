@@ -19,6 +19,7 @@ use renderer::formats::MapFormat;
 
 use super::logs::{self, BagReplayArgs};
 use super::method_args::MethodArgs;
+use super::operating_args::OperatingArgs;
 use super::progress;
 use super::shutdown::shutdown_signal;
 use super::view::{self, ViewFlags};
@@ -87,6 +88,9 @@ pub struct RunArgs {
     /// The reconstructor, its preset, weights and settings.
     #[command(flatten)]
     method: MethodArgs,
+    /// A latency budget and the operating points that meet it.
+    #[command(flatten)]
+    operating: OperatingArgs,
     /// What to do with a bin whose map fails the self-check (its own stereo pair does not
     /// agree with the map's geometry; docs/crashes-and-limits.md, "Self-check").
     #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
@@ -254,8 +258,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
             bind,
             ..FoxgloveConfig::default()
         }),
+        operating: args.operating.operating(&args.out)?,
         ..NodeConfig::default()
     });
+    if args.operating.calibrate && args.operating.latency_budget.is_none() {
+        // A calibration alone: the table is written, and no budget asks for a node.
+        return Ok(());
+    }
     let runtime = tokio::runtime::Runtime::new()?;
     let namespace = config.keys.namespace.clone();
     let keys = config.keys.clone();

@@ -189,6 +189,7 @@ pub fn latency_json(l: &BinLatency) -> Value {
         "queue_depth": l.queue_depth,
         "drops": l.drops,
         "check_verdict": l.check_verdict,
+        "operating_point": l.operating_point,
     })
 }
 
@@ -206,7 +207,8 @@ pub const LATENCY_SCHEMA: &str = r#"{
     "publish_before_close_ms": {"type": ["number", "null"], "description": "map published this long before the bin's last frame arrived"},
     "queue_depth": {"type": "integer"},
     "drops": {"type": "integer"},
-    "check_verdict": {"type": "integer"}
+    "check_verdict": {"type": "integer"},
+    "operating_point": {"type": "string", "description": "the operating point the bin's map was made with"}
   }
 }"#;
 

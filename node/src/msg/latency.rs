@@ -13,10 +13,12 @@
 //! `uint8 check_action`, `uint8 fallback_verdict`, `uint32 check_samples`,
 //! `float64 check_score`, `float64 fallback_score`, and from version 2 on the progressive
 //! pass's stage stamps `int64 base_end_ns`, `int64 pseudo_render_end_ns`,
-//! `int64 enhance_end_ns`, `int64 plus_end_ns`, `int64 fuse_end_ns`. Version 2 only appends,
-//! so a version-1 payload (an older recording) is a version-2 payload cut short: the
-//! reader takes a payload that ends right after `fallback_score` as version 1, its stage
-//! stamps 0; one that ends inside the stamps is a truncation error.
+//! `int64 enhance_end_ns`, `int64 plus_end_ns`, `int64 fuse_end_ns`, and from version 3 on
+//! `string operating_point`. Each version only appends, so an older payload (an older
+//! recording) is a newer one cut short: the reader takes a payload that ends right after
+//! `fallback_score` as version 1 (stage stamps 0, no point) and one that ends right after
+//! `fuse_end_ns` as version 2 (no point); one that ends inside the appended fields is a
+//! truncation error.
 //!
 //! `stereosplat_msgs/msg/Diagnostics`: `int64 stamp_ns`, `Counter[] counters`, where
 //! `stereosplat_msgs/msg/Counter` is `string kind`, `uint64 count`.
@@ -35,7 +37,7 @@ pub const DIAGNOSTICS_MSG: &str = include_str!("Diagnostics.msg");
 /// the node's clock, 0 where the bin never reached the stage; differences give the stage
 /// latencies. It also carries the bin's self-check (`model::consistency`) and what the node
 /// did when it failed (`node::pipeline::self_check`).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct BinLatency {
     /// The bin's number, counted from 0 since the node started.
     pub bin_id: u64,
@@ -81,6 +83,8 @@ pub struct BinLatency {
     pub plus_end_ns: i64,
     /// G_base and G_plus fused (the self-check follows, up to `model_end_ns`).
     pub fuse_end_ns: i64,
+    /// The operating point the map was made with (empty in version-1 and 2 payloads).
+    pub operating_point: String,
 }
 
 impl BinLatency {
@@ -123,6 +127,7 @@ impl Message for BinLatency {
         for t in self.stage_stamps() {
             w.i64(t);
         }
+        w.string(&self.operating_point);
     }
 
     fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
@@ -153,6 +158,9 @@ impl Message for BinLatency {
             l.enhance_end_ns = r.i64("enhance_end_ns")?;
             l.plus_end_ns = r.i64("plus_end_ns")?;
             l.fuse_end_ns = r.i64("fuse_end_ns")?;
+        }
+        if r.remaining() > 0 {
+            l.operating_point = r.string("operating_point")?;
         }
         Ok(l)
     }

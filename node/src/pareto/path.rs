@@ -2,16 +2,15 @@
 //! that the evaluation protocol can time and score: the pair (and its cameras) downsized by
 //! the operating point's input scale as the node downsizes to its working size, the
 //! reconstructor, then the worker's self-check and its policy
-//! ([`crate::pipeline::worker::bin_map`]). Each call also records the process's peak
+//! ([`crate::pipeline::bin_map::bin_map`]). Each call also records the process's peak
 //! resident memory during it (the peak is reset before the call, [`reset_peak_rss`]).
 
-use model::frame::RgbImage;
-use model::kitti360::resample::resample_area;
 use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
-use renderer::{Camera, GaussianSet};
+use renderer::GaussianSet;
 
+use crate::pipeline::bin_map::bin_map;
+use crate::pipeline::operating::with_scaled_views;
 use crate::pipeline::self_check::{CheckAction, OnCheckFail, SelfCheck};
-use crate::pipeline::worker::bin_map;
 use crate::service::loopback::{peak_rss_bytes, reset_peak_rss};
 
 /// A reconstructor run as the node's worker runs it, with per-call memory and check counts.
@@ -45,16 +44,6 @@ impl WorkerPath {
     }
 }
 
-/// `image` and `camera` brought to `scale` times their size (area averaging, intrinsics
-/// scaled; at least 1 pixel a side).
-pub fn downscale(image: &RgbImage, camera: &Camera, scale: f64) -> (RgbImage, Camera) {
-    let size = |n: u32| ((n as f64 * scale).round() as u32).max(1);
-    let (w, h) = (size(image.width), size(image.height));
-    let mut camera = *camera;
-    camera.intrinsics = camera.intrinsics.scaled(w, h);
-    (resample_area(image, w, h), camera)
-}
-
 impl Reconstructor for WorkerPath {
     fn name(&self) -> &str {
         self.inner.name()
@@ -62,28 +51,9 @@ impl Reconstructor for WorkerPath {
 
     fn reconstruct(&mut self, views: &[StereoView<'_>]) -> Result<GaussianSet, ReconstructError> {
         self.peak_reset &= reset_peak_rss();
-        let scaled: Vec<_> = match self.scale < 1.0 {
-            true => views
-                .iter()
-                .map(|v| {
-                    let (left, left_camera) = downscale(v.left, &v.left_camera, self.scale);
-                    let (right, right_camera) = downscale(v.right, &v.right_camera, self.scale);
-                    (left, right, left_camera, right_camera)
-                })
-                .collect(),
-            false => Vec::new(),
-        };
-        let small: Vec<StereoView> = scaled
-            .iter()
-            .map(|(left, right, left_camera, right_camera)| StereoView {
-                left,
-                right,
-                left_camera: *left_camera,
-                right_camera: *right_camera,
-            })
-            .collect();
-        let views = if small.is_empty() { views } else { &small };
-        let (result, check) = bin_map(self.inner.as_mut(), &mut self.self_check, views);
+        let (inner, self_check) = (self.inner.as_mut(), &mut self.self_check);
+        let (result, check) =
+            with_scaled_views(views, self.scale, |views| bin_map(inner, self_check, views));
         self.peak_rss_bytes = self.peak_rss_bytes.max(peak_rss_bytes());
         self.checks_failed += usize::from(check.action != CheckAction::None);
         self.replaced_by_sgm += usize::from(check.action == CheckAction::Sgm);

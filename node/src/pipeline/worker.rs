@@ -8,9 +8,8 @@
 //! (keep newest), because a map of the road just driven is worth more than a late one. A panic
 //! inside the reconstructor is caught, reported on that bin, and the worker goes on.
 
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender, TrySendError};
@@ -19,6 +18,7 @@ use model::frame::{RgbImage, Side, StereoFrame, StereoRig};
 use model::reconstruct::{ModelSplit, Reconstructor, StereoView};
 use renderer::{GaussianSet, Raster, RenderSettings};
 
+use super::operating::{Governor, PointRunner};
 use super::self_check::{CheckOutcome, OnCheckFail, SelfCheck};
 
 /// Whether and how each bin's map is drawn from its input (left) view: off, or one of the
@@ -112,6 +112,9 @@ pub struct Job {
     pub rig: StereoRig,
     /// Stamps so far.
     pub stamps: Stamps,
+    /// The operating point to run it with, an index into the worker's points, when the
+    /// worker has no governor to choose (0 when the node runs one point).
+    pub point: usize,
 }
 
 /// What the worker made of a job.
@@ -131,6 +134,8 @@ pub struct Output {
     pub stamps: Stamps,
     /// Jobs still waiting when this one finished.
     pub queue_depth: usize,
+    /// The operating point it ran with (the job's, within the worker's points).
+    pub point: usize,
 }
 
 /// A bin's map rendered from its input (left) view, sent after its [`Output`].
@@ -175,12 +180,29 @@ impl Worker {
     /// `capacity` bins, maps failing their self-check handled as `on_check_fail` says, and
     /// `on_event` called on the worker thread for every map and render.
     pub fn spawn(
-        mut reconstructor: Box<dyn Reconstructor + Send>,
+        reconstructor: Box<dyn Reconstructor + Send>,
+        with: RenderWith,
+        capacity: usize,
+        on_check_fail: OnCheckFail,
+        on_event: impl FnMut(WorkerEvent) + Send + 'static,
+    ) -> Self {
+        let points = vec![PointRunner::whole(reconstructor)];
+        Self::spawn_points(points, None, with, capacity, on_check_fail, on_event)
+    }
+
+    /// [`Self::spawn`] with several operating points: each job runs with the one
+    /// `governor` chooses when the worker takes the job (and is told how long the job took
+    /// on the worker), or with the one the job's `point` names when there is no governor
+    /// (the last, when it names none of them).
+    pub fn spawn_points(
+        mut points: Vec<PointRunner>,
+        governor: Option<Arc<Mutex<Governor>>>,
         with: RenderWith,
         capacity: usize,
         on_check_fail: OnCheckFail,
         mut on_event: impl FnMut(WorkerEvent) + Send + 'static,
     ) -> Self {
+        assert!(!points.is_empty(), "a worker needs an operating point");
         let (tx, rx) = crossbeam_channel::bounded::<Job>(capacity.max(1));
         let steal = rx.clone();
         let thread = std::thread::Builder::new()
@@ -189,14 +211,25 @@ impl Worker {
                 let mut raster = with.raster();
                 let mut self_check = SelfCheck::new(on_check_fail);
                 for job in rx.iter() {
+                    let point = match &governor {
+                        Some(g) => lock(g).choose().point,
+                        None => job.point,
+                    }
+                    .min(points.len() - 1);
+                    let start = std::time::Instant::now();
                     run_job(
-                        reconstructor.as_mut(),
+                        &mut points[point],
+                        point,
                         &mut self_check,
                         raster.as_mut(),
                         job,
                         rx.len(),
                         &mut on_event,
                     );
+                    if let Some(g) = &governor {
+                        let ns = start.elapsed().as_nanos().min(i64::MAX as u128) as i64;
+                        lock(g).record(point, ns);
+                    }
                 }
             })
             .expect("spawning the worker thread");
@@ -259,41 +292,9 @@ impl Drop for Worker {
     }
 }
 
-/// A bin's map from its stereo pairs (the worker gives it the first), as the worker makes
-/// it: the reconstructor, then the self-check on the first pair and what its policy does
-/// with a failing map; a panic in the reconstructor
-/// is caught and returned as the error. `bench pareto` and `eval-map` time and score
-/// exactly this path.
-pub fn bin_map(
-    reconstructor: &mut dyn Reconstructor,
-    self_check: &mut SelfCheck,
-    views: &[StereoView<'_>],
-) -> (Result<GaussianSet, String>, CheckOutcome) {
-    let checked = catch_unwind(AssertUnwindSafe(|| {
-        match (reconstructor.reconstruct(views), views.first()) {
-            (Ok(set), Some(first)) => self_check.apply(reconstructor.name(), first, set),
-            (Ok(set), None) => (Ok(set), CheckOutcome::default()),
-            (Err(e), _) => (Err(e.to_string()), CheckOutcome::default()),
-        }
-    }));
-    match checked {
-        Ok(done) => done,
-        Err(panic) => (
-            Err(format!(
-                "reconstructor panicked: {}",
-                panic
-                    .downcast_ref::<String>()
-                    .map(String::as_str)
-                    .or_else(|| panic.downcast_ref::<&str>().copied())
-                    .unwrap_or("(no message)")
-            )),
-            CheckOutcome::default(),
-        ),
-    }
-}
-
 fn run_job(
-    reconstructor: &mut dyn Reconstructor,
+    runner: &mut PointRunner,
+    point: usize,
     self_check: &mut SelfCheck,
     raster: Option<&mut Raster>,
     job: Job,
@@ -310,9 +311,9 @@ fn run_job(
         right_camera: job.rig.local_camera(origin, origin, Side::Right),
     };
     stamps.model_start_ns = now_ns();
-    let (result, check) = bin_map(reconstructor, self_check, &[view]);
+    let (result, check) = runner.bin_map(self_check, &[view]);
     stamps.model_end_ns = now_ns();
-    if let Some(split) = reconstructor.last_split().filter(|_| result.is_ok()) {
+    if let Some(split) = runner.reconstructor.last_split().filter(|_| result.is_ok()) {
         stamps.set_split(&split);
     }
     // The set goes out with the map; the render needs only a copy of what it draws.
@@ -328,6 +329,7 @@ fn run_job(
         render_follows: to_render.is_some(),
         stamps,
         queue_depth,
+        point,
     })));
     if let (Some(raster), Some(set)) = (raster, to_render) {
         let image = raster
@@ -344,4 +346,10 @@ fn run_job(
             render_end_ns: now_ns(),
         }));
     }
+}
+
+/// The governor, also after a panic elsewhere left its lock poisoned (its state is a set of
+/// windows of numbers, valid after any partial update).
+fn lock(g: &Mutex<Governor>) -> std::sync::MutexGuard<'_, Governor> {
+    g.lock().unwrap_or_else(|p| p.into_inner())
 }

@@ -174,6 +174,7 @@ impl Inputs {
                     frame,
                     rig,
                     stamps,
+                    point: 0,
                 })
             };
             match self.binner.push(frame, pose) {

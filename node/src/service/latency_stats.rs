@@ -33,6 +33,8 @@
 
 use std::fmt;
 
+use std::collections::BTreeMap;
+
 use serde::Serialize;
 
 use crate::msg::latency::BinLatency;
@@ -45,6 +47,7 @@ pub struct LatencyStats {
     durations: [Vec<i64>; STAGES.len()],
     max_queue_depth: u32,
     checks: CheckCounts,
+    points: BTreeMap<String, u64>,
     last: Option<BinLatency>,
 }
 
@@ -151,7 +154,13 @@ impl LatencyStats {
         }
         self.max_queue_depth = self.max_queue_depth.max(latency.queue_depth);
         self.checks.push(latency);
-        self.last = Some(*latency);
+        if !latency.operating_point.is_empty() {
+            *self
+                .points
+                .entry(latency.operating_point.clone())
+                .or_default() += 1;
+        }
+        self.last = Some(latency.clone());
     }
 
     /// Bins pushed so far.
@@ -175,9 +184,10 @@ impl LatencyStats {
             plus: stage(8),
             fuse: stage(9),
             max_queue_depth: self.max_queue_depth,
-            drops: self.last.map_or(0, |l| l.drops),
-            bad_messages: self.last.map_or(0, |l| l.bad_messages),
+            drops: self.last.as_ref().map_or(0, |l| l.drops),
+            bad_messages: self.last.as_ref().map_or(0, |l| l.bad_messages),
             checks: self.checks,
+            operating_points: self.points.clone(),
         }
     }
 }
@@ -240,7 +250,7 @@ impl StageSummary {
 
 /// What [`LatencyStats::summary`] reports; serialises to JSON as the field names say
 /// (a stage no bin reached is `null`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct LatencySummary {
     /// Bins seen.
     pub bins: u64,
@@ -273,6 +283,8 @@ pub struct LatencySummary {
     pub bad_messages: u64,
     /// The bins' self-check verdicts and fallbacks.
     pub checks: CheckCounts,
+    /// Bins per operating point (the latency messages that name one).
+    pub operating_points: BTreeMap<String, u64>,
 }
 
 /// The before-close margins over the bins that have both stamps, in milliseconds: the
@@ -377,7 +389,16 @@ impl fmt::Display for LatencySummary {
             c.lowered_opacity,
             c.fallback_sgm,
             c.fallback_sgm_failed
-        )
+        )?;
+        if !self.operating_points.is_empty() {
+            let points: Vec<String> = self
+                .operating_points
+                .iter()
+                .map(|(name, n)| format!("{name} {n}"))
+                .collect();
+            write!(f, "\noperating points (bins): {}", points.join(", "))?;
+        }
+        Ok(())
     }
 }
 
@@ -465,7 +486,7 @@ mod tests {
         assert_eq!(s.model.unwrap().p50_ms, 20.0);
         // render_end == model_end: a zero-length render stage is still a stage.
         assert_eq!(s.render.unwrap().max_ms, 0.0);
-        let json = serde_json::to_value(s).unwrap();
+        let json = serde_json::to_value(&s).unwrap();
         assert!(json["arrival_to_publish"].is_null());
         assert_eq!(json["model"]["p99_ms"], 20.0);
         assert!(s.to_string().contains("model"));

@@ -118,11 +118,11 @@ pub async fn run_loopback(
 
     // A reconstructor that cannot be made (missing weights, a bad setting) fails here, not
     // after the client sessions below wait for a node that never listens.
-    let reconstructor = config.reconstructor().map_err(ServiceError::from)?;
+    let points = config.points().map_err(ServiceError::from)?;
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let node = tokio::spawn(run_with(
         config,
-        reconstructor,
+        points,
         async {
             let _ = stop_rx.await;
         },

@@ -21,6 +21,7 @@ pub mod map_store;
 pub mod monitor;
 pub mod node;
 mod outputs;
+mod pace;
 pub mod record;
 pub mod region;
 pub mod replay;

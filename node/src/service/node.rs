@@ -16,12 +16,14 @@ use super::limits::InputLimits;
 use super::map_files::{export, start_map, RegionReadError, StartMap};
 use super::map_store::{Compaction, MapStore, Paging};
 use super::outputs::{NodeSummary, Outputs, RegionPages};
+use super::pace::Pace;
 use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
 use crate::foxglove::{Foxglove, FoxgloveConfig};
 use crate::fusion::FusionConfig;
 use crate::msg::Message;
 use crate::pipeline::binner::BinnerConfig;
+use crate::pipeline::operating::{OperatingConfig, PointRunner};
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::{RenderWith, Worker, WorkerEvent};
@@ -85,6 +87,9 @@ pub struct NodeConfig {
     pub limits: InputLimits,
     /// A Foxglove WebSocket server streaming the outputs (`None`: none).
     pub foxglove: Option<FoxgloveConfig>,
+    /// Operating points chosen per bin to meet a latency budget (`None`: every bin runs
+    /// the method, preset, weights and settings above).
+    pub operating: Option<OperatingConfig>,
 }
 
 impl NodeConfig {
@@ -99,6 +104,20 @@ impl NodeConfig {
             self.weights.as_deref(),
             &self.settings,
         )
+    }
+
+    /// The worker's operating points: the table's rows, most accurate first, with a
+    /// latency budget; else the one reconstructor [`Self::reconstructor`] makes.
+    pub fn points(&self) -> Result<Vec<PointRunner>, model::methods::MethodError> {
+        match &self.operating {
+            Some(o) => o
+                .table
+                .rows
+                .iter()
+                .map(|r| PointRunner::build(&r.point))
+                .collect(),
+            None => Ok(vec![PointRunner::whole(self.reconstructor()?)]),
+        }
     }
 }
 
@@ -133,6 +152,7 @@ impl Default for NodeConfig {
             diagnostics_every: std::time::Duration::from_secs(1),
             limits: InputLimits::default(),
             foxglove: None,
+            operating: None,
         }
     }
 }
@@ -159,16 +179,16 @@ pub async fn run_announced(
     stop: impl Future<Output = ()>,
     ready: impl FnOnce(&zenoh::Session),
 ) -> Result<NodeSummary, ServiceError> {
-    let reconstructor = config.reconstructor()?;
-    run_with(config, reconstructor, stop, ready).await
+    let points = config.points()?;
+    run_with(config, points, stop, ready).await
 }
 
-/// [`run_announced`] with a reconstructor the caller has already made from `config` (the
-/// loopback run makes it before it opens its client sessions, so a missing weights file fails
-/// there, and the network is loaded once).
+/// [`run_announced`] with the operating points the caller has already made from `config`
+/// ([`NodeConfig::points`]; the loopback run makes them before it opens its client
+/// sessions, so a missing weights file fails there, and each network is loaded once).
 pub async fn run_with(
     config: NodeConfig,
-    reconstructor: Box<dyn model::reconstruct::Reconstructor + Send>,
+    points: Vec<PointRunner>,
     stop: impl Future<Output = ()>,
     ready: impl FnOnce(&zenoh::Session),
 ) -> Result<NodeSummary, ServiceError> {
@@ -239,8 +259,11 @@ pub async fn run_with(
         .map_err(zenoh_err)?;
 
     let (out_tx, mut out_rx) = mpsc::unbounded_channel::<WorkerEvent>();
-    let worker = Worker::spawn(
-        reconstructor,
+    let point_names: Vec<String> = points.iter().map(|p| p.name.clone()).collect();
+    let mut pace = config.operating.as_ref().map(Pace::new);
+    let worker = Worker::spawn_points(
+        points,
+        pace.as_ref().map(Pace::governor),
         config.renders,
         config.queue_capacity,
         config.on_check_fail,
@@ -264,7 +287,8 @@ pub async fn run_with(
     };
     let resumed = start.resumed_from.is_some();
     let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, store)
-        .with_foxglove(foxglove.as_ref());
+        .with_foxglove(foxglove.as_ref())
+        .with_points(point_names.clone());
     if resumed {
         outputs.announce_resume();
     }
@@ -351,7 +375,12 @@ pub async fn run_with(
                     }
                 }
             },
-            Some(event) = out_rx.recv() => outputs.worker_event(event, worker.drops()).await?,
+            Some(event) = out_rx.recv() => {
+                if let Some(p) = &mut pace {
+                    p.count(&event, &point_names, &mut outputs.counters);
+                }
+                outputs.worker_event(event, worker.drops()).await?
+            },
             _ = diagnostics.tick(), if diagnostics_on => {
                 outputs.counters.set("dropped/worker_queue", worker.drops());
                 let msg = outputs.diagnostics();
@@ -365,6 +394,9 @@ pub async fn run_with(
         for step in todo {
             match step {
                 Step::Submit(job) => {
+                    if let Some(p) = &pace {
+                        p.bin_opened(job.stamps.opened_ns);
+                    }
                     if let Some(f) = &foxglove {
                         f.input_image(job.bin_id, job.stamps.source_ns, &job.frame.left);
                     }

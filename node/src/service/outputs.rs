@@ -100,8 +100,12 @@ pub(super) struct Outputs<'a> {
     resume_pending: bool,
     /// Stamps of closed bins, until their map is published.
     closed_ns: BTreeMap<u64, i64>,
-    /// Stamps and self-check of published bins, until they close (and their render is out).
-    published: BTreeMap<u64, (Stamps, CheckOutcome)>,
+    /// Stamps, self-check and operating point of published bins, until they close (and
+    /// their render is out).
+    published: BTreeMap<u64, (Stamps, CheckOutcome, usize)>,
+    /// The worker's operating points' names, by index (the latency message's
+    /// `operating_point`).
+    point_names: Vec<String>,
     /// Published bins whose render is still to come.
     awaiting_render: BTreeSet<u64>,
     /// World -> `bin_<id>` of the most recent bins published, what `/tf_static` carries.
@@ -137,12 +141,19 @@ impl<'a> Outputs<'a> {
             resume_pending: false,
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
+            point_names: Vec::new(),
             awaiting_render: BTreeSet::new(),
             static_tf: StaticFrames::default(),
             latest_source_ns: 0,
             counters,
             summary: NodeSummary::default(),
         }
+    }
+
+    /// Names the worker's operating points, by index.
+    pub fn with_points(mut self, names: Vec<String>) -> Self {
+        self.point_names = names;
+        self
     }
 
     /// Sends the outputs to `foxglove` as well.
@@ -253,7 +264,8 @@ impl<'a> Outputs<'a> {
         if out.render_follows {
             self.awaiting_render.insert(out.bin_id);
         }
-        self.published.insert(out.bin_id, (stamps, out.check));
+        self.published
+            .insert(out.bin_id, (stamps, out.check, out.point));
         self.counters.set("queue/depth", out.queue_depth as u64);
         self.flush_latency(drops).await
     }
@@ -279,7 +291,7 @@ impl<'a> Outputs<'a> {
     /// latency if the bin has closed.
     async fn rendered(&mut self, r: Rendered, drops: u64) -> Result<(), ServiceError> {
         self.awaiting_render.remove(&r.bin_id);
-        let stamps = self.published.get_mut(&r.bin_id).map(|(s, _)| s);
+        let stamps = self.published.get_mut(&r.bin_id).map(|(s, _, _)| s);
         let source_ns = stamps.as_ref().map_or(0, |s| s.source_ns);
         if let Some(s) = stamps {
             s.render_end_ns = r.render_end_ns;
@@ -491,7 +503,7 @@ impl<'a> Outputs<'a> {
             .copied()
             .collect();
         for id in ready {
-            let (s, check) = self.published.remove(&id).unwrap_or_default();
+            let (s, check, point) = self.published.remove(&id).unwrap_or_default();
             let score = |r: Option<&model::consistency::CheckReport>| r.map_or(0.0, |r| r.score);
             let closed = self.closed_ns.remove(&id).unwrap_or_default();
             let msg = BinLatency {
@@ -516,6 +528,7 @@ impl<'a> Outputs<'a> {
                 enhance_end_ns: s.stage_end_ns[2],
                 plus_end_ns: s.stage_end_ns[3],
                 fuse_end_ns: s.stage_end_ns[4],
+                operating_point: self.point_names.get(point).cloned().unwrap_or_default(),
             };
             self.put(keys::LATENCY, msg.encode()).await?;
             if let Some(f) = self.foxglove {

@@ -377,6 +377,7 @@ impl ViewState {
                     "bad_messages": l.bad_messages,
                     "check_verdict": l.check_verdict,
                     "check_score": l.check_score,
+                    "operating_point": l.operating_point,
                 })
             })
             .collect();

@@ -44,6 +44,7 @@ mod msg_interop;
 mod msg_rclpy;
 mod msg_rgb;
 mod node_bad_input;
+mod node_budget;
 mod node_crash;
 mod node_far;
 mod node_region;

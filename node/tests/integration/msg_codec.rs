@@ -31,23 +31,34 @@ fn every_sample_round_trips_through_cdr() {
         s.diagnostics
     );
     // BinLatency: u64 + 6 i64 + u32 (+4 pad) + 2 u64, then 3 u8 (+1 pad) + u32 + 2 f64,
-    // after the 4-byte header; version 2 appends 5 i64.
-    let v2 = s.latency.encode();
-    assert_eq!(v2.len(), 4 + 8 + 48 + 8 + 16 + 4 + 4 + 16 + 40);
-    // A version-1 payload (recordings from before the split) is version 2 cut short: it
-    // decodes with the stage stamps 0; a payload ending inside the stamps is truncated.
+    // after the 4-byte header; version 2 appends 5 i64, version 3 a string (u32 length,
+    // the 13 bytes of "tiny-scale0.5" and a NUL).
+    let v3 = s.latency.encode();
+    let point = 4 + 14;
+    assert_eq!(v3.len(), 4 + 8 + 48 + 8 + 16 + 4 + 4 + 16 + 40 + point);
+    // Older payloads (recordings from before the stage split, or before the operating
+    // point) are version 3 cut short: they decode with what they lack empty; a payload
+    // ending inside the appended fields is truncated.
+    let v2 = BinLatency {
+        operating_point: String::new(),
+        ..s.latency.clone()
+    };
+    assert_eq!(BinLatency::decode(&v3[..v3.len() - point]).unwrap(), v2);
     let v1 = BinLatency {
         base_end_ns: 0,
         pseudo_render_end_ns: 0,
         enhance_end_ns: 0,
         plus_end_ns: 0,
         fuse_end_ns: 0,
-        ..s.latency
+        ..v2
     };
-    assert_eq!(BinLatency::decode(&v2[..v2.len() - 40]).unwrap(), v1);
-    for cut in [32, 8, 1] {
+    assert_eq!(
+        BinLatency::decode(&v3[..v3.len() - point - 40]).unwrap(),
+        v1
+    );
+    for cut in [point + 32, point + 8, point + 1, point - 1, 5, 1] {
         assert!(
-            BinLatency::decode(&v2[..v2.len() - cut]).is_err(),
+            BinLatency::decode(&v3[..v3.len() - cut]).is_err(),
             "cut {cut}"
         );
     }

@@ -424,7 +424,7 @@ async fn monitor_summarises_known_latencies() {
             key: keys.latency()
         }
     );
-    assert_eq!(events[6], (MonitorEvent::Bin(bins[4]), 5));
+    assert_eq!(events[6], (MonitorEvent::Bin(bins[4].clone()), 5));
 
     let s = report.stats.summary();
     assert_eq!(s.bins, 5);

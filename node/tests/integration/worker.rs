@@ -34,6 +34,7 @@ fn jobs(n: usize) -> Vec<Job> {
                 arrival_ns: now_ns(),
                 ..Stamps::default()
             },
+            point: 0,
         })
         .collect()
 }

@@ -104,6 +104,7 @@ pub fn samples() -> Samples {
             enhance_end_ns: stamp + 1_150_000_000,
             plus_end_ns: stamp + 1_240_000_000,
             fuse_end_ns: stamp + 1_245_000_000,
+            operating_point: "tiny-scale0.5".into(),
         },
         diagnostics: Diagnostics {
             stamp_ns: -42,

@@ -1,0 +1,14 @@
+//! Operating points on the node: a table of points measured on this machine ([`table`]),
+//! the governor that picks each bin's point to meet a latency budget ([`governor`]), and
+//! a point made runnable on the worker ([`runner`]).
+
+pub mod governor;
+pub mod runner;
+pub mod table;
+
+#[cfg(test)]
+mod governor_tests;
+
+pub use governor::{Budget, BudgetError, Choice, Governor, GovernorConfig, OperatingConfig};
+pub use runner::{with_scaled_views, PointRunner};
+pub use table::{OperatingTable, TableError, TableRow};

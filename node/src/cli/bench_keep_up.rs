@@ -251,7 +251,14 @@ fn score(sequence: &Sequence, bins: &[ReceivedBin]) -> Result<(Option<f64>, usiz
     let mut per_bin = Vec::new();
     let mut scored = 0;
     for b in bins {
-        let Some(bin) = layout.iter().find(|x| poses[x.first] == b.bin_to_world) else {
+        // The bin whose first frame the published pose is (the pose went through a
+        // quaternion on the wire: equal within a millimetre, not bit for bit).
+        let Some(bin) = layout.iter().find(|x| {
+            poses[x.first]
+                .translation
+                .distance(b.bin_to_world.translation)
+                < 1e-3
+        }) else {
             continue;
         };
         let mut values = Vec::new();

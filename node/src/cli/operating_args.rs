@@ -177,6 +177,45 @@ mod tests {
     }
 
     #[test]
+    fn a_budget_reads_its_table_and_a_table_without_a_budget_is_refused() {
+        let out = Path::new("/nonexistent/out");
+        assert!(OperatingArgs::default().operating(out).unwrap().is_none());
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(SHIPPED_TABLE);
+        let table_only = OperatingArgs {
+            operating_points: Some(shipped.clone()),
+            ..OperatingArgs::default()
+        };
+        let err = table_only.operating(out).unwrap_err().to_string();
+        assert!(err.contains("--latency-budget"), "{err}");
+        let with_budget = OperatingArgs {
+            latency_budget: Some(Budget::Auto),
+            operating_points: Some(shipped),
+            ..OperatingArgs::default()
+        };
+        let o = with_budget.operating(out).unwrap().unwrap();
+        assert_eq!(o.budget, Budget::Auto);
+        assert_eq!(o.table.size, (1408, 376));
+        let missing = OperatingArgs {
+            latency_budget: Some(Budget::Fixed(800.0)),
+            operating_points: Some(PathBuf::from("/nonexistent/table.json")),
+            ..OperatingArgs::default()
+        };
+        assert!(missing.operating(out).is_err());
+    }
+
+    #[test]
+    fn the_shipped_table_and_points_list_name_points_that_load() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let table = OperatingTable::load(&root.join(SHIPPED_TABLE)).unwrap();
+        let listed = load_points(&root.join("launch/operating_points.toml")).unwrap();
+        assert_eq!(table.rows.len(), listed.len());
+        for row in &table.rows {
+            assert!(listed.contains(&row.point), "{}", row.point.name);
+            assert_eq!(row.point.availability(), crate::pareto::Availability::Ready);
+        }
+    }
+
+    #[test]
     fn budgets_parse_and_bad_ones_are_refused() {
         assert_eq!("auto".parse::<Budget>(), Ok(Budget::Auto));
         assert_eq!("800".parse::<Budget>(), Ok(Budget::Fixed(800.0)));

@@ -352,9 +352,11 @@ mod tests {
             model_start_ns: 1_002_000_000,
             model_end_ns: 1_052_500_000,
             publish_ns: 1_060_000_000,
+            operating_point: "tiny-scale0.5".into(),
             ..BinLatency::default()
         };
         let v = latency_json(&l);
+        assert_eq!(v["operating_point"], "tiny-scale0.5");
         assert_eq!(v["arrival_to_publish_ms"], 60.0);
         assert_eq!(v["queue_ms"], 2.0);
         assert_eq!(v["model_ms"], 50.5);

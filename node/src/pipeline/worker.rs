@@ -216,8 +216,7 @@ impl Worker {
                         None => job.point,
                     }
                     .min(points.len() - 1);
-                    let start = std::time::Instant::now();
-                    run_job(
+                    let (model_ns, render_ns) = run_job(
                         &mut points[point],
                         point,
                         &mut self_check,
@@ -227,8 +226,7 @@ impl Worker {
                         &mut on_event,
                     );
                     if let Some(g) = &governor {
-                        let ns = start.elapsed().as_nanos().min(i64::MAX as u128) as i64;
-                        lock(g).record(point, ns);
+                        lock(g).record(point, model_ns, render_ns);
                     }
                 }
             })
@@ -292,6 +290,8 @@ impl Drop for Worker {
     }
 }
 
+/// Runs one job, handing its map and render to `on_event`; returns the nanoseconds the
+/// model path and the render took.
 fn run_job(
     runner: &mut PointRunner,
     point: usize,
@@ -300,7 +300,7 @@ fn run_job(
     job: Job,
     queue_depth: usize,
     on_event: &mut dyn FnMut(WorkerEvent),
-) {
+) -> (i64, i64) {
     let mut stamps = job.stamps;
     let origin = job.frame.left_to_world;
     let left_camera = job.rig.local_camera(origin, origin, Side::Left);
@@ -313,6 +313,8 @@ fn run_job(
     stamps.model_start_ns = now_ns();
     let (result, check) = runner.bin_map(self_check, &[view]);
     stamps.model_end_ns = now_ns();
+    let model_end_ns = stamps.model_end_ns;
+    let mut render_ns = 0;
     if let Some(split) = runner.reconstructor.last_split().filter(|_| result.is_ok()) {
         stamps.set_split(&split);
     }
@@ -340,12 +342,15 @@ fn run_job(
                 data: o.rgb,
             })
             .map_err(|e| e.to_string());
+        let render_end_ns = now_ns();
         on_event(WorkerEvent::Render(Rendered {
             bin_id: job.bin_id,
             image,
-            render_end_ns: now_ns(),
+            render_end_ns,
         }));
+        render_ns = render_end_ns - model_end_ns;
     }
+    (model_end_ns - stamps.model_start_ns, render_ns)
 }
 
 /// The governor, also after a panic elsewhere left its lock poisoned (its state is a set of

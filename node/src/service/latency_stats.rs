@@ -493,6 +493,29 @@ mod tests {
     }
 
     #[test]
+    fn bins_are_counted_per_operating_point() {
+        let mut stats = LatencyStats::new();
+        for (id, point) in [(0, "tiny"), (1, "tiny-scale0.5"), (2, "tiny"), (3, "")] {
+            let mut b = bin(id, 100 * id as i64, 1, 2, 3, 400);
+            b.operating_point = point.into();
+            stats.push(&b);
+        }
+        let s = stats.summary();
+        let counts: Vec<(&str, u64)> = s
+            .operating_points
+            .iter()
+            .map(|(k, &v)| (k.as_str(), v))
+            .collect();
+        assert_eq!(counts, [("tiny", 2), ("tiny-scale0.5", 1)]);
+        assert!(s
+            .to_string()
+            .contains("operating points (bins): tiny 2, tiny-scale0.5 1"));
+        let json = serde_json::to_value(&s).unwrap();
+        assert_eq!(json["operating_points"]["tiny"], 2);
+        assert!(!LatencyStats::new().summary().to_string().contains("operating"));
+    }
+
+    #[test]
     fn an_empty_summary_has_no_stages() {
         let s = LatencyStats::new().summary();
         assert_eq!(s.bins, 0);

@@ -3,10 +3,11 @@
 //! worker time fits the latency budget, revised after every bin from the worker's own
 //! recent times.
 //!
-//! A point's expected time is the median of its last `window` measured bins; a point not run
-//! yet is expected to take its table time scaled by how the measured points compare with
-//! theirs (the machine now against the machine at calibration, the frames now against the
-//! table's size). The governor moves down at once when the current point no longer fits
+//! A point's expected time is the median of its last `window` measured bins (model path and
+//! render); a point not run yet is expected to take its table time (the model path) scaled
+//! by how the measured points' model paths compare with theirs (the machine now against the
+//! machine at calibration, the frames now against the table's size), plus the median
+//! render of the last bins (renders cost about the same whichever point made the map). The governor moves down at once when the current point no longer fits
 //! (expected above `fit` times the budget), and up only to a point expected within `up`
 //! times the budget after `settle` bins at the current one: the gap between `up` and `fit`
 //! is the hysteresis that keeps it from switching back and forth. When no point fits it runs
@@ -106,6 +107,7 @@ pub struct Governor {
     current: usize,
     times: Vec<VecDeque<f64>>,
     ratios: VecDeque<f64>,
+    renders: VecDeque<f64>,
     opens: VecDeque<i64>,
     at_current: usize,
     switches: u64,
@@ -143,6 +145,7 @@ impl Governor {
             times: vec![VecDeque::new(); table_ms.len()],
             table_ms,
             ratios: VecDeque::new(),
+            renders: VecDeque::new(),
             opens: VecDeque::new(),
             at_current: 0,
             switches: 0,
@@ -179,7 +182,11 @@ impl Governor {
                     true => 1.0,
                     false => median(&self.ratios),
                 };
-                self.table_ms[point] * scale
+                let render = match self.renders.is_empty() {
+                    true => 0.0,
+                    false => median(&self.renders),
+                };
+                self.table_ms[point] * scale + render
             }
         }
     }
@@ -232,15 +239,18 @@ impl Governor {
         }
     }
 
-    /// One bin took `ns` on the worker at `point` (model, self-check and render).
-    pub fn record(&mut self, point: usize, ns: i64) {
+    /// One bin at `point` took `model_ns` on the worker for its model path (model and
+    /// self-check, what the table times) and `render_ns` for its render.
+    pub fn record(&mut self, point: usize, model_ns: i64, render_ns: i64) {
         if point >= self.table_ms.len() {
             return;
         }
-        let ms = (ns.max(0) as f64 / 1e6).max(1e-3);
+        let ms = |ns: i64| ns.max(0) as f64 / 1e6;
+        let (model, render) = (ms(model_ns).max(1e-3), ms(render_ns));
         let window = self.config.window;
-        push_bounded(&mut self.times[point], ms, window);
-        push_bounded(&mut self.ratios, ms / self.table_ms[point], window);
+        push_bounded(&mut self.times[point], model + render, window);
+        push_bounded(&mut self.ratios, model / self.table_ms[point], window);
+        push_bounded(&mut self.renders, render, window);
         if point == self.current {
             self.at_current += 1;
         }

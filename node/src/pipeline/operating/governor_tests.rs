@@ -36,7 +36,7 @@ fn drive(g: &mut Governor, bins: usize, ms: [f64; 4], slow: f64) -> Vec<usize> {
     (0..bins)
         .map(|_| {
             let p = g.choose().point;
-            g.record(p, (ms[p] * slow * 1e6) as i64);
+            g.record(p, (ms[p] * slow * 1e6) as i64, 0);
             p
         })
         .collect()
@@ -99,6 +99,22 @@ fn times_between_the_thresholds_do_not_make_it_switch_back_and_forth() {
 }
 
 #[test]
+fn renders_add_to_every_point_unscaled() {
+    // Models at the table's times, renders 300 ms: from c (200 + 300 = 500 ms of 600, over
+    // 70%) it may not go up to b (500 + 300 = 800), and d is expected at 350.
+    let mut g = Governor::new(&table(), Budget::Fixed(600.0), GovernorConfig::default());
+    assert_eq!(g.current(), B, "by the table alone b fits");
+    for _ in 0..6 {
+        let p = g.choose().point;
+        g.record(p, (table().rows[p].ms * 1e6) as i64, 300_000_000);
+    }
+    assert_eq!(g.current(), C);
+    assert_eq!(g.expected_ms(C), 500.0);
+    assert_eq!(g.expected_ms(D), 350.0);
+    assert_eq!(g.expected_ms(A), 1300.0);
+}
+
+#[test]
 fn the_auto_budget_is_the_median_time_between_bin_openings() {
     let mut g = Governor::new(&table(), Budget::Auto, GovernorConfig::default());
     assert_eq!(g.budget_ms(), None);
@@ -126,8 +142,8 @@ fn the_extremes_leave_it_on_a_point_of_the_table() {
         for ns in [0, -5, i64::MAX, i64::MIN, 1] {
             let p = g.choose().point;
             assert!(p < 4);
-            g.record(p, ns);
-            g.record(99, ns);
+            g.record(p, ns, ns);
+            g.record(99, ns, 0);
         }
         let e = g.expected_ms(g.current());
         assert!(e.is_finite() && e > 0.0, "{budget}: {e}");

@@ -15,9 +15,9 @@
 //! }
 //! ```
 //!
-//! `size` is the frame size the times were measured at, `ms` the median worker time of a
-//! bin (model, self-check and render), `psnr` the bin-average PSNR on generated validation
-//! drives. A `bench pareto` report (`pareto.json`) is read as a table too: its median
+//! `size` is the frame size the times were measured at, `ms` the median time of a bin's
+//! model path on the worker (input scaling, model, self-check and its fallback; the render
+//! is not in it), `psnr` the bin-average PSNR on generated validation drives. A `bench pareto` report (`pareto.json`) is read as a table too: its median
 //! latencies and PSNRs become `ms` and `psnr`, at the report's size, and its points that run
 //! more than one pair per bin (which the node's worker does not) are left out. Rows are kept most
 //! accurate first (highest PSNR; the faster of two equal ones first).
@@ -35,7 +35,7 @@ use crate::pareto::OperatingPoint;
 pub struct TableRow {
     /// The point (the node runs its first pair only: `pairs` must be 1).
     pub point: OperatingPoint,
-    /// Median worker time of one bin at the table's size, milliseconds.
+    /// Median time of one bin's model path at the table's size, milliseconds.
     pub ms: f64,
     /// Bin-average PSNR on generated validation drives, dB.
     pub psnr: f64,

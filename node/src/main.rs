@@ -56,7 +56,7 @@ enum Command {
     /// Start a graph of processes from a launch file; stop them together.
     Launch(launch::LaunchArgs),
     /// The streaming node: stereo frames and poses in over zenoh, Gaussian maps out.
-    Run(stream::RunArgs),
+    Run(Box<stream::RunArgs>),
     /// Replay a KITTI-360-layout sequence onto the node's input topics, or an MCAP
     /// recording onto the node's topics.
     Replay(stream::ReplayArgs),

@@ -105,7 +105,10 @@ pub fn run(args: &BenchKeepUpArgs) -> Result<()> {
     let mut reports = Vec::new();
     for run in &args.run {
         let operating = operating_for(run, &table)?;
-        let budget = format!("{:?}", operating.budget);
+        let budget = match run.starts_with("fixed:") {
+            true => "none (one point)".to_string(),
+            false => format!("{:?}", operating.budget),
+        };
         let config = NodeConfig {
             renders: args.renders.into(),
             queue_capacity: args.queue,

@@ -180,7 +180,9 @@ mod tests {
     fn a_budget_reads_its_table_and_a_table_without_a_budget_is_refused() {
         let out = Path::new("/nonexistent/out");
         assert!(OperatingArgs::default().operating(out).unwrap().is_none());
-        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(SHIPPED_TABLE);
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("..")
+            .join(SHIPPED_TABLE);
         let table_only = OperatingArgs {
             operating_points: Some(shipped.clone()),
             ..OperatingArgs::default()

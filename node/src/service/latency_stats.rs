@@ -512,7 +512,10 @@ mod tests {
             .contains("operating points (bins): tiny 2, tiny-scale0.5 1"));
         let json = serde_json::to_value(&s).unwrap();
         assert_eq!(json["operating_points"]["tiny"], 2);
-        assert!(!LatencyStats::new().summary().to_string().contains("operating"));
+        assert!(!LatencyStats::new()
+            .summary()
+            .to_string()
+            .contains("operating"));
     }
 
     #[test]

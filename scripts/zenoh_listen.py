@@ -138,6 +138,7 @@ def summarize(typename, msg):
             'plus_end_ns', 'fuse_end_ns')}
         fields.update({name: float(getattr(msg, name))
                        for name in ('check_score', 'fallback_score')})
+        fields['operating_point'] = str(msg.operating_point)
         return fields
     if typename == f'{PACKAGE}/msg/MapUpdate':
         return {

@@ -288,6 +288,10 @@ async fn a_python_zenoh_subscriber_decodes_with_rosbags_what_a_rust_subscriber_d
         }
         assert_eq!(p["check_score"].as_f64(), Some(r.check_score));
         assert_eq!(p["fallback_score"].as_f64(), Some(r.fallback_score));
+        assert_eq!(
+            p["operating_point"].as_str(),
+            Some(r.operating_point.as_str())
+        );
     }
 
     // Diagnostics: the same counters.

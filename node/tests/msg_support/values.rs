@@ -79,7 +79,8 @@ pub fn latency(m: &BinLatency) -> Value {
            "check_samples": m.check_samples, "check_score": m.check_score,
            "fallback_score": m.fallback_score, "base_end_ns": m.base_end_ns,
            "pseudo_render_end_ns": m.pseudo_render_end_ns, "enhance_end_ns": m.enhance_end_ns,
-           "plus_end_ns": m.plus_end_ns, "fuse_end_ns": m.fuse_end_ns})
+           "plus_end_ns": m.plus_end_ns, "fuse_end_ns": m.fuse_end_ns,
+           "operating_point": m.operating_point})
 }
 
 /// A `Diagnostics` as its JSON field values.

@@ -239,6 +239,17 @@ impl Player {
         tokio::time::sleep(Duration::from_millis(300)).await;
     }
 
+    /// Publishes the camera infos, then every frame of `frames` at its stamp with its own
+    /// pose.
+    pub async fn frames(&self, rig: &StereoRig, frames: &[(i64, StereoFrame)]) {
+        if let Some((first, _)) = frames.first() {
+            self.camera_infos(rig, *first).await;
+        }
+        for (stamp, frame) in frames {
+            self.frame(rig, *stamp, frame, &frame.left_to_world).await;
+        }
+    }
+
     /// Publishes one frame as the replay does: both camera infos, the left and right images
     /// and the pose, all stamped `stamp_ns`, with `left_to_world` as the pose.
     pub async fn frame(

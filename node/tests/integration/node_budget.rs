@@ -43,12 +43,7 @@ async fn run(tag: &str, operating: OperatingConfig) -> (NodeSummary, Vec<BinLate
     .await;
     let outputs = Collector::connect(&node, &[keys.latency(), keys.bin_map()]).await;
     let player = Player::connect(&node).await;
-    player.camera_infos(&drive.rig, drive.frames[0].0).await;
-    for (stamp, frame) in &drive.frames {
-        player
-            .frame(&drive.rig, *stamp, frame, &frame.left_to_world)
-            .await;
-    }
+    player.frames(&drive.rig, &drive.frames).await;
     outputs.wait_count(&keys.bin_map(), opened).await;
     let summary = node.stop().await;
     tokio::time::sleep(std::time::Duration::from_millis(300)).await;

@@ -133,7 +133,9 @@ impl OperatingPoint {
         })
     }
 
-    fn check(&self) -> Result<(), PointsError> {
+    /// Whether the point's fields are in range: a name, a known method, a scale in (0, 1]
+    /// and at least one pair.
+    pub(crate) fn check(&self) -> Result<(), PointsError> {
         let invalid = |what: String| {
             Err(PointsError::Invalid {
                 name: self.name.clone(),

@@ -193,12 +193,8 @@ impl OperatingTable {
                     r.point.pairs
                 )));
             }
-            if !(r.point.scale.is_finite() && r.point.scale > 0.0 && r.point.scale <= 1.0) {
-                return Err(invalid(format!("scale {} is not in (0, 1]", r.point.scale)));
-            }
-            if !model::methods::NAMES.contains(&r.point.method.as_str()) {
-                return Err(invalid(format!("unknown method `{}`", r.point.method)));
-            }
+            // The point's own rules (name, method, scale), as `bench pareto` checks them.
+            r.point.check().map_err(|e| invalid(e.to_string()))?;
         }
         Ok(())
     }

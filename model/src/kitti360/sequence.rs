@@ -9,7 +9,7 @@ use glam::{DAffine3, DVec3};
 use super::calibration::Calibration;
 use super::error::Kitti360Error;
 use super::exact_depth::read_depth_png;
-use super::images::read_png;
+use super::images::read_png_rgb8;
 use super::layout;
 use super::lidar_depth::project_depth;
 use super::poses::{read_pose_file, FramePose, PoseFormat, SkippedFrame};
@@ -17,6 +17,24 @@ use super::resample::resample_area;
 use super::timestamps::read_timestamps;
 use super::velodyne::read_scan;
 use crate::frame::{DepthMap, RgbImage, Side, StereoFrame, StereoRig};
+
+/// A decoded PNG: width, height, interleaved 8-bit RGB.
+type Png = (u32, u32, Vec<u8>);
+
+/// A frame's two images as interleaved 8-bit RGB, with the left camera's pose.
+#[derive(Clone, Debug)]
+pub struct Rgb8Frame {
+    /// Width of both images.
+    pub width: u32,
+    /// Height of both images.
+    pub height: u32,
+    /// Left image, `3 * width * height` bytes.
+    pub left: Vec<u8>,
+    /// Right image.
+    pub right: Vec<u8>,
+    /// Left camera to world.
+    pub left_to_world: DAffine3,
+}
 
 /// A KITTI-360 sequence (`2013_05_28_drive_0000_sync`) under a dataset root.
 #[derive(Clone, Debug)]
@@ -154,12 +172,46 @@ impl Sequence {
     /// frame, missing or corrupt PNG, right size differing from the left, left size
     /// differing from `S_rect_00`.
     pub fn load_frame(&self, index: u32) -> Result<StereoFrame, Kitti360Error> {
+        let (left_to_world, left, right) = self.read_pair(index)?;
+        let k = self.rig.intrinsics;
+        let image = |(w, h, bytes): Png| {
+            resample_area(&RgbImage::from_rgb8(w, h, &bytes), k.width, k.height)
+        };
+        Ok(StereoFrame {
+            index,
+            left: image(left),
+            right: image(right),
+            left_to_world,
+        })
+    }
+
+    /// [`Self::load_frame`] as interleaved 8-bit RGB at the rig's size, for publishing:
+    /// the PNGs' own bytes when they have that size (no round trip through floats), else
+    /// the resampled images rounded back to bytes. Same errors.
+    pub fn load_frame_rgb8(&self, index: u32) -> Result<Rgb8Frame, Kitti360Error> {
+        let (left_to_world, left, right) = self.read_pair(index)?;
+        let k = self.rig.intrinsics;
+        let bytes = |(w, h, bytes): Png| match (w, h) == (k.width, k.height) {
+            true => bytes,
+            false => resample_area(&RgbImage::from_rgb8(w, h, &bytes), k.width, k.height).to_rgb8(),
+        };
+        Ok(Rgb8Frame {
+            width: k.width,
+            height: k.height,
+            left: bytes(left),
+            right: bytes(right),
+            left_to_world,
+        })
+    }
+
+    /// Frame `index`'s two PNGs as decoded, sizes checked, with its pose.
+    fn read_pair(&self, index: u32) -> Result<(DAffine3, Png, Png), Kitti360Error> {
         let pose = self.frame(index)?;
         let left_path = layout::image(&self.root, &self.name, Side::Left, index);
         let right_path = layout::image(&self.root, &self.name, Side::Right, index);
-        let left = read_png(&left_path)?;
-        let right = read_png(&right_path)?;
-        let size = |img: &RgbImage| (img.width, img.height);
+        let left = read_png_rgb8(&left_path)?;
+        let right = read_png_rgb8(&right_path)?;
+        let size = |img: &Png| (img.0, img.1);
         if size(&left) != self.calibration.image_size {
             return Err(Kitti360Error::SizeMismatch {
                 path: left_path,
@@ -174,13 +226,7 @@ impl Sequence {
                 found: size(&right),
             });
         }
-        let k = self.rig.intrinsics;
-        Ok(StereoFrame {
-            index,
-            left: resample_area(&left, k.width, k.height),
-            right: resample_area(&right, k.width, k.height),
-            left_to_world: pose.left_to_world,
-        })
+        Ok((pose.left_to_world, left, right))
     }
 
     /// The velodyne scan of frame `index` (velodyne frame, x y z reflectance).

@@ -14,7 +14,7 @@ use zenoh::Session;
 use super::error::ServiceError;
 use super::keys::{self, Direction, Keys, Topic, TOPICS};
 use crate::bag::Rate;
-use crate::msg::image::{camera_info, image_from_rgb};
+use crate::msg::image::{camera_info, image_from_rgb8};
 use crate::msg::pose::pose_from_affine;
 use crate::msg::std_msgs::Header;
 use crate::msg::Message;
@@ -78,16 +78,18 @@ pub async fn replay(
             camera_info(&rig.intrinsics, rig.baseline, header("right")).encode(),
         )
         .await?;
-        match sequence.load_frame(f.index) {
+        // The PNGs' bytes go out as they are (no round trip through floats).
+        match sequence.load_frame_rgb8(f.index) {
             Ok(frame) => {
+                let (w, h) = (frame.width, frame.height);
                 put(
                     keys::LEFT_IMAGE,
-                    image_from_rgb(&frame.left, header("left")).encode(),
+                    image_from_rgb8(w, h, frame.left, header("left")).encode(),
                 )
                 .await?;
                 put(
                     keys::RIGHT_IMAGE,
-                    image_from_rgb(&frame.right, header("right")).encode(),
+                    image_from_rgb8(w, h, frame.right, header("right")).encode(),
                 )
                 .await?;
                 put(

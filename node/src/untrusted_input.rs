@@ -24,7 +24,7 @@ use crate::fusion::{decode_update, GlobalMap};
 use crate::launch::Plan;
 use crate::msg::gaussians::gaussians_from_cloud;
 use crate::msg::geometry_msgs::PoseStamped;
-use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
+use crate::msg::image::{intrinsics_from_camera_info, rgb8_from_image, rgb_from_image};
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
 use crate::msg::pose::affine_from_pose;
@@ -67,6 +67,7 @@ pub fn cdr_image(data: &[u8]) {
     if let Ok(msg) = Image::decode(data) {
         let _ = msg.header.stamp.to_nanos();
         let _ = rgb_from_image(&msg);
+        let _ = rgb8_from_image(msg);
     }
 }
 

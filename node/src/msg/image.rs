@@ -11,14 +11,38 @@ use super::ConvertError;
 /// An `rgb8` image message of `img` (values in [0, 1] clamped and rounded to bytes; rows
 /// packed, `step = 3 * width`).
 pub fn image_from_rgb(img: &RgbImage, header: Header) -> Image {
+    image_from_rgb8(img.width, img.height, img.to_rgb8(), header)
+}
+
+/// An `rgb8` image message of `width` x `height` interleaved bytes, rows packed.
+pub fn image_from_rgb8(width: u32, height: u32, data: Vec<u8>, header: Header) -> Image {
     Image {
         header,
-        height: img.height,
-        width: img.width,
+        height,
+        width,
         encoding: "rgb8".to_owned(),
         is_bigendian: 0,
-        step: img.width.saturating_mul(3),
-        data: img.to_rgb8(),
+        step: width.saturating_mul(3),
+        data,
+    }
+}
+
+/// An image as interleaved 8-bit RGB, rows packed: how the node keeps an input image until
+/// a bin needs it (a quarter of the floats, and no conversion for the frames no bin uses).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Rgb8Image {
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// `3 * width * height` bytes.
+    pub data: Vec<u8>,
+}
+
+impl Rgb8Image {
+    /// The image as values in [0, 1] (bytes / 255).
+    pub fn to_rgb(&self) -> RgbImage {
+        RgbImage::from_rgb8(self.width, self.height, &self.data)
     }
 }
 
@@ -26,6 +50,31 @@ pub fn image_from_rgb(img: &RgbImage, header: Header) -> Image {
 /// values as bytes / 255. Any other encoding, a step shorter than a row, or data other than
 /// `step * height` bytes is an error.
 pub fn rgb_from_image(msg: &Image) -> Result<RgbImage, ConvertError> {
+    let channels = channels(msg)?;
+    Ok(RgbImage::from_rgb8(
+        msg.width,
+        msg.height,
+        &packed(msg, channels),
+    ))
+}
+
+/// [`rgb_from_image`] as packed bytes; an `rgb8` message without row padding gives its
+/// data as it is, without a copy. Same errors.
+pub fn rgb8_from_image(msg: Image) -> Result<Rgb8Image, ConvertError> {
+    let channels = channels(&msg)?;
+    let data = match msg.encoding == "rgb8" && msg.step as u64 == 3 * msg.width as u64 {
+        true => msg.data,
+        false => packed(&msg, channels),
+    };
+    Ok(Rgb8Image {
+        width: msg.width,
+        height: msg.height,
+        data,
+    })
+}
+
+/// The bytes per pixel of a valid message's encoding, after checking its step and size.
+fn channels(msg: &Image) -> Result<usize, ConvertError> {
     let channels: usize = match msg.encoding.as_str() {
         "rgb8" | "bgr8" => 3,
         "mono8" => 1,
@@ -43,8 +92,13 @@ pub fn rgb_from_image(msg: &Image) -> Result<RgbImage, ConvertError> {
             len: msg.data.len(),
         });
     }
-    // Bounded by the data checked above: width * height <= data.len().
-    let row_bytes = min_step as usize;
+    Ok(channels)
+}
+
+/// A checked message's pixels as packed RGB bytes.
+fn packed(msg: &Image, channels: usize) -> Vec<u8> {
+    // Bounded by the data checked: width * height <= data.len().
+    let row_bytes = msg.width as usize * channels;
     let mut rgb = Vec::with_capacity(3 * msg.width as usize * msg.height as usize);
     let rows = msg.data.chunks_exact(msg.step.max(1) as usize);
     for row in rows.take(msg.height as usize) {
@@ -56,7 +110,7 @@ pub fn rgb_from_image(msg: &Image) -> Result<RgbImage, ConvertError> {
             }
         }
     }
-    Ok(RgbImage::from_rgb8(msg.width, msg.height, &rgb))
+    rgb
 }
 
 /// The calibration message of one rectified camera of a stereo rig: no distortion

@@ -2,13 +2,15 @@
 //! for the camera infos, and binning; what comes out are steps for the worker and the
 //! outputs. Bad input is counted per key (`bad_message/<key>`) and changes nothing else;
 //! input outside the [`InputLimits`] is refused before it is decoded further and counted
-//! under its reason as well (`refused/<reason>`). Images larger than the working size are
-//! area-averaged down to it (`input/downscaled`), and the rig's intrinsics are scaled alike.
+//! under its reason as well (`refused/<reason>`). Images are kept as the bytes that came in
+//! until a frame opens a bin: only those frames are converted to floats and, when larger
+//! than the working size, area-averaged down to it (every such image is counted as
+//! `input/downscaled` when it arrives); the rig's intrinsics are scaled alike.
 
 use std::collections::VecDeque;
 
 use glam::DAffine3;
-use model::frame::{RgbImage, StereoFrame, StereoRig};
+use model::frame::{StereoFrame, StereoRig};
 use model::kitti360::resample::resample_area;
 use zenoh::bytes::ZBytes;
 
@@ -17,7 +19,7 @@ use super::keys::{self, Topic};
 use super::limits::{InputLimits, Refusal};
 use crate::msg::cdr::DecodeError;
 use crate::msg::geometry_msgs::PoseStamped;
-use crate::msg::image::{intrinsics_from_camera_info, rgb_from_image};
+use crate::msg::image::{intrinsics_from_camera_info, rgb8_from_image, Rgb8Image};
 use crate::msg::pose::affine_from_pose;
 use crate::msg::sensor_msgs::{CameraInfo, Image, ImageLayout};
 use crate::msg::{ConvertError, Message};
@@ -53,13 +55,22 @@ pub(super) struct CameraPose {
 
 /// A left image as the synchroniser holds it: the image, when it arrived (ns, the node's
 /// clock) and its `header.frame_id`.
-type Left = (RgbImage, i64, String);
+type Left = (Rgb8Image, i64, String);
 
-type Frame = (StereoFrame, Stamps);
+/// A synchronised frame as the binner holds it: its images as they came in.
+#[derive(Clone, Debug)]
+struct RawFrame {
+    index: u32,
+    left: Rgb8Image,
+    right: Rgb8Image,
+    left_to_world: DAffine3,
+}
+
+type Frame = (RawFrame, Stamps);
 
 /// What the synchroniser emits: the left image with its arrival time and frame name, the
 /// right image, the pose.
-type SyncedFrame = Synced<Left, RgbImage, DAffine3>;
+type SyncedFrame = Synced<Left, Rgb8Image, DAffine3>;
 
 /// Why an input sample was not used.
 #[derive(Debug, thiserror::Error)]
@@ -77,7 +88,7 @@ enum Unusable {
 
 /// Decoders, synchroniser, camera model and binner.
 pub(super) struct Inputs {
-    sync: Synchronizer<Left, RgbImage, DAffine3>,
+    sync: Synchronizer<Left, Rgb8Image, DAffine3>,
     binner: Binner<Frame>,
     left_info: Option<CameraInfo>,
     right_info: Option<CameraInfo>,
@@ -158,7 +169,7 @@ impl Inputs {
             if let Some(bin_id) = reset.then(|| self.binner.reset()).flatten() {
                 steps.push(Step::Closed(bin_id));
             }
-            if let Err(r) = fits_rig(&frame.0, &rig) {
+            if let Err(r) = fits_rig(&frame.0, &rig, &self.limits) {
                 counters.add(r.counter(), 1);
                 continue;
             }
@@ -168,10 +179,11 @@ impl Inputs {
                 frame_id,
                 left_to_world: pose,
             }));
+            let limits = self.limits;
             let job = |bin_id: u64, (frame, stamps): Frame| {
                 Box::new(Job {
                     bin_id,
-                    frame,
+                    frame: working_frame(frame, &limits),
                     rig,
                     stamps,
                     point: 0,
@@ -240,7 +252,7 @@ impl Inputs {
     /// A synchronised frame with its stamps, and its left camera's frame name.
     fn frame(&mut self, f: SyncedFrame) -> (Frame, String) {
         let ((left, arrival_ns, frame_id), right, left_to_world) = (f.left, f.right, f.pose);
-        let frame = StereoFrame {
+        let frame = RawFrame {
             index: self.next_index,
             left,
             right,
@@ -257,29 +269,47 @@ impl Inputs {
     }
 }
 
-/// A stamped image at the working size, with its frame name. Its declared size is checked
-/// against the limits before anything is copied; a larger image than the working size is
-/// area-averaged down and counted as `input/downscaled`.
+/// A stamped image as it came in (packed RGB bytes), with its frame name. Its declared size
+/// is checked against the limits before anything is copied; one larger than the working
+/// size is counted as `input/downscaled` (it is brought to that size if its frame opens a
+/// bin, [`working_frame`]).
 fn image(
     payload: &[u8],
     limits: &InputLimits,
     counters: &mut Counters,
-) -> Result<(i64, RgbImage, String), Unusable> {
+) -> Result<(i64, Rgb8Image, String), Unusable> {
     limits.check_image(&ImageLayout::peek(payload)?)?;
-    let msg = Image::decode(payload)?;
-    let rgb = rgb_from_image(&msg)?;
+    let mut msg = Image::decode(payload)?;
     let stamp = msg.header.stamp.to_nanos();
-    let (w, h) = limits.working_size(rgb.width, rgb.height);
-    if (w, h) == (rgb.width, rgb.height) {
-        return Ok((stamp, rgb, msg.header.frame_id));
+    let frame_id = std::mem::take(&mut msg.header.frame_id);
+    let rgb = rgb8_from_image(msg)?;
+    if limits.working_size(rgb.width, rgb.height) != (rgb.width, rgb.height) {
+        counters.add("input/downscaled", 1);
     }
-    counters.add("input/downscaled", 1);
-    Ok((stamp, resample_area(&rgb, w, h), msg.header.frame_id))
+    Ok((stamp, rgb, frame_id))
 }
 
-/// The bytes a decoded image holds (what the synchroniser's byte budget counts).
-fn weight(img: &RgbImage) -> usize {
-    std::mem::size_of_val(img.data.as_slice())
+/// A frame's images as [0, 1] floats at the working size (area-averaged down when larger):
+/// what the worker is given.
+fn working_frame(frame: RawFrame, limits: &InputLimits) -> StereoFrame {
+    let working = |img: &Rgb8Image| {
+        let rgb = img.to_rgb();
+        match limits.working_size(img.width, img.height) {
+            (w, h) if (w, h) == (img.width, img.height) => rgb,
+            (w, h) => resample_area(&rgb, w, h),
+        }
+    };
+    StereoFrame {
+        index: frame.index,
+        left: working(&frame.left),
+        right: working(&frame.right),
+        left_to_world: frame.left_to_world,
+    }
+}
+
+/// The bytes an image holds (what the synchroniser's byte budget counts).
+fn weight(img: &Rgb8Image) -> usize {
+    img.data.len()
 }
 
 /// A stamped camera-to-world pose: it must decode, be rigid and lie within the limits.
@@ -310,14 +340,16 @@ fn rig_of(
     })
 }
 
-/// Whether a frame's images have the (working) size of the rig's cameras; a frame that
-/// does not would fail in the reconstructor, so it is refused before reaching the worker.
-fn fits_rig(frame: &StereoFrame, rig: &StereoRig) -> Result<(), Refusal> {
+/// Whether a frame's images, at their working size, have the size of the rig's cameras; a
+/// frame that does not would fail in the reconstructor, so it is refused before reaching
+/// the worker.
+fn fits_rig(frame: &RawFrame, rig: &StereoRig, limits: &InputLimits) -> Result<(), Refusal> {
     let camera = (rig.intrinsics.width, rig.intrinsics.height);
     for image in [&frame.left, &frame.right] {
-        if (image.width, image.height) != camera {
+        let working = limits.working_size(image.width, image.height);
+        if working != camera {
             return Err(Refusal::SizeMismatch {
-                image: (image.width, image.height),
+                image: working,
                 camera,
             });
         }

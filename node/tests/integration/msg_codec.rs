@@ -8,7 +8,9 @@ use model::frame::RgbImage;
 use msg_support::{far_pose, gaussians, samples, FAR};
 use node::msg::gaussians::{cloud_from_gaussians, gaussians_from_cloud};
 use node::msg::geometry_msgs::PoseStamped;
-use node::msg::image::{image_from_rgb, intrinsics_from_camera_info, rgb_from_image};
+use node::msg::image::{
+    image_from_rgb, intrinsics_from_camera_info, rgb8_from_image, rgb_from_image,
+};
 use node::msg::latency::{BinLatency, Diagnostics};
 use node::msg::pose::affine_from_pose;
 use node::msg::sensor_msgs::{datatype, CameraInfo, Image, PointCloud2};
@@ -122,6 +124,23 @@ fn images_convert_in_rgb8_bgr8_and_mono8() {
     assert_eq!(
         rgb_from_image(&mono).unwrap().to_rgb8(),
         vec![10, 10, 10, 200, 200, 200]
+    );
+
+    // As packed bytes (how the node keeps an input image): the same pixels, and an rgb8
+    // message's data as it is.
+    for m in [&msg, &bgr, &mono] {
+        let packed = rgb8_from_image(m.clone()).unwrap();
+        assert_eq!((packed.width, packed.height), (2, 1));
+        assert_eq!(packed.to_rgb(), rgb_from_image(m).unwrap());
+    }
+    assert_eq!(rgb8_from_image(msg.clone()).unwrap().data, msg.data);
+    let short = Image {
+        step: 5,
+        ..msg.clone()
+    };
+    assert_eq!(
+        rgb8_from_image(short.clone()).unwrap_err(),
+        rgb_from_image(&short).unwrap_err()
     );
 
     let err = rgb_from_image(&Image {

@@ -23,6 +23,7 @@
 //! required = true                           # default true: if it fails (or, when not oneshot, exits), stop everything
 //! delay_s = 0.5                             # wait this long once the `after` conditions hold
 //! after = [{ process = "data" }]            # `data` exited with status 0; or { process = "x", line = "regex" }
+//! stop_after = ["data"]                     # on a stop, signalled only once these have exited
 //! ```
 //!
 //! Unknown keys are rejected (serde's `deny_unknown_fields`), so a misspelt key is an error
@@ -77,6 +78,11 @@ pub struct ProcessEntry {
     pub after: Vec<Dependency>,
     /// Seconds to wait after the `after` conditions hold (or after launch, without any).
     pub delay_s: Option<Spanned<f64>>,
+    /// When the launch stops, this process is signalled only once these have exited (a
+    /// worker or a router outlives the node it serves while the node finishes its bins);
+    /// the grace period still ends in SIGKILL for all.
+    #[serde(default)]
+    pub stop_after: Vec<Spanned<String>>,
     /// Whether its failure stops the whole launch (default true).
     pub required: Option<bool>,
     /// Whether it is expected to finish with status 0 (default false: it runs until stopped).

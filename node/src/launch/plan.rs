@@ -50,6 +50,9 @@ pub struct ProcessSpec {
     pub after: Vec<Wait>,
     /// Time to wait once they hold.
     pub delay: Duration,
+    /// Indices of the processes that must have exited before this one is signalled to
+    /// stop.
+    pub stop_after: Vec<usize>,
     /// Whether its failure stops the launch.
     pub required: bool,
     /// Whether it is expected to exit (with status 0) rather than run until stopped.
@@ -274,6 +277,20 @@ impl Checker<'_> {
             Some(d) => self.seconds(d, "delay_s")?,
             None => Duration::ZERO,
         };
+        let stop_after = entry
+            .stop_after
+            .iter()
+            .map(|other| match names.get(other.get_ref()) {
+                Some(&i) => Ok(i),
+                None => {
+                    let message = format!(
+                        "process `{name}` stops after `{}`, which is not a process here",
+                        other.get_ref()
+                    );
+                    Err(self.invalid(other.span(), message))
+                }
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(ProcessSpec {
             name,
             program,
@@ -282,6 +299,7 @@ impl Checker<'_> {
             cwd,
             after,
             delay,
+            stop_after,
             required: entry.required.unwrap_or(true),
             oneshot: entry.oneshot,
         })

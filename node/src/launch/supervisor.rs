@@ -90,6 +90,8 @@ pub fn run(plan: &Plan, options: &Options) -> Result<Ending, LaunchError> {
         launched: Instant::now(),
         tx,
         kill_at: None,
+        stop: None,
+        signalled: vec![false; plan.processes.len()],
         killed: false,
         ending: None,
         later_failure: None,
@@ -161,6 +163,9 @@ struct Supervisor<'a> {
     tx: Sender<Event>,
     /// When stopping: the instant after which the processes left are killed.
     kill_at: Option<Instant>,
+    /// When stopping: the signal sent, and which processes have had it.
+    stop: Option<Stop>,
+    signalled: Vec<bool>,
     killed: bool,
     /// What started the stop (the first required failure, a signal, a required exit).
     ending: Option<Ending>,
@@ -366,7 +371,10 @@ impl Supervisor<'_> {
             self.mark(i, |until| matches!(until, Until::Success));
         }
         if self.kill_at.is_some() {
-            return; // Stopping: whatever it returns is the stop's doing.
+            // Stopping: whatever it returns is the stop's doing; those that outlive it
+            // are due now.
+            self.signal_due();
+            return;
         }
         if !ok {
             self.fail(i, reason, code);
@@ -403,7 +411,27 @@ impl Supervisor<'_> {
             return;
         }
         self.kill_at = Some(Instant::now() + self.plan.grace_period);
-        self.signal_running(stop);
+        self.stop = Some(stop);
+        self.signal_due();
+    }
+
+    /// Sends the stop signal to every running process not signalled yet whose
+    /// `stop_after` processes are all over.
+    fn signal_due(&mut self) {
+        let Some(stop) = self.stop else {
+            return;
+        };
+        for i in 0..self.states.len() {
+            let State::Running(pid) = self.states[i] else {
+                continue;
+            };
+            let spec = &self.plan.processes[i];
+            if self.signalled[i] || !spec.stop_after.iter().all(|&k| self.states[k].is_over()) {
+                continue;
+            }
+            self.signalled[i] = true;
+            self.send(pid, &spec.name, stop);
+        }
     }
 
     fn kill_all(&mut self, why: &str) {
@@ -415,16 +443,19 @@ impl Supervisor<'_> {
     fn signal_running(&self, stop: Stop) {
         for (i, state) in self.states.iter().enumerate() {
             if let State::Running(pid) = *state {
-                let name = &self.plan.processes[i].name;
-                match signals::send(pid, stop) {
-                    Ok(()) => self
-                        .printer
-                        .note(&format!("sent {} to {name}", stop.name())),
-                    Err(e) => self
-                        .printer
-                        .note(&format!("cannot send {} to {name}: {e}", stop.name())),
-                }
+                self.send(pid, &self.plan.processes[i].name, stop);
             }
+        }
+    }
+
+    fn send(&self, pid: u32, name: &str, stop: Stop) {
+        match signals::send(pid, stop) {
+            Ok(()) => self
+                .printer
+                .note(&format!("sent {} to {name}", stop.name())),
+            Err(e) => self
+                .printer
+                .note(&format!("cannot send {} to {name}: {e}", stop.name())),
         }
     }
 

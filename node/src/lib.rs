@@ -6,7 +6,8 @@
 //! - [`cli`]: the subcommands.
 //! - [`transport`]: zenoh sessions (loopback peers by default); [`msg`]: the ROS 2 CDR wire
 //!   messages and their rmw_zenoh type hashes.
-//! - [`pipeline`]: time sync, binning and the worker thread that owns the reconstructor.
+//! - [`pipeline`]: time sync, binning and the worker thread that owns the reconstructor;
+//!   [`remote`]: bins on worker processes over zenoh.
 //! - [`service`]: the running node around the pipeline, and the replay, recording and
 //!   monitoring of its topics.
 //! - [`fusion`]: the fused global map in the f64 world frame; [`map_eval`]: its own quality
@@ -36,6 +37,8 @@ pub mod pair;
 pub mod pareto;
 #[cfg(feature = "runtime")]
 pub mod pipeline;
+#[cfg(feature = "runtime")]
+pub mod remote;
 #[cfg(feature = "runtime")]
 pub mod service;
 pub mod transport;

@@ -5,9 +5,9 @@ use clap::{Parser, Subcommand};
 
 use node::cli::{
     bench, bench_check, bench_drive, bench_export, bench_fusion, bench_keep_up, bench_model,
-    bench_node, bench_pareto, bench_view, demo, enhancer_data, eval, eval_enhancer, eval_map,
-    export, interpolate_weights, launch, logs, reconstruct, render, stream, synth, train,
-    train_enhancer, view,
+    bench_node, bench_pareto, bench_view, bench_workers, demo, enhancer_data, eval, eval_enhancer,
+    eval_map, export, interpolate_weights, launch, logs, reconstruct, render, stream, synth, train,
+    train_enhancer, view, worker,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -57,6 +57,11 @@ enum Command {
     Launch(launch::LaunchArgs),
     /// The streaming node: stereo frames and poses in over zenoh, Gaussian maps out.
     Run(Box<stream::RunArgs>),
+    /// A worker process: takes bins from a node over zenoh and sends their maps back
+    /// (docs/workers.md).
+    Worker(worker::WorkerArgs),
+    /// A zenoh router for nodes, workers and cameras that do not reach each other directly.
+    Router(worker::RouterArgs),
     /// Replay a KITTI-360-layout sequence onto the node's input topics, or an MCAP
     /// recording onto the node's topics.
     Replay(stream::ReplayArgs),
@@ -97,6 +102,9 @@ enum BenchCommand {
     /// `auto` against fixed operating points, bins dropped and the PSNR of what was
     /// published.
     KeepUp(bench_keep_up::BenchKeepUpArgs),
+    /// How the node's bin rate grows with worker processes: a drive at KITTI-360's frame
+    /// size at its recorded rate, once per number of workers.
+    Workers(bench_workers::BenchWorkersArgs),
     /// Operating points from a TOML list on the same held-out bins: latency, memory,
     /// Gaussians and quality side by side, the Pareto front, a chart.
     Pareto(bench_pareto::BenchParetoArgs),
@@ -133,6 +141,8 @@ fn main() -> Result<()> {
         Command::EvalEnhancer(args) => eval_enhancer::run(&args),
         Command::Launch(args) => launch::run(&args),
         Command::Run(args) => stream::run(&args),
+        Command::Worker(args) => worker::run(&args),
+        Command::Router(args) => worker::router(&args),
         Command::Replay(args) => stream::replay(&args),
         Command::Record(args) => logs::record(&args),
         Command::Monitor(args) => logs::monitor(&args),
@@ -141,6 +151,7 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Node(args)) => bench_node::run(&args),
         Command::Bench(BenchCommand::Drive(args)) => bench_drive::run(&args),
         Command::Bench(BenchCommand::KeepUp(args)) => bench_keep_up::run(&args),
+        Command::Bench(BenchCommand::Workers(args)) => bench_workers::run(&args),
         Command::Bench(BenchCommand::Fusion(args)) => bench_fusion::run(&args),
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
         Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),

@@ -10,7 +10,7 @@ use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::RenderWith;
-use crate::service::{self, Compaction, InputLimits, NodeConfig, Paging, StartMap};
+use crate::service::{self, Compaction, InputLimits, NodeConfig, Paging, StartMap, WorkersConfig};
 use crate::transport::open;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -156,6 +156,14 @@ pub struct RunArgs {
     /// supported depth; `inf` fuses everything); docs/evaluation.md, "The fused map's own quality".
     #[arg(long, default_value_t = DEFAULT_MAX_RANGE_M)]
     map_keep_range: f32,
+    /// Leave every bin to worker processes (`stereosplat worker`): the node runs no
+    /// reconstructor itself, and bins wait (up to --queue) until a worker joins.
+    #[arg(long)]
+    no_local_worker: bool,
+    /// Seconds a worker process may hold a bin without sending its map before the bin
+    /// goes to another worker (its late answer is then discarded and counted).
+    #[arg(long, default_value_t = 60.0)]
+    worker_timeout: f64,
     #[command(flatten)]
     limits: LimitsArgs,
     #[command(flatten)]
@@ -259,6 +267,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
             ..FoxgloveConfig::default()
         }),
         operating: args.operating.operating(&args.out)?,
+        workers: WorkersConfig {
+            local: !args.no_local_worker,
+            timeout: std::time::Duration::from_nanos(seconds_ns(
+                args.worker_timeout,
+                "--worker-timeout",
+            )? as u64),
+        },
         ..NodeConfig::default()
     });
     if args.operating.calibrate && args.operating.latency_budget.is_none() {

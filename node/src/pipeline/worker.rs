@@ -38,7 +38,7 @@ pub enum RenderWith {
 
 impl RenderWith {
     /// The rasterizer, made on the thread that will use it.
-    fn raster(self) -> Option<Raster> {
+    pub fn raster(self) -> Option<Raster> {
         let with = match self {
             RenderWith::Off => return None,
             RenderWith::Cpu => renderer::RenderWith::Cpu,
@@ -291,8 +291,9 @@ impl Drop for Worker {
 }
 
 /// Runs one job, handing its map and render to `on_event`; returns the nanoseconds the
-/// model path and the render took.
-fn run_job(
+/// model path and the render took. The worker thread and a worker process
+/// ([`crate::remote::serve`]) both make bins' maps with it.
+pub fn run_job(
     runner: &mut PointRunner,
     point: usize,
     self_check: &mut SelfCheck,

@@ -28,6 +28,9 @@ pub enum ServiceError {
     /// The map's journal could not be set up in the out folder.
     #[error("the global map's journal: {0}")]
     Journal(#[from] crate::fusion::StoreError),
+    /// The node's weights could not be read to fingerprint them for its workers.
+    #[error(transparent)]
+    Fingerprint(#[from] crate::remote::FingerprintError),
     /// The Foxglove server did not start (`run --foxglove`).
     #[error(transparent)]
     Foxglove(#[from] crate::foxglove::FoxgloveError),

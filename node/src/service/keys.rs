@@ -269,6 +269,21 @@ impl Keys {
         }
     }
 
+    /// A worker process's key, `<ns>/workers/<id>`: its queryable (bins in, maps out) and
+    /// its liveliness token (the node sees it come and go).
+    pub fn worker(&self, id: &str) -> String {
+        format!("{}/{id}", self.workers())
+    }
+
+    /// The prefix of every worker process's key, `<ns>/workers`.
+    pub fn workers(&self) -> String {
+        if self.namespace.is_empty() {
+            "workers".into()
+        } else {
+            format!("{}/workers", self.namespace)
+        }
+    }
+
     /// stereosplat_msgs/BinLatency, per bin (output).
     pub fn latency(&self) -> String {
         self.key(LATENCY)

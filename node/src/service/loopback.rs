@@ -86,7 +86,7 @@ pub enum LoopbackError {
 }
 
 /// Replays `sequence` at `rate` into a node configured by `config` (its transport is
-/// replaced by a fresh loopback endpoint), hands every bin and render the listener receives
+/// replaced by a fresh loopback endpoint, keeping its `connect` endpoints), hands every bin and render the listener receives
 /// to `on_bin`, waits until every expected bin is published or nothing has come for `idle`,
 /// then stops the node and reports. `on_ready` gets the node's session once it is up (the
 /// live view subscribes on it).
@@ -104,8 +104,10 @@ pub async fn run_loopback(
         .map_err(|e| LoopbackError::Transport(e.to_string()))?
         .port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
+    // Its own listen endpoint; the peers it is told to connect to (worker processes) kept.
     config.transport = TransportConfig {
         listen: vec![endpoint.clone()],
+        connect: std::mem::take(&mut config.transport.connect),
         ..TransportConfig::default()
     };
     let keys = config.keys.clone();

@@ -27,6 +27,7 @@ use crate::pipeline::operating::{OperatingConfig, PointRunner};
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::{RenderWith, Worker, WorkerEvent};
+use crate::remote::{Answer, Dispatch, Fingerprint, Pool, PoolConfig, PoolEvent, Slot};
 use crate::transport::{open, Outlet, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
@@ -90,6 +91,32 @@ pub struct NodeConfig {
     /// Operating points chosen per bin to meet a latency budget (`None`: every bin runs
     /// the method, preset, weights and settings above).
     pub operating: Option<OperatingConfig>,
+    /// Who makes the bins' maps: the node's own worker thread, worker processes, or both.
+    pub workers: WorkersConfig,
+}
+
+/// Who makes the bins' maps ([`crate::remote`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WorkersConfig {
+    /// The node's own worker thread takes bins too (off: only worker processes do; bins
+    /// wait for one to join).
+    pub local: bool,
+    /// A worker process that has not sent a bin's map this long after it was handed the
+    /// bin is taken as stalled: the bin goes to another worker, and the stalled one's late
+    /// answer is discarded and counted.
+    pub timeout: std::time::Duration,
+}
+
+impl Default for WorkersConfig {
+    /// The node's own thread on; 60 s before a worker process is taken as stalled (a full
+    /// 1408x376 bin whose learned map fails the self-check takes about 12 s on this
+    /// machine's two cores, and about twice that on one).
+    fn default() -> Self {
+        Self {
+            local: true,
+            timeout: std::time::Duration::from_secs(60),
+        }
+    }
 }
 
 impl NodeConfig {
@@ -99,6 +126,16 @@ impl NodeConfig {
     ) -> Result<Box<dyn model::reconstruct::Reconstructor + Send>, model::methods::MethodError>
     {
         model::methods::build(
+            &self.method,
+            self.preset.as_deref(),
+            self.weights.as_deref(),
+            &self.settings,
+        )
+    }
+
+    /// What worker processes must run to take this node's bins.
+    pub fn fingerprint(&self) -> Result<Fingerprint, crate::remote::FingerprintError> {
+        Fingerprint::of(
             &self.method,
             self.preset.as_deref(),
             self.weights.as_deref(),
@@ -153,6 +190,7 @@ impl Default for NodeConfig {
             limits: InputLimits::default(),
             foxglove: None,
             operating: None,
+            workers: WorkersConfig::default(),
         }
     }
 }
@@ -258,14 +296,17 @@ pub async fn run_with(
         .await
         .map_err(zenoh_err)?;
 
+    let (pool, mut pool_rx) = Pool::start(&session, keys, pool_config(&config)?).await?;
+    let mut dispatch = Dispatch::new(config.queue_capacity, config.workers.local);
     let (out_tx, mut out_rx) = mpsc::unbounded_channel::<WorkerEvent>();
     let point_names: Vec<String> = points.iter().map(|p| p.name.clone()).collect();
     let mut pace = config.operating.as_ref().map(Pace::new);
+    // The dispatcher holds the waiting bins; the thread is handed one when it is idle.
     let worker = Worker::spawn_points(
         points,
         pace.as_ref().map(Pace::governor),
         config.renders,
-        config.queue_capacity,
+        1,
         config.on_check_fail,
         move |o| {
             let _ = out_tx.send(o);
@@ -312,12 +353,19 @@ pub async fn run_with(
             .max(std::time::Duration::from_millis(1)),
     );
     diagnostics.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut stall_check = tokio::time::interval(STALL_CHECK);
+    stall_check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    // After `stop`: no more inputs; the bins in hand are finished (for a worker
+    // process's timeout at most) and published.
+    let mut stopping: Option<Instant> = None;
 
     loop {
         let mut todo = Vec::new();
         tokio::select! {
-            _ = &mut stop => break,
-            Ok(s) = input.recv_async() => {
+            _ = &mut stop, if stopping.is_none() => {
+                stopping = Some(Instant::now() + config.workers.timeout);
+            },
+            Ok(s) = input.recv_async(), if stopping.is_none() => {
                 match input_keys.get(s.key_expr().as_str()) {
                     Some(&t) => {
                         todo = steps.on_sample(t, s.payload(), &mut outputs.counters);
@@ -376,13 +424,22 @@ pub async fn run_with(
                 }
             },
             Some(event) = out_rx.recv() => {
-                if let Some(p) = &mut pace {
-                    p.count(&event, &point_names, &mut outputs.counters);
+                dispatch.event(&Slot::Local, None, event);
+            },
+            Some(event) = pool_rx.recv() => {
+                workers_event(&mut dispatch, event, &mut outputs.counters);
+            },
+            _ = stall_check.tick() => {
+                for id in dispatch.stalled(Instant::now(), config.workers.timeout) {
+                    eprintln!(
+                        "worker {id} sent no map within {:?}: its bin goes to another",
+                        config.workers.timeout
+                    );
+                    outputs.counters.add("workers/stalled", 1);
                 }
-                outputs.worker_event(event, worker.drops()).await?
             },
             _ = diagnostics.tick(), if diagnostics_on => {
-                outputs.counters.set("dropped/worker_queue", worker.drops());
+                outputs.counters.set("dropped/worker_queue", dispatch.drops());
                 let msg = outputs.diagnostics();
                 outlet.put(DIAGNOSTICS, msg.encode()).await?;
                 outputs.put_static_tf().await?;
@@ -400,21 +457,41 @@ pub async fn run_with(
                     if let Some(f) = &foxglove {
                         f.input_image(job.bin_id, job.stamps.source_ns, &job.frame.left);
                     }
-                    worker.submit(*job);
+                    dispatch.submit(*job);
                 }
-                Step::Closed(bin_id) => outputs.bin_closed(bin_id, worker.drops()).await?,
+                Step::Closed(bin_id) => outputs.bin_closed(bin_id, dispatch.drops()).await?,
                 Step::Camera(camera) => outputs.camera_moved(camera).await?,
             }
         }
-        outputs.counters.set("dropped/worker_queue", worker.drops());
+        for a in dispatch.assign(Instant::now()) {
+            match &a.slot {
+                Slot::Local => _ = worker.submit(a.job),
+                Slot::Remote(id) => {
+                    outputs.counters.add(&format!("workers/bins/{id}"), 1);
+                    pool.send(id, &a);
+                }
+            }
+        }
+        publish_released(&mut dispatch, &mut outputs, pace.as_mut(), &point_names).await?;
+        let at_rest = dispatch.idle() || (!config.workers.local && dispatch.workers() == 0);
+        if stopping.is_some_and(|deadline| at_rest || Instant::now() > deadline) {
+            break;
+        }
     }
 
-    // Finish what is queued, then publish it.
-    let drops = worker.drops();
+    // The node's own thread finishes its bin, if it holds one.
     worker.shutdown();
     while let Ok(event) = out_rx.try_recv() {
-        outputs.worker_event(event, drops).await?;
+        dispatch.event(&Slot::Local, None, event);
     }
+    publish_released(&mut dispatch, &mut outputs, pace.as_mut(), &point_names).await?;
+    let drops = dispatch.drops();
+    let unfinished = dispatch.unfinished();
+    if unfinished > 0 {
+        eprintln!("{unfinished} bins were still waiting for a worker when the node stopped");
+        outputs.counters.set("dropped/at_stop", unfinished as u64);
+    }
+    drop(pool);
     outputs.finish(drops).await?;
     outputs.counters.set("dropped/worker_queue", drops);
     outputs.close_store();
@@ -436,4 +513,99 @@ pub async fn run_with(
     // Closing (rather than dropping) the session flushes what is still queued for peers.
     session.close().await.map_err(zenoh_err)?;
     Ok(summary)
+}
+
+/// How often the node looks for stalled worker processes.
+const STALL_CHECK: std::time::Duration = std::time::Duration::from_millis(250);
+
+/// What the node asks of its worker processes: its reconstructor, self-check policy and
+/// renders; with a latency budget it takes none (it chooses a point per bin and runs
+/// every point itself).
+fn pool_config(config: &NodeConfig) -> Result<PoolConfig, ServiceError> {
+    Ok(PoolConfig {
+        fingerprint: config.fingerprint()?,
+        on_check_fail: config.on_check_fail,
+        render: config.renders != RenderWith::Off,
+        refuse_all: config.operating.as_ref().map(|_| {
+            "the node chooses an operating point per bin (--latency-budget) and runs them itself"
+                .to_string()
+        }),
+        hello_timeout: std::time::Duration::from_secs(10),
+        // Long enough that a stalled worker's late answer is still heard, and counted.
+        late_limit: config
+            .workers
+            .timeout
+            .saturating_mul(4)
+            .max(std::time::Duration::from_secs(30)),
+    })
+}
+
+/// Feeds a worker process's event to the dispatcher, counting and saying what matters.
+fn workers_event(dispatch: &mut Dispatch, event: PoolEvent, counters: &mut super::Counters) {
+    match event {
+        PoolEvent::Joined(id) => {
+            eprintln!("worker {id} joined");
+            counters.add("workers/joined", 1);
+            dispatch.joined(&id);
+        }
+        PoolEvent::Refused { id, why } => {
+            eprintln!("worker {id} refused: {why}");
+            counters.add("refused/worker", 1);
+        }
+        PoolEvent::Left(id) => {
+            if dispatch.left(&id) {
+                eprintln!("worker {id} left");
+                counters.add("workers/left", 1);
+            }
+        }
+        PoolEvent::Reply { id, attempt, event } => {
+            if dispatch.event(&Slot::Remote(id), Some(attempt), event) == Answer::Late {
+                counters.set("discarded/late_bin", dispatch.late());
+            }
+        }
+        PoolEvent::Ended {
+            id,
+            bin,
+            attempt,
+            error,
+            silent,
+        } => {
+            if let Some(why) = error {
+                eprintln!("worker {id} on bin {bin}: {why}");
+                counters.add("error/worker_reply", 1);
+            }
+            dispatch.answered(&Slot::Remote(id.clone()), bin, attempt);
+            // A worker that answers nothing gets no more bins (greeted again if its token
+            // comes back).
+            if silent && dispatch.left(&id) {
+                eprintln!("worker {id} is unreachable: it gets no more bins");
+                counters.add("workers/left", 1);
+            }
+        }
+    }
+    counters.set("workers/ready", dispatch.workers() as u64);
+    counters.set("workers/reassigned", dispatch.reassigned());
+}
+
+/// Publishes what the dispatcher released, in bin order.
+async fn publish_released(
+    dispatch: &mut Dispatch,
+    outputs: &mut Outputs<'_>,
+    mut pace: Option<&mut Pace>,
+    point_names: &[String],
+) -> Result<(), ServiceError> {
+    let depth = dispatch.waiting();
+    for mut event in dispatch.released() {
+        if let WorkerEvent::Map(o) = &mut event {
+            o.queue_depth = depth;
+        }
+        if let Some(p) = pace.as_deref_mut() {
+            p.count(&event, point_names, &mut outputs.counters);
+        }
+        outputs.worker_event(event, dispatch.drops()).await?;
+    }
+    outputs
+        .counters
+        .set("dropped/worker_queue", dispatch.drops());
+    Ok(())
 }

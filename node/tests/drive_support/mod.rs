@@ -207,8 +207,13 @@ impl Player {
 
     /// Connects to a node (in this process or another) listening on `endpoint` with `keys`.
     pub async fn at(endpoint: &str, keys: Keys) -> Self {
+        Self::with(&client_of(endpoint), keys).await
+    }
+
+    /// A player on a session opened as `transport` says (a secure one, say).
+    pub async fn with(transport: &TransportConfig, keys: Keys) -> Self {
         Self {
-            session: open(&client_of(endpoint)).await.expect("player session"),
+            session: open(transport).await.expect("player session"),
             keys,
         }
     }

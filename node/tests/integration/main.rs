@@ -53,6 +53,7 @@ mod node_ros2;
 mod node_self_check;
 mod node_stamps_tf;
 mod node_wedge;
+mod node_workers;
 mod python_subscriber;
 mod record;
 mod ros2_bridge;

@@ -1,0 +1,16 @@
+//! Bins on worker processes, on this machine or others, over the node's zenoh session:
+//! the protocol ([`wire`]), what both ends compare before a bin changes hands
+//! ([`fingerprint`]), the worker process ([`serve`], `stereosplat worker`), and the node's
+//! side: which bin runs where and the release of maps in bin order ([`dispatch`]), and
+//! the talking to the workers ([`pool`]). docs/workers.md says how to run them.
+
+pub mod dispatch;
+pub mod fingerprint;
+pub mod pool;
+pub mod serve;
+pub mod wire;
+
+pub use dispatch::{Answer, Assignment, Dispatch, Slot, MAX_ATTEMPTS};
+pub use fingerprint::{Fingerprint, FingerprintError};
+pub use pool::{Pool, PoolConfig, PoolEvent};
+pub use serve::{serve, ServeConfig, ServeError, ServeSummary};

@@ -437,7 +437,7 @@ after = [{ process = "quiet", line = "ready" }]
 #[test]
 fn example_files_check() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    for name in ["eval_synthetic.toml", "node_demo.toml"] {
+    for name in ["eval_synthetic.toml", "node_demo.toml", "node_workers.toml"] {
         let file = root.join("launch").join(name);
         let (code, stdout, stderr) = launch(&[file.to_str().unwrap(), "--check"]);
         assert_eq!(code, 0, "{name}: {stderr}");
@@ -614,4 +614,57 @@ after = [{ process = "server", line = "up" }]
         "{stderr}"
     );
     assert!(stderr.contains("server exited: signal: 15"), "{stderr}");
+}
+
+/// The node, a router and two worker processes through the launcher: every process is a
+/// client of the router (nobody connects to anybody else), the node runs no reconstructor,
+/// and both workers make bins.
+#[test]
+fn the_workers_launch_file_makes_every_bin_on_workers_through_a_router() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let tmp = std::env::temp_dir().join(format!("stereosplat-workers-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let mut args = vec![root.join("launch/node_workers.toml").display().to_string()];
+    for (k, v) in [
+        ("data", tmp.join("data").display().to_string()),
+        ("out", tmp.join("out").display().to_string()),
+        (
+            "router",
+            format!("tcp/127.0.0.1:{}", net_support::free_port()),
+        ),
+        ("frames", "40".into()),
+        ("width", "136".into()),
+        ("height", "40".into()),
+        // As fast as possible: the bins come together, so both workers get some.
+        ("rate", "0".into()),
+        ("queue", "64".into()),
+    ] {
+        args.extend(["--set".to_string(), format!("{k}={v}")]);
+    }
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (code, stdout, stderr) = launch(&refs);
+    assert_eq!(code, 0, "{stdout}\n{stderr}");
+    assert!(stdout.contains("[replay] replayed 40 frames"), "{stdout}");
+    let summary: serde_json::Value = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("[node] "))
+        .find_map(|l| serde_json::from_str(l).ok())
+        .unwrap_or_else(|| panic!("the node's summary: {stdout}"));
+    let counter = |k: &str| summary["counters"][k].as_u64().unwrap_or(0);
+    let published = summary["bins_published"].as_u64().unwrap();
+    assert!(published >= 2, "{summary}");
+    assert_eq!(counter("workers/joined"), 2, "{summary}");
+    assert!(
+        counter("workers/bins/a") > 0 && counter("workers/bins/b") > 0,
+        "{summary}"
+    );
+    assert_eq!(
+        counter("workers/bins/a") + counter("workers/bins/b"),
+        published
+    );
+    assert_eq!(counter("dropped/worker_queue"), 0);
+    // The workers and the router outlived the node (`stop_after`): nothing was left.
+    assert_eq!(counter("dropped/at_stop"), 0);
+    assert!(tmp.join("out/global_map.ply").exists());
+    let _ = std::fs::remove_dir_all(&tmp);
 }

@@ -4,16 +4,20 @@
 //! with rcgen, plus the access control of `launch/zenoh_acl.json5`) keeps out a peer without
 //! a client certificate and one whose certificate another authority signed, and lets a
 //! viewer read but not publish inputs while the camera's inputs get through; a second node on
-//! a port in use fails before it says it is ready.
+//! a port in use fails before it says it is ready; and only a worker process with the
+//! worker role's certificate takes the node's bins.
 
+use crate::drive_support::{Drive, Player};
 use crate::net_support;
+use crate::node_workers::WorkerProcess;
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use node::service::{Keys, NodeConfig, NodeSummary, ServiceError};
+use node::pipeline::worker::RenderWith;
+use node::service::{Keys, NodeConfig, NodeSummary, ServiceError, WorkersConfig};
 use node::transport::{open, TlsFiles, TransportConfig, TransportError};
 use rcgen::{
     BasicConstraints, CertificateParams, DnType, ExtendedKeyUsagePurpose, IsCa, Issuer, KeyPair,
@@ -443,4 +447,94 @@ async fn a_session_on_a_port_in_use_is_a_typed_error_naming_it() {
         Err(other) => panic!("expected Open, got {other}"),
     }
     first.close().await.unwrap();
+}
+
+/// The `--tls-*` flags of `files`.
+fn tls_flags(files: &TlsFiles) -> Vec<String> {
+    let path = |p: &Path| p.display().to_string();
+    vec![
+        "--tls-ca".into(),
+        path(&files.ca),
+        "--tls-cert".into(),
+        path(&files.cert),
+        "--tls-key".into(),
+        path(&files.key),
+    ]
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn in_the_secure_profile_only_a_worker_certificate_takes_bins() {
+    let dir = temp_dir("zenoh-secure-workers");
+    let ca = Authority::new(&dir, "ca");
+    let endpoint = format!("tls/127.0.0.1:{}", net_support::free_port());
+    let keys = Keys::default();
+    let config = NodeConfig {
+        transport: TransportConfig {
+            listen: vec![endpoint.clone()],
+            tls: Some(ca.identity("stereosplat-node", &ca.ca())),
+            access_control: Some(PathBuf::from(ACL)),
+            ..TransportConfig::default()
+        },
+        method: "sgm".into(),
+        renders: RenderWith::Off,
+        queue_capacity: 64,
+        workers: WorkersConfig {
+            local: false,
+            ..WorkersConfig::default()
+        },
+        ..NodeConfig::default()
+    };
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel::<()>();
+    let node = tokio::spawn(node::service::run_announced(
+        config,
+        async {
+            let _ = stop_rx.await;
+        },
+        move |_: &zenoh::Session| {
+            let _ = ready_tx.send(());
+        },
+    ));
+    ready_rx.await.expect("the node starts");
+
+    // Two workers with certificates of the node's authority: one with the worker role's
+    // name, one with the viewer's.
+    let worker = |cn: &str, id: &str| {
+        let mut args: Vec<String> = ["--connect", &endpoint, "--method", "sgm", "--id", id]
+            .map(String::from)
+            .to_vec();
+        args.extend(["--renders".into(), "off".into()]);
+        args.extend(tls_flags(&ca.identity(cn, &ca.ca())));
+        let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+        WorkerProcess::spawn(&refs)
+    };
+    let _good = worker("stereosplat-worker", "good");
+    let _viewer = worker("stereosplat-viewer", "viewer");
+
+    let drive = Drive::small("secure-workers");
+    let camera = Player::with(
+        &TransportConfig {
+            connect: vec![endpoint.clone()],
+            tls: Some(ca.identity("stereosplat-camera", &ca.ca())),
+            ..TransportConfig::default()
+        },
+        keys.clone(),
+    )
+    .await;
+    assert!(sees_a_subscriber(&camera.session, &keys.left_image()).await);
+    camera.frames(&drive.rig, &drive.frames).await;
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    // The node finishes the bins its worker holds before it stops.
+    stop_tx.send(()).unwrap();
+    let summary = node.await.unwrap().unwrap();
+    let c = &summary.counters;
+    assert_eq!(
+        summary.bins_published,
+        drive.bins_opened(8.0) as u64,
+        "{c:?}"
+    );
+    assert_eq!(c.get("workers/joined"), 1, "{c:?}");
+    assert_eq!(c.get("workers/bins/good"), summary.bins_published);
+    assert_eq!(c.get("workers/bins/viewer"), 0);
+    let _ = std::fs::remove_dir_all(dir);
 }

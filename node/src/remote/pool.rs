@@ -42,7 +42,12 @@ pub struct PoolConfig {
 #[derive(Debug)]
 pub enum PoolEvent {
     /// A worker answered the greeting with the node's fingerprint: it takes bins.
-    Joined(String),
+    Joined {
+        /// The worker.
+        id: String,
+        /// Threads its reconstructor uses.
+        threads: u32,
+    },
     /// A worker was refused (another fingerprint, no answer, refuse-all).
     Refused {
         /// The worker.
@@ -147,13 +152,15 @@ impl Pool {
             None => self.hello(&id).await,
         };
         let event = match verdict {
-            Ok(()) => PoolEvent::Joined(id),
+            Ok(threads) => PoolEvent::Joined { id, threads },
             Err(why) => PoolEvent::Refused { id, why },
         };
         let _ = self.tx.send(event);
     }
 
-    async fn hello(&self, id: &str) -> Result<(), String> {
+    /// Greets worker `id`: its thread count when it runs the node's fingerprint, else why
+    /// not.
+    async fn hello(&self, id: &str) -> Result<u32, String> {
         let want = &self.config.fingerprint;
         let replies = self
             .session
@@ -171,7 +178,7 @@ impl Pool {
             Err(e) => return Err(e.payload().try_to_string().unwrap_or_default().into()),
         };
         match Reply::decode(&payload) {
-            Ok(Reply::Hello(h)) if &h.fingerprint == want => Ok(()),
+            Ok(Reply::Hello(h)) if &h.fingerprint == want => Ok(h.threads),
             Ok(Reply::Hello(h)) => Err(format!(
                 "it runs {}; the node runs {}",
                 h.fingerprint.describe(),

@@ -28,6 +28,7 @@ pub mod replay;
 pub mod replay_bag;
 pub mod snapshot_gate;
 pub mod static_frames;
+mod workers;
 
 pub use counters::Counters;
 pub use error::ServiceError;

@@ -19,6 +19,7 @@ use super::outputs::{NodeSummary, Outputs, RegionPages};
 use super::pace::Pace;
 use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
+use super::workers::{publish_released, workers_event, STALL_CHECK};
 use crate::foxglove::{Foxglove, FoxgloveConfig};
 use crate::fusion::FusionConfig;
 use crate::msg::Message;
@@ -27,7 +28,7 @@ use crate::pipeline::operating::{OperatingConfig, PointRunner};
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::{RenderWith, Worker, WorkerEvent};
-use crate::remote::{Answer, Dispatch, Fingerprint, Pool, PoolConfig, PoolEvent, Slot};
+use crate::remote::{Dispatch, Fingerprint, Pool, PoolConfig, Slot};
 use crate::transport::{open, Outlet, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
@@ -141,6 +142,28 @@ impl NodeConfig {
             self.weights.as_deref(),
             &self.settings,
         )
+    }
+
+    /// What the node asks of its worker processes: its reconstructor, self-check policy and
+    /// renders; with a latency budget it takes none (it chooses a point per bin and runs
+    /// every point itself).
+    pub fn pool_config(&self) -> Result<PoolConfig, ServiceError> {
+        Ok(PoolConfig {
+            fingerprint: self.fingerprint()?,
+            on_check_fail: self.on_check_fail,
+            render: self.renders != RenderWith::Off,
+            refuse_all: self.operating.as_ref().map(|_| {
+                "the node chooses an operating point per bin (--latency-budget) and runs them itself"
+                    .to_string()
+            }),
+            hello_timeout: std::time::Duration::from_secs(10),
+            // Long enough that a stalled worker's late answer is still heard, and counted.
+            late_limit: self
+                .workers
+                .timeout
+                .saturating_mul(4)
+                .max(std::time::Duration::from_secs(30)),
+        })
     }
 
     /// The worker's operating points: the table's rows, most accurate first, with a
@@ -296,7 +319,7 @@ pub async fn run_with(
         .await
         .map_err(zenoh_err)?;
 
-    let (pool, mut pool_rx) = Pool::start(&session, keys, pool_config(&config)?).await?;
+    let (pool, mut pool_rx) = Pool::start(&session, keys, config.pool_config()?).await?;
     let mut dispatch = Dispatch::new(config.queue_capacity, config.workers.local);
     let (out_tx, mut out_rx) = mpsc::unbounded_channel::<WorkerEvent>();
     let point_names: Vec<String> = points.iter().map(|p| p.name.clone()).collect();
@@ -513,99 +536,4 @@ pub async fn run_with(
     // Closing (rather than dropping) the session flushes what is still queued for peers.
     session.close().await.map_err(zenoh_err)?;
     Ok(summary)
-}
-
-/// How often the node looks for stalled worker processes.
-const STALL_CHECK: std::time::Duration = std::time::Duration::from_millis(250);
-
-/// What the node asks of its worker processes: its reconstructor, self-check policy and
-/// renders; with a latency budget it takes none (it chooses a point per bin and runs
-/// every point itself).
-fn pool_config(config: &NodeConfig) -> Result<PoolConfig, ServiceError> {
-    Ok(PoolConfig {
-        fingerprint: config.fingerprint()?,
-        on_check_fail: config.on_check_fail,
-        render: config.renders != RenderWith::Off,
-        refuse_all: config.operating.as_ref().map(|_| {
-            "the node chooses an operating point per bin (--latency-budget) and runs them itself"
-                .to_string()
-        }),
-        hello_timeout: std::time::Duration::from_secs(10),
-        // Long enough that a stalled worker's late answer is still heard, and counted.
-        late_limit: config
-            .workers
-            .timeout
-            .saturating_mul(4)
-            .max(std::time::Duration::from_secs(30)),
-    })
-}
-
-/// Feeds a worker process's event to the dispatcher, counting and saying what matters.
-fn workers_event(dispatch: &mut Dispatch, event: PoolEvent, counters: &mut super::Counters) {
-    match event {
-        PoolEvent::Joined(id) => {
-            eprintln!("worker {id} joined");
-            counters.add("workers/joined", 1);
-            dispatch.joined(&id);
-        }
-        PoolEvent::Refused { id, why } => {
-            eprintln!("worker {id} refused: {why}");
-            counters.add("refused/worker", 1);
-        }
-        PoolEvent::Left(id) => {
-            if dispatch.left(&id) {
-                eprintln!("worker {id} left");
-                counters.add("workers/left", 1);
-            }
-        }
-        PoolEvent::Reply { id, attempt, event } => {
-            if dispatch.event(&Slot::Remote(id), Some(attempt), event) == Answer::Late {
-                counters.set("discarded/late_bin", dispatch.late());
-            }
-        }
-        PoolEvent::Ended {
-            id,
-            bin,
-            attempt,
-            error,
-            silent,
-        } => {
-            if let Some(why) = error {
-                eprintln!("worker {id} on bin {bin}: {why}");
-                counters.add("error/worker_reply", 1);
-            }
-            dispatch.answered(&Slot::Remote(id.clone()), bin, attempt);
-            // A worker that answers nothing gets no more bins (greeted again if its token
-            // comes back).
-            if silent && dispatch.left(&id) {
-                eprintln!("worker {id} is unreachable: it gets no more bins");
-                counters.add("workers/left", 1);
-            }
-        }
-    }
-    counters.set("workers/ready", dispatch.workers() as u64);
-    counters.set("workers/reassigned", dispatch.reassigned());
-}
-
-/// Publishes what the dispatcher released, in bin order.
-async fn publish_released(
-    dispatch: &mut Dispatch,
-    outputs: &mut Outputs<'_>,
-    mut pace: Option<&mut Pace>,
-    point_names: &[String],
-) -> Result<(), ServiceError> {
-    let depth = dispatch.waiting();
-    for mut event in dispatch.released() {
-        if let WorkerEvent::Map(o) = &mut event {
-            o.queue_depth = depth;
-        }
-        if let Some(p) = pace.as_deref_mut() {
-            p.count(&event, point_names, &mut outputs.counters);
-        }
-        outputs.worker_event(event, dispatch.drops()).await?;
-    }
-    outputs
-        .counters
-        .set("dropped/worker_queue", dispatch.drops());
-    Ok(())
 }

@@ -1,0 +1,84 @@
+//! The node loop's side of its workers ([`crate::remote`]): what it makes of the worker
+//! processes' events, and the publishing, in bin order, of the maps the dispatcher
+//! releases.
+
+use crate::pipeline::worker::WorkerEvent;
+use crate::remote::{Answer, Dispatch, PoolEvent, Slot};
+
+use super::counters::Counters;
+use super::error::ServiceError;
+use super::outputs::Outputs;
+use super::pace::Pace;
+
+/// How often the node looks for stalled worker processes.
+pub(super) const STALL_CHECK: std::time::Duration = std::time::Duration::from_millis(250);
+
+/// Feeds a worker process's event to the dispatcher, counting and saying what matters.
+pub(super) fn workers_event(dispatch: &mut Dispatch, event: PoolEvent, counters: &mut Counters) {
+    match event {
+        PoolEvent::Joined { id, threads } => {
+            eprintln!("worker {id} joined ({threads} threads)");
+            counters.add("workers/joined", 1);
+            dispatch.joined(&id);
+        }
+        PoolEvent::Refused { id, why } => {
+            eprintln!("worker {id} refused: {why}");
+            counters.add("refused/worker", 1);
+        }
+        PoolEvent::Left(id) => {
+            if dispatch.left(&id) {
+                eprintln!("worker {id} left");
+                counters.add("workers/left", 1);
+            }
+        }
+        PoolEvent::Reply { id, attempt, event } => {
+            if dispatch.event(&Slot::Remote(id), Some(attempt), event) == Answer::Late {
+                counters.set("discarded/late_bin", dispatch.late());
+            }
+        }
+        PoolEvent::Ended {
+            id,
+            bin,
+            attempt,
+            error,
+            silent,
+        } => {
+            if let Some(why) = error {
+                eprintln!("worker {id} on bin {bin}: {why}");
+                counters.add("error/worker_reply", 1);
+            }
+            dispatch.answered(&Slot::Remote(id.clone()), bin, attempt);
+            // A worker that answers nothing gets no more bins (greeted again if its token
+            // comes back).
+            if silent && dispatch.left(&id) {
+                eprintln!("worker {id} is unreachable: it gets no more bins");
+                counters.add("workers/left", 1);
+            }
+        }
+    }
+    counters.set("workers/ready", dispatch.workers() as u64);
+    counters.set("workers/reassigned", dispatch.reassigned());
+}
+
+/// Publishes what the dispatcher released, in bin order.
+pub(super) async fn publish_released(
+    dispatch: &mut Dispatch,
+    outputs: &mut Outputs<'_>,
+    mut pace: Option<&mut Pace>,
+    point_names: &[String],
+) -> Result<(), ServiceError> {
+    let depth = dispatch.waiting();
+    for mut event in dispatch.released() {
+        if let WorkerEvent::Map(o) = &mut event {
+            o.queue_depth = depth;
+        }
+        if let Some(p) = pace.as_deref_mut() {
+            p.count(&event, point_names, &mut outputs.counters);
+        }
+        outputs.worker_event(event, dispatch.drops()).await?;
+    }
+    outputs
+        .counters
+        .set("dropped/worker_queue", dispatch.drops());
+    Ok(())
+}

@@ -3,7 +3,8 @@
 //! worker thread, published in bin order; a worker killed (SIGKILL) while it holds a bin
 //! loses no bin; a stalled worker (SIGSTOP) has its bin given to another and its late
 //! answer discarded and counted; a worker with another preset is refused, says why, and
-//! gets no bin.
+//! gets no bin; a worker at another thread count makes the same maps within a stated float
+//! tolerance.
 
 use crate::drive_support;
 
@@ -16,6 +17,7 @@ use std::time::Duration;
 use drive_support::{bin_of_frame_id, wait_for, Collector, Drive, Player, RunningNode};
 use nix::sys::signal::{kill, Signal};
 use nix::unistd::Pid;
+use node::msg::gaussians::records_from_cloud;
 use node::msg::latency::Diagnostics;
 use node::msg::sensor_msgs::{Image, PointCloud2};
 use node::msg::Message;
@@ -29,9 +31,9 @@ pub(crate) struct WorkerProcess {
 }
 
 impl WorkerProcess {
-    /// Starts a worker connected to `node` with the default reconstructor and as many
-    /// threads as this process's rayon pool (the node's own thread uses those), plus
-    /// `extra` flags; waits until it says it is ready.
+    /// Starts a worker connected to `node` with the default reconstructor and, unless
+    /// `extra` says otherwise, as many threads as this process's rayon pool (the node's own
+    /// thread uses those), plus `extra` flags; waits until it says it is ready.
     fn start(node: &RunningNode, id: &str, extra: &[&str]) -> Self {
         let threads = rayon::current_num_threads().to_string();
         let mut args = vec![
@@ -40,7 +42,10 @@ impl WorkerProcess {
             "--namespace",
             &node.keys.namespace,
         ];
-        args.extend(["--id", id, "--threads", &threads]);
+        args.extend(["--id", id]);
+        if !extra.contains(&"--threads") {
+            args.extend(["--threads", &threads]);
+        }
         args.extend(extra);
         Self::spawn(&args)
     }
@@ -293,4 +298,53 @@ async fn a_worker_with_another_preset_is_refused_and_gets_no_bin() {
             && said.contains("the node asks for stereosplat preset tiny "),
         "{said}"
     );
+}
+
+/// The largest difference, field by field, between the records of two bin maps of the same
+/// length (positions in metres, scales as logs, opacity as a logit, colours as SH DC).
+fn max_field_difference(a: &[u8], b: &[u8]) -> Option<[f64; 15]> {
+    let records = |p: &[u8]| records_from_cloud(&PointCloud2::decode(p).unwrap()).unwrap();
+    let (a, b) = (records(a), records(b));
+    if a.len() != b.len() {
+        return None;
+    }
+    let mut max = [0.0f64; 15];
+    for (x, y) in a.iter().zip(&b) {
+        for (m, (u, v)) in max.iter_mut().zip(x.iter().zip(y)) {
+            *m = m.max((u - v).abs());
+        }
+    }
+    Some(max)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_at_another_thread_count_makes_the_same_maps_within_a_float_tolerance() {
+    let drive = Drive::small("workers-threads");
+    let own = node("workers-threads-own", WorkersConfig::default()).await;
+    let own_outputs = Collector::connect(&own, &watched(&own)).await;
+    let (_, own_maps, ..) = play(own, &own_outputs, &drive).await;
+
+    let remote = node(
+        "workers-threads-remote",
+        remote_only(Duration::from_secs(60)),
+    )
+    .await;
+    let outputs = Collector::connect(&remote, &watched(&remote)).await;
+    // Another thread count than the node's own thread ran with.
+    let other = if rayon::current_num_threads() == 1 {
+        "2"
+    } else {
+        "1"
+    };
+    let _a = WorkerProcess::start(&remote, "a", &["--threads", other]);
+    assert!(wait_counter(&outputs, &remote.keys, "workers/ready", 1).await);
+    let (_, maps, ..) = play(remote, &outputs, &drive).await;
+    for (bin, map) in &maps {
+        let diff = max_field_difference(map, &own_maps[bin])
+            .unwrap_or_else(|| panic!("bin {bin}: another number of Gaussians"));
+        println!("bin {bin}: largest difference per field {diff:?}");
+        let position = diff[..3].iter().copied().fold(0.0, f64::max);
+        let rest = diff[3..].iter().copied().fold(0.0, f64::max);
+        assert!(position <= 1e-3 && rest <= 1e-3, "bin {bin}: {diff:?}");
+    }
 }

@@ -18,7 +18,6 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Args;
 use glam::DAffine3;
-use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 use renderer::{Gaussian, GaussianSet};
 use serde::Serialize;
@@ -26,7 +25,7 @@ use serde::Serialize;
 use super::bench_node::{with_fields, BenchNodeSettings};
 use super::progress;
 use super::stream::rate_of;
-use super::synth::cached_drive;
+use super::synth::cached_sequence;
 use crate::fusion::{AtTornTail, FusionConfig, GlobalMap, JournalWriter, Keep};
 use crate::msg::latency::BinLatency;
 use crate::service::loopback::run_loopback;
@@ -140,8 +139,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         height: args.height,
         ..SynthConfig::default()
     };
-    let name = cached_drive(&drive_dir, &synth)?;
-    let sequence = Sequence::open(&drive_dir, &name)?;
+    let sequence = cached_sequence(&drive_dir, &synth)?;
     let map_dir = args.out.join("map");
     let config = args.node.node_config(
         NodeConfig {
@@ -202,7 +200,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     bins_in_map.dedup();
 
     let mut out = serde_json::json!({
-        "sequence": name,
+        "sequence": sequence.name(),
         "frames": report.frames,
         "size": [args.width, args.height],
         "rate": args.rate,

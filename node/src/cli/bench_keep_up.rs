@@ -26,7 +26,7 @@ use serde::Serialize;
 use super::operating_args::SHIPPED_TABLE;
 use super::progress;
 use super::stream::{rate_of, RenderArg};
-use super::synth::cached_drive;
+use super::synth::cached_sequence;
 use crate::msg::latency::BinLatency;
 use crate::pipeline::operating::{Budget, GovernorConfig, OperatingConfig, OperatingTable};
 use crate::service::latency_stats::{LatencyStats, StageSummary};
@@ -99,8 +99,7 @@ pub fn run(args: &BenchKeepUpArgs) -> Result<()> {
         height: args.height,
         ..SynthConfig::default()
     };
-    let name = cached_drive(&drive_dir, &synth)?;
-    let sequence = Sequence::open(&drive_dir, &name)?;
+    let sequence = cached_sequence(&drive_dir, &synth)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let mut reports = Vec::new();
     for run in &args.run {

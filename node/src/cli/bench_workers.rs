@@ -16,13 +16,12 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use model::generate::HELDOUT_SEED_BASE;
-use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 use serde::Serialize;
 
 use super::progress;
 use super::stream::rate_of;
-use super::synth::cached_drive;
+use super::synth::cached_sequence;
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::worker::RenderWith;
 use crate::service::latency_stats::{LatencyStats, StageSummary};
@@ -140,8 +139,7 @@ pub fn run(args: &BenchWorkersArgs) -> Result<()> {
         height: args.height,
         ..SynthConfig::default()
     };
-    let name = cached_drive(&args.drive, &synth)?;
-    let sequence = Sequence::open(&args.drive, &name)?;
+    let sequence = cached_sequence(&args.drive, &synth)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let mut reports = Vec::new();
     for &n in &args.runs {

@@ -179,6 +179,12 @@ pub fn cached_drive(root: &Path, config: &SynthConfig) -> Result<String> {
     Ok(name)
 }
 
+/// The generated drive of `config` under `root` ([`cached_drive`]), opened.
+pub fn cached_sequence(root: &Path, config: &SynthConfig) -> Result<Sequence> {
+    let name = cached_drive(root, config)?;
+    Ok(Sequence::open(root, &name)?)
+}
+
 /// The first sequence under a KITTI-360-layout root.
 pub fn first_sequence(root: &Path) -> Result<String> {
     Sequence::list(root)?

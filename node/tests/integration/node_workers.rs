@@ -226,16 +226,23 @@ async fn two_worker_processes_make_the_maps_and_renders_of_the_node_own_thread_i
     }
 }
 
+/// A node with no thread of its own and `timeout`, workers `a` and `b` that have joined,
+/// `a` frozen (SIGSTOP): the first bin goes to `a`, which holds it.
+async fn a_frozen(tag: &str, timeout: Duration) -> (RunningNode, Collector, [WorkerProcess; 2]) {
+    let node = node(tag, remote_only(timeout)).await;
+    let outputs = Collector::connect(&node, &watched(&node)).await;
+    let a = WorkerProcess::start(&node, "a", &[]);
+    let b = WorkerProcess::start(&node, "b", &[]);
+    assert!(wait_counter(&outputs, &node.keys, "workers/ready", 2).await);
+    a.signal(Signal::SIGSTOP);
+    (node, outputs, [a, b])
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_worker_killed_while_it_holds_a_bin_loses_no_bin() {
     let drive = Drive::small("workers-kill");
-    let node = node("workers-kill", remote_only(Duration::from_secs(60))).await;
-    let outputs = Collector::connect(&node, &watched(&node)).await;
-    let a = WorkerProcess::start(&node, "a", &[]);
-    let _b = WorkerProcess::start(&node, "b", &[]);
-    assert!(wait_counter(&outputs, &node.keys, "workers/ready", 2).await);
     // Frozen, `a` takes its first bin and holds it; then it dies with it.
-    a.signal(Signal::SIGSTOP);
+    let (node, outputs, [a, _b]) = a_frozen("workers-kill", Duration::from_secs(60)).await;
     let keys = node.keys.clone();
     let killer = async {
         assert!(wait_counter(&outputs, &keys, "workers/bins/a", 1).await);
@@ -256,12 +263,7 @@ async fn a_worker_killed_while_it_holds_a_bin_loses_no_bin() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_stalled_worker_bin_goes_to_another_and_its_late_answer_is_discarded() {
     let drive = Drive::small("workers-stall");
-    let node = node("workers-stall", remote_only(Duration::from_secs(1))).await;
-    let outputs = Collector::connect(&node, &watched(&node)).await;
-    let a = WorkerProcess::start(&node, "a", &[]);
-    let _b = WorkerProcess::start(&node, "b", &[]);
-    assert!(wait_counter(&outputs, &node.keys, "workers/ready", 2).await);
-    a.signal(Signal::SIGSTOP);
+    let (node, outputs, [a, _b]) = a_frozen("workers-stall", Duration::from_secs(1)).await;
     let keys = node.keys.clone();
     let thaw = async {
         // `a` holds its bin past the 1 s timeout; once the bin has gone to `b`, `a` wakes

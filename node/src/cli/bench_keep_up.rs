@@ -16,17 +16,15 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::frame::{RgbImage, Side};
-use model::generate::HELDOUT_SEED_BASE;
 use model::kitti360::Sequence;
 use model::metrics::psnr;
-use model::synth::SynthConfig;
 use renderer::{Raster, RenderSettings};
 use serde::Serialize;
 
+use super::heldout_drive::HeldoutDriveArgs;
 use super::operating_args::SHIPPED_TABLE;
 use super::progress;
 use super::stream::{rate_of, RenderArg};
-use super::synth::cached_sequence;
 use crate::msg::latency::BinLatency;
 use crate::pipeline::operating::{Budget, GovernorConfig, OperatingConfig, OperatingTable};
 use crate::service::latency_stats::{LatencyStats, StageSummary};
@@ -36,18 +34,8 @@ use crate::service::NodeConfig;
 /// Flags of `bench keep-up`.
 #[derive(Args, Clone, Debug)]
 pub struct BenchKeepUpArgs {
-    /// Frames of the generated drive (10 per second of driving).
-    #[arg(long, default_value_t = 400)]
-    frames: u32,
-    /// Image width of the generated drive.
-    #[arg(long, default_value_t = 1408)]
-    width: u32,
-    /// Image height of the generated drive.
-    #[arg(long, default_value_t = 376)]
-    height: u32,
-    /// Seed of the generated drive (held-out seeds start at 1,000,000).
-    #[arg(long, default_value_t = HELDOUT_SEED_BASE + 700)]
-    seed: u64,
+    #[command(flatten)]
+    drive_args: HeldoutDriveArgs,
     /// Folder for the drive (kept between runs), `keep_up.json` and `keep_up.md`.
     #[arg(long, default_value = "out/bench_keep_up")]
     out: PathBuf,
@@ -92,14 +80,7 @@ struct RunReport {
 pub fn run(args: &BenchKeepUpArgs) -> Result<()> {
     let table = OperatingTable::load(&args.operating_points)?;
     let drive_dir = args.out.join("drive");
-    let synth = SynthConfig {
-        seed: args.seed,
-        frames: args.frames,
-        width: args.width,
-        height: args.height,
-        ..SynthConfig::default()
-    };
-    let sequence = cached_sequence(&drive_dir, &synth)?;
+    let sequence = args.drive_args.sequence(&drive_dir)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let mut reports = Vec::new();
     for run in &args.run {
@@ -164,12 +145,7 @@ pub fn run(args: &BenchKeepUpArgs) -> Result<()> {
         reports.push(r);
     }
     let out = serde_json::json!({
-        "drive": {
-            "frames": args.frames,
-            "size": [args.width, args.height],
-            "seed": args.seed,
-            "rate": 1.0,
-        },
+        "drive": args.drive_args.json(),
         "table": {
             "path": args.operating_points.display().to_string(),
             "size": table.size,

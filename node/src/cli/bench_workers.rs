@@ -15,13 +15,11 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use model::generate::HELDOUT_SEED_BASE;
-use model::synth::SynthConfig;
 use serde::Serialize;
 
+use super::heldout_drive::HeldoutDriveArgs;
 use super::progress;
 use super::stream::rate_of;
-use super::synth::cached_sequence;
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::worker::RenderWith;
 use crate::service::latency_stats::{LatencyStats, StageSummary};
@@ -31,18 +29,8 @@ use crate::service::{InputLimits, NodeConfig, WorkersConfig};
 /// Flags of `bench workers`.
 #[derive(Args, Clone, Debug)]
 pub struct BenchWorkersArgs {
-    /// Frames of the generated drive (10 per second of driving).
-    #[arg(long, default_value_t = 300)]
-    frames: u32,
-    /// Image width of the generated drive.
-    #[arg(long, default_value_t = 1408)]
-    width: u32,
-    /// Image height of the generated drive.
-    #[arg(long, default_value_t = 376)]
-    height: u32,
-    /// Seed of the generated drive (held-out seeds start at 1,000,000).
-    #[arg(long, default_value_t = HELDOUT_SEED_BASE + 700)]
-    seed: u64,
+    #[command(flatten)]
+    drive_args: HeldoutDriveArgs,
     /// Folder of the generated drive (kept between runs).
     #[arg(long, default_value = "out/bench_workers/drive")]
     drive: PathBuf,
@@ -132,14 +120,7 @@ fn spawn_worker(id: &str, threads: usize) -> Result<(Spawned, String)> {
 
 /// Runs the drive once per `--workers` and prints the reports.
 pub fn run(args: &BenchWorkersArgs) -> Result<()> {
-    let synth = SynthConfig {
-        seed: args.seed,
-        frames: args.frames,
-        width: args.width,
-        height: args.height,
-        ..SynthConfig::default()
-    };
-    let sequence = cached_sequence(&args.drive, &synth)?;
+    let sequence = args.drive_args.sequence(&args.drive)?;
     let runtime = tokio::runtime::Runtime::new()?;
     let mut reports = Vec::new();
     for &n in &args.runs {
@@ -222,12 +203,7 @@ pub fn run(args: &BenchWorkersArgs) -> Result<()> {
             .map(|r| r.bins_per_s)
     };
     let out = serde_json::json!({
-        "drive": {
-            "frames": args.frames,
-            "size": [args.width, args.height],
-            "seed": args.seed,
-            "rate": 1.0,
-        },
+        "drive": args.drive_args.json(),
         "working_pixels": args.working_pixels,
         "bin_length_m": args.bin_length,
         "threads_per_worker": args.threads,

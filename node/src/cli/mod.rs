@@ -17,6 +17,7 @@ pub mod eval;
 pub mod eval_enhancer;
 pub mod eval_map;
 pub mod export;
+pub mod heldout_drive;
 pub mod interpolate_weights;
 pub mod launch;
 pub mod logs;

@@ -51,6 +51,25 @@ impl RgbImage {
     }
 }
 
+/// An RGB image as interleaved 8-bit values, rows packed: how images are read from PNG
+/// and travel as `rgb8` messages, a quarter of [`RgbImage`]'s floats.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rgb8Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `3 * width * height` bytes.
+    pub data: Vec<u8>,
+}
+
+impl Rgb8Image {
+    /// The image as values in [0, 1] (bytes / 255).
+    pub fn to_rgb(&self) -> RgbImage {
+        RgbImage::from_rgb8(self.width, self.height, &self.data)
+    }
+}
+
 /// A per-pixel depth map in metres along the camera z axis; 0 marks "no measurement", as in
 /// the KITTI depth benchmarks, so sparse LiDAR depth and dense depth share one type.
 #[derive(Clone, Debug, PartialEq)]

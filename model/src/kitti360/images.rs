@@ -7,18 +7,17 @@ use image::{codecs::png::PngEncoder, ExtendedColorType, ImageEncoder, ImageForma
 
 use super::error::Kitti360Error;
 use super::text::create_parent;
-use crate::frame::RgbImage;
+use crate::frame::{Rgb8Image, RgbImage};
 
 /// Decodes one PNG into [0, 1] RGB; a missing file is [`Kitti360Error::MissingFile`], one
 /// that does not decode is [`Kitti360Error::Png`].
 pub fn read_png(path: &Path) -> Result<RgbImage, Kitti360Error> {
-    let (width, height, bytes) = read_png_rgb8(path)?;
-    Ok(RgbImage::from_rgb8(width, height, &bytes))
+    Ok(read_png_rgb8(path)?.to_rgb())
 }
 
-/// Decodes one PNG into interleaved 8-bit RGB: width, height and `3 * width * height`
-/// bytes (what a replay publishes as it is). Errors as [`read_png`].
-pub fn read_png_rgb8(path: &Path) -> Result<(u32, u32, Vec<u8>), Kitti360Error> {
+/// Decodes one PNG into interleaved 8-bit RGB (what a replay publishes as it is). Errors as
+/// [`read_png`].
+pub fn read_png_rgb8(path: &Path) -> Result<Rgb8Image, Kitti360Error> {
     let bytes = std::fs::read(path).map_err(|e| Kitti360Error::io(path, e))?;
     let decoded = image::load_from_memory_with_format(&bytes, ImageFormat::Png).map_err(|e| {
         Kitti360Error::Png {
@@ -27,7 +26,11 @@ pub fn read_png_rgb8(path: &Path) -> Result<(u32, u32, Vec<u8>), Kitti360Error> 
         }
     })?;
     let rgb = decoded.to_rgb8();
-    Ok((rgb.width(), rgb.height(), rgb.into_raw()))
+    Ok(Rgb8Image {
+        width: rgb.width(),
+        height: rgb.height(),
+        data: rgb.into_raw(),
+    })
 }
 
 /// Encodes an image as an 8-bit RGB PNG (values clamped and rounded, no gamma), creating

@@ -16,22 +16,15 @@ use super::poses::{read_pose_file, FramePose, PoseFormat, SkippedFrame};
 use super::resample::resample_area;
 use super::timestamps::read_timestamps;
 use super::velodyne::read_scan;
-use crate::frame::{DepthMap, RgbImage, Side, StereoFrame, StereoRig};
-
-/// A decoded PNG: width, height, interleaved 8-bit RGB.
-type Png = (u32, u32, Vec<u8>);
+use crate::frame::{DepthMap, Rgb8Image, Side, StereoFrame, StereoRig};
 
 /// A frame's two images as interleaved 8-bit RGB, with the left camera's pose.
 #[derive(Clone, Debug)]
 pub struct Rgb8Frame {
-    /// Width of both images.
-    pub width: u32,
-    /// Height of both images.
-    pub height: u32,
-    /// Left image, `3 * width * height` bytes.
-    pub left: Vec<u8>,
-    /// Right image.
-    pub right: Vec<u8>,
+    /// Left image.
+    pub left: Rgb8Image,
+    /// Right image, the left's size.
+    pub right: Rgb8Image,
     /// Left camera to world.
     pub left_to_world: DAffine3,
 }
@@ -174,9 +167,7 @@ impl Sequence {
     pub fn load_frame(&self, index: u32) -> Result<StereoFrame, Kitti360Error> {
         let (left_to_world, left, right) = self.read_pair(index)?;
         let k = self.rig.intrinsics;
-        let image = |(w, h, bytes): Png| {
-            resample_area(&RgbImage::from_rgb8(w, h, &bytes), k.width, k.height)
-        };
+        let image = |png: Rgb8Image| resample_area(&png.to_rgb(), k.width, k.height);
         Ok(StereoFrame {
             index,
             left: image(left),
@@ -191,13 +182,15 @@ impl Sequence {
     pub fn load_frame_rgb8(&self, index: u32) -> Result<Rgb8Frame, Kitti360Error> {
         let (left_to_world, left, right) = self.read_pair(index)?;
         let k = self.rig.intrinsics;
-        let bytes = |(w, h, bytes): Png| match (w, h) == (k.width, k.height) {
-            true => bytes,
-            false => resample_area(&RgbImage::from_rgb8(w, h, &bytes), k.width, k.height).to_rgb8(),
+        let bytes = |png: Rgb8Image| match (png.width, png.height) == (k.width, k.height) {
+            true => png,
+            false => Rgb8Image {
+                width: k.width,
+                height: k.height,
+                data: resample_area(&png.to_rgb(), k.width, k.height).to_rgb8(),
+            },
         };
         Ok(Rgb8Frame {
-            width: k.width,
-            height: k.height,
             left: bytes(left),
             right: bytes(right),
             left_to_world,
@@ -205,13 +198,13 @@ impl Sequence {
     }
 
     /// Frame `index`'s two PNGs as decoded, sizes checked, with its pose.
-    fn read_pair(&self, index: u32) -> Result<(DAffine3, Png, Png), Kitti360Error> {
+    fn read_pair(&self, index: u32) -> Result<(DAffine3, Rgb8Image, Rgb8Image), Kitti360Error> {
         let pose = self.frame(index)?;
         let left_path = layout::image(&self.root, &self.name, Side::Left, index);
         let right_path = layout::image(&self.root, &self.name, Side::Right, index);
         let left = read_png_rgb8(&left_path)?;
         let right = read_png_rgb8(&right_path)?;
-        let size = |img: &Png| (img.0, img.1);
+        let size = |img: &Rgb8Image| (img.width, img.height);
         if size(&left) != self.calibration.image_size {
             return Err(Kitti360Error::SizeMismatch {
                 path: left_path,

@@ -144,9 +144,12 @@ fn sequence_round_trips_frames_poses_lidar_and_timestamps() {
         assert_eq!(loaded.right, f.right);
         // As bytes for publishing: the PNGs' own, at the file size.
         let bytes = seq.load_frame_rgb8(f.index).unwrap();
-        assert_eq!((bytes.width, bytes.height), (f.left.width, f.left.height));
-        assert_eq!(bytes.left, f.left.to_rgb8());
-        assert_eq!(bytes.right, f.right.to_rgb8());
+        assert_eq!(
+            (bytes.left.width, bytes.left.height),
+            (f.left.width, f.left.height)
+        );
+        assert_eq!(bytes.left.data, f.left.to_rgb8());
+        assert_eq!(bytes.right.data, f.right.to_rgb8());
         assert_eq!(bytes.left_to_world, loaded.left_to_world);
         let scan = seq.load_lidar(f.index).unwrap();
         assert_eq!(
@@ -301,9 +304,9 @@ fn lidar_depth_puts_a_point_ten_metres_ahead_at_its_pixel() {
     assert_eq!((small.left.width, small.left.height), (W / 2, H / 2));
     // Read at another size, the bytes are the resampled images rounded back to bytes.
     let bytes = half.load_frame_rgb8(0).unwrap();
-    assert_eq!((bytes.width, bytes.height), (W / 2, H / 2));
-    assert_eq!(bytes.left, small.left.to_rgb8());
-    assert_eq!(bytes.right, small.right.to_rgb8());
+    assert_eq!((bytes.left.width, bytes.left.height), (W / 2, H / 2));
+    assert_eq!(bytes.left.data, small.left.to_rgb8());
+    assert_eq!(bytes.right.data, small.right.to_rgb8());
 }
 
 /// KITTI-360's calibration in the line shapes of the real files, and one frame's GPS/IMU

@@ -112,10 +112,7 @@ pub fn run(args: &BenchKeepUpArgs) -> Result<()> {
         ))?;
         bar.finish_and_clear();
         let (psnr_published, scored_frames) = score(&sequence, &bins)?;
-        let mut stats = LatencyStats::default();
-        for l in &report.latencies {
-            stats.push(l);
-        }
+        let stats = LatencyStats::of(&report.latencies);
         let summary = stats.summary();
         let drops = report.node.counters.get("dropped/worker_queue");
         let r = RunReport {

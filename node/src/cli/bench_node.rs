@@ -22,7 +22,7 @@ use super::stream::{rate_of, RenderArg};
 use super::synth::{cached_drive, first_sequence};
 use crate::fusion::FusionConfig;
 use crate::pipeline::binner::BinnerConfig;
-use crate::service::latency_stats::{LatencyStats, LatencySummary};
+use crate::service::latency_stats::{publish_span_s, LatencyStats, LatencySummary};
 use crate::service::loopback::run_loopback;
 use crate::service::NodeConfig;
 
@@ -145,23 +145,8 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
             |_| {},
         ))?;
         bar.finish_and_clear();
-        let mut stats = LatencyStats::default();
-        for l in &report.latencies {
-            stats.push(l);
-        }
-        let span_ns = report
-            .latencies
-            .iter()
-            .map(|l| l.publish_ns)
-            .max()
-            .zip(
-                report
-                    .latencies
-                    .iter()
-                    .map(|l| l.first_frame_arrival_ns)
-                    .min(),
-            )
-            .map_or(0, |(last, first)| last - first);
+        let stats = LatencyStats::of(&report.latencies);
+        let span_s = publish_span_s(&report.latencies);
         let mib = |b: u64| b as f64 / (1 << 20) as f64;
         let rss_200 = report.rss_samples.iter().find(|(f, _)| *f >= 200);
         let rss_end = report.rss_samples.last().filter(|(f, _)| *f > 200);
@@ -170,10 +155,7 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
             frames: report.frames,
             bins_expected: report.bins_expected,
             bins_published: report.node.bins_published,
-            bins_per_second: match span_ns {
-                0 => 0.0,
-                ns => report.latencies.len() as f64 / (ns as f64 * 1e-9),
-            },
+            bins_per_second: span_s.map_or(0.0, |s| report.latencies.len() as f64 / s),
             drops: report.node.counters.get("dropped/worker_queue"),
             global_gaussians: report.node.global_gaussians,
             latency: stats.summary(),

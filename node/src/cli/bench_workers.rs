@@ -22,7 +22,7 @@ use super::progress;
 use super::stream::rate_of;
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::worker::RenderWith;
-use crate::service::latency_stats::{LatencyStats, StageSummary};
+use crate::service::latency_stats::{publish_span_s, LatencyStats, StageSummary};
 use crate::service::loopback::run_loopback;
 use crate::service::{InputLimits, NodeConfig, WorkersConfig};
 
@@ -162,16 +162,8 @@ pub fn run(args: &BenchWorkersArgs) -> Result<()> {
         ))?;
         bar.finish_and_clear();
         drop(spawned);
-        let mut stats = LatencyStats::default();
-        for l in &report.latencies {
-            stats.push(l);
-        }
-        let first = report.latencies.iter().map(|l| l.first_frame_arrival_ns);
-        let last = report.latencies.iter().map(|l| l.publish_ns);
-        let span_s = match (first.filter(|&t| t > 0).min(), last.max()) {
-            (Some(a), Some(b)) if b > a => (b - a) as f64 / 1e9,
-            _ => f64::NAN,
-        };
+        let stats = LatencyStats::of(&report.latencies);
+        let span_s = publish_span_s(&report.latencies).unwrap_or(f64::NAN);
         let counters = &report.node.counters;
         let r = RunReport {
             workers: n,

@@ -138,10 +138,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         return Err(e.context("writing a bin's files"));
     }
 
-    let mut stats = LatencyStats::default();
-    for l in &report.latencies {
-        stats.push(l);
-    }
+    let stats = LatencyStats::of(&report.latencies);
     let summary = serde_json::json!({
         "sequence": name,
         "frames": report.frames,

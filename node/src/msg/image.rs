@@ -1,7 +1,7 @@
 //! Camera images and calibration: [`RgbImage`] <-> `sensor_msgs/Image`, and
 //! `sensor_msgs/CameraInfo` <-> rectified [`Intrinsics`] plus stereo baseline.
 
-use model::frame::RgbImage;
+use model::frame::{Rgb8Image, RgbImage};
 use renderer::Intrinsics;
 
 use super::sensor_msgs::{CameraInfo, Image};
@@ -11,38 +11,26 @@ use super::ConvertError;
 /// An `rgb8` image message of `img` (values in [0, 1] clamped and rounded to bytes; rows
 /// packed, `step = 3 * width`).
 pub fn image_from_rgb(img: &RgbImage, header: Header) -> Image {
-    image_from_rgb8(img.width, img.height, img.to_rgb8(), header)
+    image_from_rgb8(
+        Rgb8Image {
+            width: img.width,
+            height: img.height,
+            data: img.to_rgb8(),
+        },
+        header,
+    )
 }
 
-/// An `rgb8` image message of `width` x `height` interleaved bytes, rows packed.
-pub fn image_from_rgb8(width: u32, height: u32, data: Vec<u8>, header: Header) -> Image {
+/// An `rgb8` image message of `img`, rows packed.
+pub fn image_from_rgb8(img: Rgb8Image, header: Header) -> Image {
     Image {
         header,
-        height,
-        width,
+        height: img.height,
+        width: img.width,
         encoding: "rgb8".to_owned(),
         is_bigendian: 0,
-        step: width.saturating_mul(3),
-        data,
-    }
-}
-
-/// An image as interleaved 8-bit RGB, rows packed: how the node keeps an input image until
-/// a bin needs it (a quarter of the floats, and no conversion for the frames no bin uses).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Rgb8Image {
-    /// Columns.
-    pub width: u32,
-    /// Rows.
-    pub height: u32,
-    /// `3 * width * height` bytes.
-    pub data: Vec<u8>,
-}
-
-impl Rgb8Image {
-    /// The image as values in [0, 1] (bytes / 255).
-    pub fn to_rgb(&self) -> RgbImage {
-        RgbImage::from_rgb8(self.width, self.height, &self.data)
+        step: img.width.saturating_mul(3),
+        data: img.data,
     }
 }
 

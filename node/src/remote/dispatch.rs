@@ -182,22 +182,23 @@ impl Dispatch {
                 _ => None,
             })
             .collect();
+        // The worker keeps holding the bin, as far as anyone knows, until it answers or
+        // leaves: `again` takes the bin back without freeing its worker.
         late.into_iter()
             .map(|(bin, id)| {
                 self.again(bin);
-                // Still busy with it, as far as anyone knows.
-                self.remotes.insert(id.clone(), Some(bin));
                 id
             })
             .collect()
     }
 
-    /// Gives `bin` out again, or after [`MAX_ATTEMPTS`] publishes it as failed.
+    /// Gives `bin` out again, or after [`MAX_ATTEMPTS`] publishes it as failed. Its worker
+    /// is not freed here: one that left is gone, one whose query ended is freed by
+    /// [`Self::answered`], and a stalled one stays busy until then.
     fn again(&mut self, bin: u64) {
         let Some(f) = self.flights.remove(&bin) else {
             return;
         };
-        self.free(&f.slot, bin);
         self.reassigned += 1;
         if f.attempt + 1 < MAX_ATTEMPTS {
             self.again.push_back((f.job, f.attempt + 1));

@@ -83,16 +83,13 @@ pub enum PoolEvent {
     },
 }
 
-/// The node's worker processes.
+/// The node's worker processes (a clone shares the session and the event channel).
+#[derive(Clone)]
 pub struct Pool {
     session: Session,
     keys: Keys,
     config: PoolConfig,
     tx: UnboundedSender<PoolEvent>,
-}
-
-fn zenoh_err(e: zenoh::Error) -> TransportError {
-    TransportError::Zenoh(e.to_string())
 }
 
 impl Pool {
@@ -108,15 +105,14 @@ impl Pool {
             .liveliness()
             .declare_subscriber(format!("{}/*", keys.workers()))
             .history(true)
-            .await
-            .map_err(zenoh_err)?;
+            .await?;
         let pool = Self {
             session: session.clone(),
             keys: keys.clone(),
             config,
             tx,
         };
-        let greeter = pool.clone_parts();
+        let greeter = pool.clone();
         let prefix = format!("{}/", keys.workers());
         tokio::spawn(async move {
             while let Ok(sample) = watch.recv_async().await {
@@ -125,7 +121,7 @@ impl Pool {
                 };
                 match sample.kind() {
                     SampleKind::Put => {
-                        let greeter = greeter.clone_parts();
+                        let greeter = greeter.clone();
                         let id = id.to_string();
                         tokio::spawn(async move { greeter.greet(id).await });
                     }
@@ -134,15 +130,6 @@ impl Pool {
             }
         });
         Ok((pool, rx))
-    }
-
-    fn clone_parts(&self) -> Self {
-        Self {
-            session: self.session.clone(),
-            keys: self.keys.clone(),
-            config: self.config.clone(),
-            tx: self.tx.clone(),
-        }
     }
 
     /// Asks worker `id` who it is; it joins when it runs the node's fingerprint.
@@ -173,35 +160,30 @@ impl Pool {
             .recv_async()
             .await
             .map_err(|_| "it did not answer the greeting".to_string())?;
-        let payload = match reply.result() {
-            Ok(sample) => sample.payload().to_bytes().into_owned(),
-            Err(e) => return Err(e.payload().try_to_string().unwrap_or_default().into()),
-        };
-        match Reply::decode(&payload) {
-            Ok(Reply::Hello(h)) if &h.fingerprint == want => Ok(h.threads),
-            Ok(Reply::Hello(h)) => Err(format!(
+        match decode(&reply)? {
+            Reply::Hello(h) if &h.fingerprint == want => Ok(h.threads),
+            Reply::Hello(h) => Err(format!(
                 "it runs {}; the node runs {}",
                 h.fingerprint.describe(),
                 want.describe()
             )),
-            Ok(_) => Err("it answered the greeting with a bin".into()),
-            Err(e) => Err(format!("its greeting does not decode: {e}")),
+            _ => Err("it answered the greeting with a bin".into()),
         }
     }
 
     /// Sends assignment `a` to its worker (a worker process's slot).
-    pub fn send(&self, id: &str, a: &Assignment) {
+    pub fn send(&self, id: &str, a: Assignment) {
         let job = BinJob {
             bin_id: a.job.bin_id,
             attempt: a.attempt,
             fingerprint: self.config.fingerprint.clone(),
             on_check_fail: self.config.on_check_fail,
             render: self.config.render,
-            frame: a.job.frame.clone(),
+            frame: a.job.frame,
             rig: a.job.rig,
             stamps: a.job.stamps,
         };
-        let this = self.clone_parts();
+        let this = self.clone();
         let id = id.to_string();
         tokio::spawn(async move { this.run_bin(id, job).await });
     }
@@ -223,12 +205,7 @@ impl Pool {
             Ok(replies) => {
                 while let Ok(reply) = replies.recv_async().await {
                     silent = false;
-                    let decoded = match reply.result() {
-                        Ok(sample) => Reply::decode(&sample.payload().to_bytes())
-                            .map_err(|e| format!("its reply does not decode: {e}")),
-                        Err(e) => Err(e.payload().try_to_string().unwrap_or_default().into()),
-                    };
-                    let event = match decoded {
+                    let event = match decode(&reply) {
                         Ok(Reply::Map(a, out)) if a == attempt => WorkerEvent::Map(out),
                         Ok(Reply::Render(r)) => WorkerEvent::Render(r),
                         Ok(_) => {
@@ -256,5 +233,14 @@ impl Pool {
             error,
             silent,
         });
+    }
+}
+
+/// A worker's reply decoded, or why not: its error reply's words, or the decoder's.
+fn decode(reply: &zenoh::query::Reply) -> Result<Reply, String> {
+    match reply.result() {
+        Ok(sample) => Reply::decode(&sample.payload().to_bytes())
+            .map_err(|e| format!("its reply does not decode: {e}")),
+        Err(e) => Err(e.payload().try_to_string().unwrap_or_default().into()),
     }
 }

@@ -12,7 +12,7 @@ use std::future::Future;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-use crossbeam_channel::{Sender, TrySendError};
+use crossbeam_channel::Sender;
 use tokio::sync::mpsc::{unbounded_channel, UnboundedSender};
 use zenoh::query::Query;
 
@@ -84,18 +84,17 @@ pub async fn serve(
     if id.is_empty() || id.contains(['/', '*', '$', '?', '#']) {
         return Err(ServeError::BadId(id.clone()));
     }
-    let zenoh_err = |e: zenoh::Error| TransportError::Zenoh(e.to_string());
     let session = open(&config.transport).await?;
     let key = config.keys.worker(id);
     let queries = session
         .declare_queryable(key.clone())
         .await
-        .map_err(zenoh_err)?;
+        .map_err(TransportError::from)?;
     let token = session
         .liveliness()
         .declare_token(key.clone())
         .await
-        .map_err(zenoh_err)?;
+        .map_err(TransportError::from)?;
     let (work_tx, work_rx) = crossbeam_channel::bounded::<Work>(1);
     let compute = compute_thread(runner, config.renders, work_rx);
     let counts = Arc::new(Counts::default());
@@ -117,7 +116,7 @@ pub async fn serve(
     drop(token);
     drop(queries);
     drop(work_tx);
-    session.close().await.map_err(zenoh_err)?;
+    session.close().await.map_err(TransportError::from)?;
     let _ = tokio::task::spawn_blocking(move || compute.join()).await;
     Ok(ServeSummary {
         bins: counts.bins.load(Ordering::Relaxed),
@@ -128,7 +127,7 @@ pub async fn serve(
 
 /// Answers one query.
 async fn answer(query: Query, me: Hello, work: Sender<Work>, counts: Arc<Counts>) {
-    let payload = query.payload().map(|p| p.to_bytes().into_owned());
+    let payload = query.payload().map(|p| p.to_bytes());
     let request = match Request::decode(payload.as_deref().unwrap_or_default()) {
         Ok(r) => r,
         Err(e) => {
@@ -162,7 +161,7 @@ async fn answer(query: Query, me: Hello, work: Sender<Work>, counts: Arc<Counts>
         Request::Bin(job) => *job,
     };
     let (tx, mut rx) = unbounded_channel();
-    if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) = work.try_send((job, tx)) {
+    if work.try_send((job, tx)).is_err() {
         counts.refused.fetch_add(1, Ordering::Relaxed);
         let _ = query.reply_err("refused: busy with another bin").await;
         return;

@@ -10,7 +10,7 @@
 use std::collections::VecDeque;
 
 use glam::DAffine3;
-use model::frame::{StereoFrame, StereoRig};
+use model::frame::{Rgb8Image, StereoFrame, StereoRig};
 use model::kitti360::resample::resample_area;
 use zenoh::bytes::ZBytes;
 
@@ -19,7 +19,7 @@ use super::keys::{self, Topic};
 use super::limits::{InputLimits, Refusal};
 use crate::msg::cdr::DecodeError;
 use crate::msg::geometry_msgs::PoseStamped;
-use crate::msg::image::{intrinsics_from_camera_info, rgb8_from_image, Rgb8Image};
+use crate::msg::image::{intrinsics_from_camera_info, rgb8_from_image};
 use crate::msg::pose::affine_from_pose;
 use crate::msg::sensor_msgs::{CameraInfo, Image, ImageLayout};
 use crate::msg::{ConvertError, Message};

@@ -140,10 +140,31 @@ pub fn bin_stages_ms(latency: &BinLatency) -> Vec<(&'static str, Option<f64>)> {
         .collect()
 }
 
+/// Seconds from the first bin's first frame (its arrival) to the last map published:
+/// the span over which a run's bins per second are counted; `None` without both stamps.
+pub fn publish_span_s(latencies: &[BinLatency]) -> Option<f64> {
+    let first = latencies
+        .iter()
+        .map(|l| l.first_frame_arrival_ns)
+        .filter(|&t| t > 0)
+        .min()?;
+    let last = latencies.iter().map(|l| l.publish_ns).max()?;
+    (last > first).then(|| (last - first) as f64 / 1e9)
+}
+
 impl LatencyStats {
     /// No bins yet.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// The statistics of `latencies` (a loopback run's, say).
+    pub fn of(latencies: &[BinLatency]) -> Self {
+        let mut stats = Self::new();
+        for l in latencies {
+            stats.push(l);
+        }
+        stats
     }
 
     /// Adds one bin's latency (in any order; bins are not deduplicated).

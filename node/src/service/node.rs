@@ -462,7 +462,6 @@ pub async fn run_with(
                 }
             },
             _ = diagnostics.tick(), if diagnostics_on => {
-                outputs.counters.set("dropped/worker_queue", dispatch.drops());
                 let msg = outputs.diagnostics();
                 outlet.put(DIAGNOSTICS, msg.encode()).await?;
                 outputs.put_static_tf().await?;
@@ -487,11 +486,11 @@ pub async fn run_with(
             }
         }
         for a in dispatch.assign(Instant::now()) {
-            match &a.slot {
+            match a.slot.clone() {
                 Slot::Local => _ = worker.submit(a.job),
                 Slot::Remote(id) => {
                     outputs.counters.add(&format!("workers/bins/{id}"), 1);
-                    pool.send(id, &a);
+                    pool.send(&id, a);
                 }
             }
         }
@@ -516,7 +515,6 @@ pub async fn run_with(
     }
     drop(pool);
     outputs.finish(drops).await?;
-    outputs.counters.set("dropped/worker_queue", drops);
     outputs.close_store();
     // A map that never held a bin (nothing arrived, nothing was resumed) leaves no files:
     // an empty checkpoint would only shadow a later run's start.

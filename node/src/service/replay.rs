@@ -81,15 +81,14 @@ pub async fn replay(
         // The PNGs' bytes go out as they are (no round trip through floats).
         match sequence.load_frame_rgb8(f.index) {
             Ok(frame) => {
-                let (w, h) = (frame.width, frame.height);
                 put(
                     keys::LEFT_IMAGE,
-                    image_from_rgb8(w, h, frame.left, header("left")).encode(),
+                    image_from_rgb8(frame.left, header("left")).encode(),
                 )
                 .await?;
                 put(
                     keys::RIGHT_IMAGE,
-                    image_from_rgb8(w, h, frame.right, header("right")).encode(),
+                    image_from_rgb8(frame.right, header("right")).encode(),
                 )
                 .await?;
                 put(

@@ -38,3 +38,10 @@ pub enum TransportError {
     #[error("zenoh: {0}")]
     Zenoh(String),
 }
+
+impl From<zenoh::Error> for TransportError {
+    /// A failure to publish, subscribe or query, in zenoh's words.
+    fn from(e: zenoh::Error) -> Self {
+        TransportError::Zenoh(e.to_string())
+    }
+}

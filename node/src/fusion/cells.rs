@@ -55,12 +55,20 @@ impl Cell {
     }
 }
 
+/// One ground column of the index: its occupied cells and how many Gaussians they hold, so
+/// counting a region's Gaussians costs its columns, not its cells.
+#[derive(Clone, Debug, Default)]
+struct Column {
+    keys: HashSet<CellKey>,
+    gaussians: u64,
+}
+
 /// The occupied cells, with an index of them by ground column (x-y squares of about
 /// [`COLUMN_M`], every height) so a region of the ground is found without visiting the map.
 #[derive(Clone, Debug)]
 pub struct CellIndex {
     cells: HashMap<CellKey, Cell>,
-    columns: HashMap<(i64, i64), HashSet<CellKey>>,
+    columns: HashMap<(i64, i64), Column>,
     /// Cells per column side.
     per_column: i64,
     cell_size: f64,
@@ -102,10 +110,12 @@ impl CellIndex {
     /// Adds Gaussian `id` with `confidence` to the cell at `key`.
     pub fn push(&mut self, key: CellKey, id: GaussianId, confidence: f32) {
         let column = self.column(key);
+        let column = self.columns.entry(column).or_default();
         let cell = self.cells.entry(key).or_default();
         if cell.ids.is_empty() {
-            self.columns.entry(column).or_default().insert(key);
+            column.keys.insert(key);
         }
+        column.gaussians += 1;
         cell.push(id, confidence);
     }
 
@@ -115,9 +125,10 @@ impl CellIndex {
             return Vec::new();
         };
         let column = self.column(key);
-        if let Some(keys) = self.columns.get_mut(&column) {
-            keys.remove(&key);
-            if keys.is_empty() {
+        if let Some(c) = self.columns.get_mut(&column) {
+            c.keys.remove(&key);
+            c.gaussians = c.gaussians.saturating_sub(cell.ids.len() as u64);
+            if c.keys.is_empty() {
                 self.columns.remove(&column);
             }
         }
@@ -132,10 +143,16 @@ impl CellIndex {
         id: GaussianId,
         confidence_of: impl Fn(GaussianId) -> Option<f32>,
     ) {
+        let column = self.column(key);
         let Some(cell) = self.cells.get_mut(&key) else {
             return;
         };
+        let before = cell.ids.len();
         cell.ids.retain(|i| *i != id);
+        let gone = (before - cell.ids.len()) as u64;
+        if let Some(c) = self.columns.get_mut(&column) {
+            c.gaussians = c.gaussians.saturating_sub(gone);
+        }
         if cell.ids.is_empty() {
             self.remove(key);
             return;
@@ -163,20 +180,23 @@ impl CellIndex {
         let (x0, x1, y0, y1) = (lo.x as i64, hi.x as i64, lo.y as i64, hi.y as i64);
         let span = (x1.saturating_sub(x0).saturating_add(1))
             .saturating_mul(y1.saturating_sub(y0).saturating_add(1));
-        let mut take = |keys: &HashSet<CellKey>| {
-            keys.iter().for_each(|k| ids.extend(&self.cells[k].ids));
+        let mut take = |column: &Column| {
+            column
+                .keys
+                .iter()
+                .for_each(|k| ids.extend(&self.cells[k].ids));
         };
         if span > self.columns.len() as i64 {
-            for (&(cx, cy), keys) in &self.columns {
+            for (&(cx, cy), column) in &self.columns {
                 if (x0..=x1).contains(&cx) && (y0..=y1).contains(&cy) {
-                    take(keys);
+                    take(column);
                 }
             }
         } else {
             for cx in x0..=x1 {
                 for cy in y0..=y1 {
-                    if let Some(keys) = self.columns.get(&(cx, cy)) {
-                        take(keys);
+                    if let Some(column) = self.columns.get(&(cx, cy)) {
+                        take(column);
                     }
                 }
             }
@@ -201,18 +221,19 @@ impl CellIndex {
         keyed.into_iter().map(|(_, c)| c).collect()
     }
 
-    /// Every occupied ground column with its cells, in no set order.
-    pub fn columns(&self) -> impl Iterator<Item = ((i64, i64), impl Iterator<Item = &Cell>)> {
+    /// Every occupied ground column with the Gaussians its cells hold, in no set order:
+    /// kept as cells fill and empty, so this costs the columns, not the cells.
+    pub fn column_counts(&self) -> impl Iterator<Item = ((i64, i64), u64)> + '_ {
         self.columns
             .iter()
-            .map(|(&column, keys)| (column, keys.iter().map(|k| &self.cells[k])))
+            .map(|(&column, c)| (column, c.gaussians))
     }
 
     /// The occupied cells of a ground column, in no set order.
     pub fn column_cells(&self, column: (i64, i64)) -> Vec<CellKey> {
         self.columns
             .get(&column)
-            .map(|keys| keys.iter().copied().collect())
+            .map(|c| c.keys.iter().copied().collect())
             .unwrap_or_default()
     }
 }
@@ -254,5 +275,30 @@ mod tests {
             1.0,
         );
         assert_eq!(order, vec![(-5, 0, 0), (5, 0, 0), (2, 0, 0), (0, 0, 0)]);
+    }
+
+    #[test]
+    fn column_counts_follow_every_push_and_removal() {
+        let mut index = CellIndex::new(0.2);
+        // Two cells in one 16 m column, one in the next column along x.
+        index.push((0, 0, 0), GaussianId(1), 0.5);
+        index.push((0, 0, 0), GaussianId(2), 0.7);
+        index.push((3, 5, -2), GaussianId(3), 0.1);
+        index.push((80, 0, 0), GaussianId(4), 0.2);
+        let counts = |i: &CellIndex| {
+            let mut v: Vec<_> = i.column_counts().collect();
+            v.sort();
+            v
+        };
+        assert_eq!(counts(&index), vec![((0, 0), 3), ((1, 0), 1)]);
+        index.remove_id((0, 0, 0), GaussianId(1), |_| Some(0.7));
+        index.remove_id((0, 0, 0), GaussianId(99), |_| Some(0.7));
+        assert_eq!(counts(&index), vec![((0, 0), 2), ((1, 0), 1)]);
+        assert_eq!(index.remove((80, 0, 0)), vec![GaussianId(4)]);
+        assert_eq!(index.remove((80, 0, 0)), Vec::<GaussianId>::new());
+        assert_eq!(counts(&index), vec![((0, 0), 2)]);
+        index.remove_id((0, 0, 0), GaussianId(2), |_| None);
+        index.remove((3, 5, -2));
+        assert_eq!(counts(&index), vec![]);
     }
 }

@@ -275,10 +275,9 @@ impl GlobalMap {
     pub fn resident_tiles(&self) -> BTreeMap<TileKey, u64> {
         let per_tile = self.config.columns_per_tile();
         let mut out = BTreeMap::new();
-        for (column, cells) in self.cells.columns() {
+        for (column, n) in self.cells.column_counts() {
             let tile = (column.0.div_euclid(per_tile), column.1.div_euclid(per_tile));
-            let n: usize = cells.map(|c| c.ids.len()).sum();
-            *out.entry(tile).or_insert(0) += n as u64;
+            *out.entry(tile).or_insert(0) += n;
         }
         out
     }

@@ -16,6 +16,7 @@
 //! so a crash leaves the old file whole.
 
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Quat, Vec3};
@@ -82,17 +83,38 @@ pub enum StoreError {
     },
 }
 
+/// Records a file write hands to the writer at once ([`GlobalMap::write_to`]).
+const WRITE_CHUNK: usize = 4096;
+
+/// FNV-1a's starting state.
+const FNV_START: u64 = 0xcbf2_9ce4_8422_2325;
+
 /// FNV-1a, 64 bit: a checksum that catches flipped and truncated bytes.
 pub(super) fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-    })
+    fnv1a_from(FNV_START, bytes)
+}
+
+/// FNV-1a continued from state `h` over `bytes` (a checksum computed piece by piece).
+fn fnv1a_from(h: u64, bytes: &[u8]) -> u64 {
+    bytes
+        .iter()
+        .fold(h, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
 }
 
 impl GlobalMap {
     /// The map in the file format described in the module doc.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut b = Vec::with_capacity(96 + self.len() * RECORD_BYTES);
+        let mut b = Vec::with_capacity(self.stored_bytes() as usize);
+        self.write_to(&mut b)
+            .expect("writing into a Vec cannot fail");
+        b
+    }
+
+    /// Writes the map in the file format described in the module doc into `w`, a bounded
+    /// chunk of records at a time, so saving a large map holds no second copy of it in
+    /// memory; returns the bytes written.
+    pub fn write_to(&self, w: &mut impl Write) -> std::io::Result<u64> {
+        let mut b = Vec::with_capacity(WRITE_CHUNK * RECORD_BYTES);
         b.extend_from_slice(MAGIC);
         b.extend_from_slice(&VERSION.to_le_bytes());
         b.extend_from_slice(&self.config.cell_size.to_le_bytes());
@@ -118,12 +140,24 @@ impl GlobalMap {
             }
         }
         b.extend_from_slice(&(self.len() as u64).to_le_bytes());
+        let mut sum = FNV_START;
+        let mut written = 0u64;
+        let mut flush = |b: &mut Vec<u8>, sum: &mut u64| -> std::io::Result<()> {
+            *sum = fnv1a_from(*sum, b);
+            w.write_all(b)?;
+            written += b.len() as u64;
+            b.clear();
+            Ok(())
+        };
         for (id, g) in self.gaussians() {
             put_gaussian(&mut b, id, g);
+            if b.len() >= WRITE_CHUNK * RECORD_BYTES {
+                flush(&mut b, &mut sum)?;
+            }
         }
-        let sum = fnv1a(&b);
-        b.extend_from_slice(&sum.to_le_bytes());
-        b
+        flush(&mut b, &mut sum)?;
+        w.write_all(&sum.to_le_bytes())?;
+        Ok(written + 8)
     }
 
     /// The size of the map's file ([`GlobalMap::to_bytes`]) in bytes, without writing it.
@@ -137,133 +171,142 @@ impl GlobalMap {
     /// leaves the previous file or the new one, whole.
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), StoreError> {
         let path = path.as_ref();
-        renderer::atomic::write_bytes_atomic(path, &self.to_bytes()).map_err(|source| {
-            StoreError::Io {
+        renderer::atomic::write_atomic(path, |w| self.write_to(w).map(|_| ())).map_err(
+            |source: std::io::Error| StoreError::Io {
                 path: path.to_path_buf(),
                 source,
-            }
-        })
+            },
+        )
     }
 
     /// Reads a map written by [`GlobalMap::save`].
     pub fn load(path: impl AsRef<Path>) -> Result<GlobalMap, StoreError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|source| StoreError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::from_bytes(&bytes, path)
+        // The file's bytes are dropped before the map's cell index is built, so a load
+        // holds at most the file and the Gaussians at once, not the whole map beside them.
+        let stored = {
+            let bytes = std::fs::read(path).map_err(|source| StoreError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            parse(&bytes, path)?
+        };
+        Ok(GlobalMap::from_parts(stored))
     }
 
     /// Parses the file format; `path` only names the source in errors.
     pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<GlobalMap, StoreError> {
-        let mut r = Reader {
-            bytes,
-            pos: 0,
-            path,
-        };
-        if r.take(MAGIC.len())? != MAGIC {
-            return Err(StoreError::BadMagic {
-                path: path.to_path_buf(),
-            });
-        }
-        let version = r.u32()?;
-        if !(OLDEST_VERSION..=VERSION).contains(&version) {
-            return Err(StoreError::UnsupportedVersion {
-                path: path.to_path_buf(),
-                version,
-            });
-        }
-        if bytes.len() < r.pos + 8 {
-            return Err(r.truncated(8));
-        }
-        let (body, sum) = bytes.split_at(bytes.len() - 8);
-        if fnv1a(body) != u64::from_le_bytes(sum.try_into().unwrap_or_default()) {
-            return Err(StoreError::Checksum {
-                path: path.to_path_buf(),
-            });
-        }
-        r.bytes = body;
-        let at = r.pos;
-        let config = FusionConfig {
-            cell_size: r.f64()?,
-            opacity_floor: r.f32()?,
-            max_gaussians: usize::try_from(r.u64()?).unwrap_or(usize::MAX),
-            keep: match version {
-                2 => Keep::default(),
-                _ => Keep {
-                    max_range_m: r.f32()?,
-                    min_confidence: r.f32()?,
-                },
-            },
-            tile_m: match version {
-                2 | 3 => FusionConfig::default().tile_m,
-                _ => r.f64()?,
-            },
-        };
-        config
-            .validate()
-            .map_err(|_| r.invalid(at, "settings out of range"))?;
-        let next_id = r.u64()?;
-        let increments = r.u64()?;
-        let epoch = r.u64()?;
-        let last_bin_id = r.flagged(|r| r.u64())?;
-        let latest_origin = r.flagged(|r| r.f64s::<3>().map(DVec3::from_array))?;
-        if latest_origin.is_some_and(|o| !o.is_finite()) {
-            return Err(r.invalid(r.pos - 24, "latest origin is not finite"));
-        }
-        let mut paged = BTreeMap::new();
-        if version >= 4 {
-            let tiles = r.u64()?;
-            if tiles > (r.bytes.len() / 32) as u64 {
-                return Err(r.invalid(r.pos - 8, "paged tile count does not fit the file"));
-            }
-            for _ in 0..tiles {
-                let at = r.pos;
-                let tile = (r.u64()? as i64, r.u64()? as i64);
-                let p = PagedTile {
-                    version: r.u64()?,
-                    count: r.u64()?,
-                };
-                if paged
-                    .last_key_value()
-                    .is_some_and(|(last, _)| *last >= tile)
-                    || p.version > increments
-                {
-                    return Err(r.invalid(at, "paged tiles out of order or from the future"));
-                }
-                paged.insert(tile, p);
-            }
-        }
-        let count = r.u64()?;
-        let left = (r.bytes.len() - r.pos) as u64;
-        if count.checked_mul(RECORD_BYTES as u64) != Some(left) {
-            return Err(r.invalid(r.pos - 8, "count does not match the file length"));
-        }
-        let mut gaussians = Vec::with_capacity(count as usize);
-        let mut previous: Option<u64> = None;
-        for _ in 0..count {
-            let at = r.pos;
-            let (id, g) = r.gaussian()?;
-            if previous.is_some_and(|p| id.0 <= p) || id.0 >= next_id {
-                return Err(r.invalid(at, "ids not increasing or not below the next id"));
-            }
-            previous = Some(id.0);
-            gaussians.push((id, g));
-        }
-        // Ids are increasing, so the map is built in bulk.
-        let gaussians = BTreeMap::from_iter(gaussians);
-        Ok(GlobalMap::from_parts(Stored {
-            config,
-            gaussians,
-            paged,
-            next_id,
-            last_bin_id,
-            latest_origin,
-            increments,
-            epoch,
-        }))
+        parse(bytes, path).map(GlobalMap::from_parts)
     }
+}
+
+/// The stored parts of a map in the file format (the module doc); `path` only names the
+/// source in errors.
+fn parse(bytes: &[u8], path: &Path) -> Result<Stored, StoreError> {
+    let mut r = Reader {
+        bytes,
+        pos: 0,
+        path,
+    };
+    if r.take(MAGIC.len())? != MAGIC {
+        return Err(StoreError::BadMagic {
+            path: path.to_path_buf(),
+        });
+    }
+    let version = r.u32()?;
+    if !(OLDEST_VERSION..=VERSION).contains(&version) {
+        return Err(StoreError::UnsupportedVersion {
+            path: path.to_path_buf(),
+            version,
+        });
+    }
+    if bytes.len() < r.pos + 8 {
+        return Err(r.truncated(8));
+    }
+    let (body, sum) = bytes.split_at(bytes.len() - 8);
+    if fnv1a(body) != u64::from_le_bytes(sum.try_into().unwrap_or_default()) {
+        return Err(StoreError::Checksum {
+            path: path.to_path_buf(),
+        });
+    }
+    r.bytes = body;
+    let at = r.pos;
+    let config = FusionConfig {
+        cell_size: r.f64()?,
+        opacity_floor: r.f32()?,
+        max_gaussians: usize::try_from(r.u64()?).unwrap_or(usize::MAX),
+        keep: match version {
+            2 => Keep::default(),
+            _ => Keep {
+                max_range_m: r.f32()?,
+                min_confidence: r.f32()?,
+            },
+        },
+        tile_m: match version {
+            2 | 3 => FusionConfig::default().tile_m,
+            _ => r.f64()?,
+        },
+    };
+    config
+        .validate()
+        .map_err(|_| r.invalid(at, "settings out of range"))?;
+    let next_id = r.u64()?;
+    let increments = r.u64()?;
+    let epoch = r.u64()?;
+    let last_bin_id = r.flagged(|r| r.u64())?;
+    let latest_origin = r.flagged(|r| r.f64s::<3>().map(DVec3::from_array))?;
+    if latest_origin.is_some_and(|o| !o.is_finite()) {
+        return Err(r.invalid(r.pos - 24, "latest origin is not finite"));
+    }
+    let mut paged = BTreeMap::new();
+    if version >= 4 {
+        let tiles = r.u64()?;
+        if tiles > (r.bytes.len() / 32) as u64 {
+            return Err(r.invalid(r.pos - 8, "paged tile count does not fit the file"));
+        }
+        for _ in 0..tiles {
+            let at = r.pos;
+            let tile = (r.u64()? as i64, r.u64()? as i64);
+            let p = PagedTile {
+                version: r.u64()?,
+                count: r.u64()?,
+            };
+            if paged
+                .last_key_value()
+                .is_some_and(|(last, _)| *last >= tile)
+                || p.version > increments
+            {
+                return Err(r.invalid(at, "paged tiles out of order or from the future"));
+            }
+            paged.insert(tile, p);
+        }
+    }
+    let count = r.u64()?;
+    let left = (r.bytes.len() - r.pos) as u64;
+    if count.checked_mul(RECORD_BYTES as u64) != Some(left) {
+        return Err(r.invalid(r.pos - 8, "count does not match the file length"));
+    }
+    let mut gaussians = BTreeMap::new();
+    let mut previous: Option<u64> = None;
+    for _ in 0..count {
+        let at = r.pos;
+        let (id, g) = r.gaussian()?;
+        if previous.is_some_and(|p| id.0 <= p) || id.0 >= next_id {
+            return Err(r.invalid(at, "ids not increasing or not below the next id"));
+        }
+        previous = Some(id.0);
+        gaussians.insert(id, g);
+    }
+    Ok(Stored {
+        config,
+        gaussians,
+        paged,
+        next_id,
+        last_bin_id,
+        latest_origin,
+        increments,
+        epoch,
+    })
 }
 
 /// Appends one stored Gaussian ([`RECORD_BYTES`] bytes: id, bin id, position, log scale,

@@ -11,7 +11,8 @@
 //! journal. The compactor loads the base from disk, replays the closed segments, writes the
 //! base atomically and only then removes the segments, so a crash at any point leaves a
 //! base and segments that restore every published bin ([`super::map_files::restore`]). While
-//! it works, the base's copy in memory adds to the node's resident size.
+//! it works, its copy of the map in memory adds to the node's resident size: the map only
+//! (the base file is dropped once parsed, and the new base is written a chunk at a time).
 //!
 //! Paging ([`Paging`], [`crate::fusion::PagedTile`]): before a bin is fused, every tile on
 //! disk within the paging radius of the bin's origin is read back into the map
@@ -334,8 +335,12 @@ fn compact(base: &Path, journal: &Path, tiles: &Path, upto: &Path) -> Result<u64
         .filter(|p| p.as_path() <= upto)
         .collect();
     map.replay_journal(&folded, tiles, AtTornTail::Fail)?;
-    let bytes = map.to_bytes();
-    renderer::atomic::write_bytes_atomic(base, &bytes).map_err(|source| StoreError::Io {
+    let mut bytes = 0;
+    renderer::atomic::write_atomic(base, |w| {
+        bytes = map.write_to(w)?;
+        Ok(())
+    })
+    .map_err(|source: std::io::Error| StoreError::Io {
         path: base.to_path_buf(),
         source,
     })?;
@@ -346,5 +351,5 @@ fn compact(base: &Path, journal: &Path, tiles: &Path, upto: &Path) -> Result<u64
         })?;
     }
     collect_garbage(tiles, map.paged_tiles(), map.increments())?;
-    Ok(bytes.len() as u64)
+    Ok(bytes)
 }

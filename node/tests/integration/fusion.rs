@@ -434,6 +434,29 @@ fn save_and_restore_round_trip_and_corrupt_files_are_typed_errors() {
 }
 
 #[test]
+fn a_map_of_several_write_chunks_saves_and_loads_whole() {
+    // 15,000 Gaussians, one per cell: the file is written a chunk of 4,096 records at a time
+    // with its checksum carried across chunks.
+    let mut map = map_with(0.05, 0.0, 100_000);
+    let gs: Vec<Gaussian> = (0..15_000)
+        .map(|i| {
+            let (x, y) = ((i % 150) as f32 * 0.1, (i / 150) as f32 * 0.1 - 5.0);
+            gauss([x, y, 8.0], 0.5, [x / 15.0, 0.5, 0.25])
+        })
+        .collect();
+    map.insert_bin(0, &set_of(&gs), at(3.0)).unwrap();
+    assert_eq!(map.len(), 15_000);
+    let path = tmp_path("chunks.map");
+    map.save(&path).unwrap();
+    let file = std::fs::read(&path).unwrap();
+    assert_eq!(file.len() as u64, map.stored_bytes());
+    assert_eq!(file, map.to_bytes());
+    let back = GlobalMap::load(&path).unwrap();
+    assert_eq!(back.snapshot(), map.snapshot());
+    assert_eq!(back.to_bytes(), file);
+}
+
+#[test]
 fn bird_s_eye_view_puts_colours_at_the_expected_pixels() {
     let mut map = map_with(0.1, 0.01, 100);
     let mut yellow = gauss([-1.05, 1.05, 0.0], 0.5, [1.0, 1.0, 0.0]);

@@ -168,15 +168,19 @@ impl GlobalMap {
     }
 
     /// Writes the map to `path` atomically (see the module doc): a crash at any moment
-    /// leaves the previous file or the new one, whole.
-    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), StoreError> {
+    /// leaves the previous file or the new one, whole. Returns the bytes written.
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<u64, StoreError> {
         let path = path.as_ref();
-        renderer::atomic::write_atomic(path, |w| self.write_to(w).map(|_| ())).map_err(
-            |source: std::io::Error| StoreError::Io {
-                path: path.to_path_buf(),
-                source,
-            },
-        )
+        let mut written = 0;
+        renderer::atomic::write_atomic(path, |w| {
+            written = self.write_to(w)?;
+            Ok(())
+        })
+        .map_err(|source: std::io::Error| StoreError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(written)
     }
 
     /// Reads a map written by [`GlobalMap::save`].

@@ -335,15 +335,7 @@ fn compact(base: &Path, journal: &Path, tiles: &Path, upto: &Path) -> Result<u64
         .filter(|p| p.as_path() <= upto)
         .collect();
     map.replay_journal(&folded, tiles, AtTornTail::Fail)?;
-    let mut bytes = 0;
-    renderer::atomic::write_atomic(base, |w| {
-        bytes = map.write_to(w)?;
-        Ok(())
-    })
-    .map_err(|source: std::io::Error| StoreError::Io {
-        path: base.to_path_buf(),
-        source,
-    })?;
+    let bytes = map.save(base)?;
     for path in &folded {
         std::fs::remove_file(path).map_err(|source| StoreError::Io {
             path: path.clone(),

@@ -63,6 +63,10 @@ pub struct BenchDriveArgs {
     /// Fold the journal into the base at this many MiB (as `run --compact-after-mib`).
     #[arg(long, default_value_t = 64)]
     compact_after_mib: u64,
+    /// Return freed memory to the system every this many seconds, arenas one per core (as
+    /// `run --release-memory-every-s`; 0: the allocator's defaults).
+    #[arg(long, default_value_t = 5.0)]
+    release_memory_every_s: f64,
 }
 
 /// One bin's figures, milliseconds.
@@ -149,6 +153,8 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
             compaction: Compaction {
                 min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
             },
+            release_memory_every: Duration::try_from_secs_f64(args.release_memory_every_s)
+                .context("--release-memory-every-s must be a number of seconds from 0")?,
             ..NodeConfig::default()
         },
         &args.out,
@@ -205,6 +211,9 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         "size": [args.width, args.height],
         "rate": args.rate,
         "threads": std::thread::available_parallelism().map_or(1, |n| n.get()),
+        "release_memory_every_s": args.release_memory_every_s,
+        "memory_releases": counters.get("memory/releases"),
+        "memory_release_ms_max": counters.get("memory/release_ms_max"),
         "bins_published": report.node.bins_published,
         "drops": counters.get("dropped/worker_queue"),
         "first_tenth": first,

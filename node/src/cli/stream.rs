@@ -134,6 +134,11 @@ pub struct RunArgs {
     /// Side of the map's square ground tiles, metres (whole 16 m columns)
     #[arg(long, default_value_t = 64.0)]
     tile_m: f64,
+    /// Return the memory the allocator keeps after it is freed to the system every this
+    /// many seconds, with its arenas capped at one per core, so resident memory follows the
+    /// map in memory on a long drive (0: neither). docs/long-drives.md
+    #[arg(long, default_value_t = 5.0)]
+    release_memory_every_s: f64,
     /// Rasterizer of the per-bin renders (input view and bird's-eye view); `off` for none.
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     renders: RenderArg,
@@ -259,6 +264,10 @@ pub fn run(args: &RunArgs) -> Result<()> {
             min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
         },
         paging: page_radius(args.page_radius_m)?,
+        release_memory_every: std::time::Duration::from_nanos(seconds_ns(
+            args.release_memory_every_s,
+            "--release-memory-every-s",
+        )? as u64),
         renders: args.renders.into(),
         snapshot_every: args.snapshot_every,
         limits: args.limits.limits()?,

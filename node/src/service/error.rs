@@ -34,4 +34,7 @@ pub enum ServiceError {
     /// The Foxglove server did not start (`run --foxglove`).
     #[error(transparent)]
     Foxglove(#[from] crate::foxglove::FoxgloveError),
+    /// The thread that returns freed memory to the system did not start.
+    #[error("starting the memory-release thread: {0}")]
+    MemoryRelease(#[source] std::io::Error),
 }

@@ -38,6 +38,7 @@ use crate::fusion::{
 };
 
 use super::map_files::{checkpoint, CHECKPOINT, JOURNAL, TILES};
+use super::memory::release_freed_memory;
 
 /// Which tiles of the map stay in memory while the node runs (the module doc has the rule).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -310,18 +311,6 @@ impl MapStore {
 impl Drop for MapStore {
     fn drop(&mut self) {
         let _ = self.finish();
-    }
-}
-
-/// Hands the memory the compactor freed (its copy of the base) back to the system: glibc
-/// keeps freed heap pages otherwise, and the node's resident size would stay at the
-/// compaction's peak instead of following the map in memory.
-fn release_freed_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: `malloc_trim` only returns the allocator's free pages to the system; it takes
-    // no pointer and is thread-safe.
-    unsafe {
-        libc::malloc_trim(0);
     }
 }
 

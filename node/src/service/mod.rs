@@ -18,6 +18,7 @@ pub mod limits;
 pub mod loopback;
 pub mod map_files;
 pub mod map_store;
+pub mod memory;
 pub mod monitor;
 pub mod node;
 mod outputs;

@@ -15,6 +15,7 @@ use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
 use super::map_files::{export, start_map, RegionReadError, StartMap};
 use super::map_store::{Compaction, MapStore, Paging};
+use super::memory::{limit_arenas_to_cores, Releaser};
 use super::outputs::{NodeSummary, Outputs, RegionPages};
 use super::pace::Pace;
 use super::region::RegionQuery;
@@ -94,6 +95,10 @@ pub struct NodeConfig {
     pub operating: Option<OperatingConfig>,
     /// Who makes the bins' maps: the node's own worker thread, worker processes, or both.
     pub workers: WorkersConfig,
+    /// The memory the allocator keeps after it is freed goes back to the system this often,
+    /// and its arenas are capped at one per core ([`super::memory`]), so resident memory
+    /// follows the map in memory on a long drive (zero: neither, the allocator's defaults).
+    pub release_memory_every: std::time::Duration,
 }
 
 /// Who makes the bins' maps ([`crate::remote`]).
@@ -214,6 +219,7 @@ impl Default for NodeConfig {
             foxglove: None,
             operating: None,
             workers: WorkersConfig::default(),
+            release_memory_every: std::time::Duration::from_secs(5),
         }
     }
 }
@@ -350,7 +356,13 @@ pub async fn run_with(
         None => None,
     };
     let resumed = start.resumed_from.is_some();
+    if !config.release_memory_every.is_zero() {
+        limit_arenas_to_cores();
+    }
+    let releaser =
+        Releaser::start(config.release_memory_every).map_err(ServiceError::MemoryRelease)?;
     let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, store)
+        .with_releaser(releaser)
         .with_foxglove(foxglove.as_ref())
         .with_points(point_names.clone());
     if resumed {

@@ -36,13 +36,14 @@ use super::inputs::CameraPose;
 use super::keys::{self, Topic};
 use super::map_files::{gaussians_in_whole, RegionReadError};
 use super::map_store::MapStore;
+use super::memory::Releaser;
 use super::region::RegionQuery;
 use super::static_frames::StaticFrames;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
 use crate::fusion::{
-    bev_image, increment_message, snapshot_message, BevView, GaussianId, GlobalMap, Increment,
-    Snapshot, WorldGaussian,
+    bev_image, increment_message, map_snapshot_message, snapshot_message, BevView, GaussianId,
+    GlobalMap, Increment, Snapshot, WorldGaussian,
 };
 use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::image::image_from_rgb;
@@ -96,6 +97,8 @@ pub(super) struct Outputs<'a> {
     snapshot_every: u64,
     /// The map's journal, when the node has an out folder.
     store: Option<MapStore>,
+    /// The thread returning freed memory to the system, when the node runs one.
+    releaser: Option<Releaser>,
     /// A resumed map's snapshot is still to be published (before the first increment).
     resume_pending: bool,
     /// Stamps of closed bins, until their map is published.
@@ -138,6 +141,7 @@ impl<'a> Outputs<'a> {
             bev,
             snapshot_every,
             store,
+            releaser: None,
             resume_pending: false,
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
@@ -153,6 +157,12 @@ impl<'a> Outputs<'a> {
     /// Names the worker's operating points, by index.
     pub fn with_points(mut self, names: Vec<String>) -> Self {
         self.point_names = names;
+        self
+    }
+
+    /// Keeps `releaser` running while the node does, its counters among the node's.
+    pub fn with_releaser(mut self, releaser: Option<Releaser>) -> Self {
+        self.releaser = releaser;
         self
     }
 
@@ -330,7 +340,7 @@ impl<'a> Outputs<'a> {
 
     /// The whole map as a MapUpdate snapshot at the current sequence number.
     pub fn snapshot(&self, header: Header) -> Result<MapUpdate, crate::msg::ConvertError> {
-        snapshot_message(&self.map.snapshot(), self.map.increments(), header)
+        map_snapshot_message(&self.map, header)
     }
 
     /// The attachment of a whole-map snapshot reply: the tiles it does not hold because
@@ -544,6 +554,11 @@ impl<'a> Outputs<'a> {
     /// counters taken in first and the counters sent to it too.
     pub fn diagnostics(&mut self) -> Diagnostics {
         let now = now_ns();
+        if let Some(r) = &self.releaser {
+            for (name, value) in r.counts() {
+                self.counters.set(name, value);
+            }
+        }
         if let Some(f) = self.foxglove {
             f.count_into(&mut self.counters);
             f.counters(&self.counters, now);

@@ -1,0 +1,162 @@
+//! Hands the memory the allocator keeps after it is freed back to the system.
+//!
+//! glibc's allocator keeps freed heap pages for later allocations. On a long drive the
+//! node frees large transients all the time (a compaction's copy of the base, snapshot
+//! messages, a bin's tensors), and its resident size then follows the largest of them it
+//! ever held rather than the map in memory. [`release_freed_memory`] returns the free pages
+//! (`malloc_trim`), and a [`Releaser`] does so every few seconds on its own thread, off the
+//! publish path (`docs/long-drives.md` has the measurement). On other allocators both do
+//! nothing.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// Returns the allocator's free pages to the system (glibc's `malloc_trim`; a no-op
+/// elsewhere).
+pub fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `malloc_trim` only returns the allocator's free pages to the system; it takes
+    // no pointer and is thread-safe.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+/// Caps the allocator's arenas at one per core (glibc's default is eight per core): each
+/// arena keeps what its threads freed, so with many the node's resident size grows with
+/// every thread that ever held a large transient. Returns the cap set (`None` on other
+/// allocators). Arenas already made stay; the node calls this as it starts. On the 2-core
+/// machine this cap costs the model nothing (`docs/long-drives.md`).
+pub fn limit_arenas_to_cores() -> Option<usize> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    limit_arenas(cores)
+}
+
+/// Caps the allocator's arenas at `arenas` (at least 1); `None` on other allocators or if
+/// it refused.
+fn limit_arenas(arenas: usize) -> Option<usize> {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        let n = arenas.clamp(1, i32::MAX as usize);
+        // SAFETY: `mallopt` only changes a tuning parameter of the allocator; it takes no
+        // pointer and is thread-safe.
+        let ok = unsafe { libc::mallopt(libc::M_ARENA_MAX, n as libc::c_int) };
+        (ok == 1).then_some(n)
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        let _ = arenas;
+        None
+    }
+}
+
+/// A thread that calls [`release_freed_memory`] every period until dropped.
+pub struct Releaser {
+    stop: Option<mpsc::Sender<()>>,
+    thread: Option<JoinHandle<()>>,
+    stats: Arc<ReleaseStats>,
+}
+
+/// What the releaser has done, shared with its thread.
+#[derive(Default)]
+struct ReleaseStats {
+    releases: AtomicU64,
+    longest_us: AtomicU64,
+}
+
+impl Releaser {
+    /// Starts releasing every `period` (the first after one period); `None` for a zero
+    /// period (the node then keeps what the allocator keeps).
+    pub fn start(period: Duration) -> std::io::Result<Option<Self>> {
+        if period.is_zero() {
+            return Ok(None);
+        }
+        let (stop, stopped) = mpsc::channel::<()>();
+        let stats = Arc::new(ReleaseStats::default());
+        let shared = Arc::clone(&stats);
+        let thread = std::thread::Builder::new()
+            .name("memory-release".into())
+            .spawn(move || {
+                // A message or a dropped sender both end the loop.
+                while let Err(RecvTimeoutError::Timeout) = stopped.recv_timeout(period) {
+                    let start = Instant::now();
+                    release_freed_memory();
+                    let us = start.elapsed().as_micros().min(u64::MAX as u128) as u64;
+                    shared.releases.fetch_add(1, Ordering::Relaxed);
+                    shared.longest_us.fetch_max(us, Ordering::Relaxed);
+                }
+            })?;
+        Ok(Some(Self {
+            stop: Some(stop),
+            thread: Some(thread),
+            stats,
+        }))
+    }
+
+    /// Its counters: releases so far and the longest one, milliseconds (rounded up).
+    pub fn counts(&self) -> [(&'static str, u64); 2] {
+        let s = &self.stats;
+        [
+            ("memory/releases", s.releases.load(Ordering::Relaxed)),
+            (
+                "memory/release_ms_max",
+                s.longest_us.load(Ordering::Relaxed).div_ceil(1000),
+            ),
+        ]
+    }
+}
+
+impl Drop for Releaser {
+    fn drop(&mut self) {
+        drop(self.stop.take());
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn count(r: &Releaser, name: &str) -> u64 {
+        r.counts().iter().find(|(n, _)| *n == name).unwrap().1
+    }
+
+    #[test]
+    fn a_releaser_releases_every_period_and_stops_when_dropped() {
+        let r = Releaser::start(Duration::from_millis(5)).unwrap().unwrap();
+        let start = Instant::now();
+        while count(&r, "memory/releases") < 3 {
+            assert!(start.elapsed() < Duration::from_secs(30), "no releases");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(count(&r, "memory/release_ms_max") < 30_000);
+        drop(r);
+    }
+
+    #[test]
+    fn the_arena_cap_is_one_per_core_and_clamped() {
+        let cores = std::thread::available_parallelism().unwrap().get();
+        assert_eq!(limit_arenas_to_cores(), Some(cores));
+        assert_eq!(limit_arenas(0), Some(1));
+        assert_eq!(limit_arenas(usize::MAX), Some(i32::MAX as usize));
+        // Leave the test process as the node leaves itself.
+        limit_arenas_to_cores();
+    }
+
+    #[test]
+    fn a_zero_period_starts_nothing_and_the_longest_period_still_stops_at_once() {
+        assert!(Releaser::start(Duration::ZERO).unwrap().is_none());
+        // Dropping it returns (the test would hang otherwise) though no period ever ends.
+        drop(Releaser::start(Duration::MAX).unwrap().unwrap());
+        // The smallest period is a busy loop of releases; it still stops.
+        let r = Releaser::start(Duration::from_nanos(1)).unwrap().unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+        assert!(count(&r, "memory/releases") >= 1);
+        drop(r);
+    }
+}

@@ -49,7 +49,9 @@ pub use snapshot::StoreError;
 pub use tiles::{
     collect_garbage, read_tile, tile_distance, tile_path, write_tile, PageEvent, PagedTile, TileKey,
 };
-pub use wire::{decode_update, increment_message, snapshot_message, Update, WireError};
+pub use wire::{
+    decode_update, increment_message, map_snapshot_message, snapshot_message, Update, WireError,
+};
 
 use cells::{eviction_order, CellIndex};
 

@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 
-use super::{GaussianId, Increment, Snapshot, WorldGaussian};
+use super::{GaussianId, GlobalMap, Increment, Snapshot, WorldGaussian};
 use crate::msg::gaussians::{cloud_from_records, gaussian, record, records_from_cloud};
 use crate::msg::map_update::MapUpdate;
 use crate::msg::std_msgs::Header;
@@ -45,7 +45,7 @@ pub fn increment_message(
     sequence: u64,
     header: Header,
 ) -> Result<MapUpdate, ConvertError> {
-    let mut msg = message(&inc.added, header)?;
+    let mut msg = message(inc.added.iter().map(|(id, g)| (*id, g)), header)?;
     msg.sequence = sequence;
     msg.bin_id = inc.bin_id;
     msg.removed_ids = inc.removed.iter().map(|id| id.0).collect();
@@ -58,36 +58,55 @@ pub fn snapshot_message(
     sequence: u64,
     header: Header,
 ) -> Result<MapUpdate, ConvertError> {
-    let mut msg = message(&snap.gaussians, header)?;
-    msg.sequence = sequence;
-    msg.snapshot = true;
-    msg.bin_id = snap.last_bin_id.unwrap_or(0);
-    Ok(msg)
+    let gaussians = snap.gaussians.iter().map(|(id, g)| (*id, g));
+    Ok(as_snapshot(
+        message(gaussians, header)?,
+        snap.last_bin_id,
+        sequence,
+    ))
 }
 
-fn message(
-    gaussians: &[(GaussianId, WorldGaussian)],
+/// The whole map in memory as a snapshot message numbered by its increments, the same
+/// message as [`snapshot_message`] of [`GlobalMap::snapshot`], built from the map without
+/// a copy of it first: the periodic snapshot of a large map is the node's largest message.
+pub fn map_snapshot_message(map: &GlobalMap, header: Header) -> Result<MapUpdate, ConvertError> {
+    let gaussians = map.gaussians.iter().map(|(id, g)| (*id, g));
+    Ok(as_snapshot(
+        message(gaussians, header)?,
+        map.last_bin_id,
+        map.increments(),
+    ))
+}
+
+/// `msg` marked as the snapshot after `last_bin_id`, numbered `sequence`.
+fn as_snapshot(mut msg: MapUpdate, last_bin_id: Option<u64>, sequence: u64) -> MapUpdate {
+    msg.sequence = sequence;
+    msg.snapshot = true;
+    msg.bin_id = last_bin_id.unwrap_or(0);
+    msg
+}
+
+/// The message of `gaussians` (in id order), each taken into it one by one.
+fn message<'a>(
+    gaussians: impl ExactSizeIterator<Item = (GaussianId, &'a WorldGaussian)> + Clone,
     header: Header,
 ) -> Result<MapUpdate, ConvertError> {
-    let records: Vec<_> = gaussians
-        .iter()
-        .map(|(_, g)| {
-            let rest = renderer::Gaussian {
-                mean: glam::Vec3::ZERO,
-                log_scale: g.log_scale,
-                rotation: g.rotation,
-                opacity: g.opacity,
-                color: g.color,
-                confidence: g.confidence,
-            };
-            record(g.position, &rest)
-        })
-        .collect();
+    let records = gaussians.clone().map(|(_, g)| {
+        let rest = renderer::Gaussian {
+            mean: glam::Vec3::ZERO,
+            log_scale: g.log_scale,
+            rotation: g.rotation,
+            opacity: g.opacity,
+            color: g.color,
+            confidence: g.confidence,
+        };
+        record(g.position, &rest)
+    });
     Ok(MapUpdate {
-        gaussians: cloud_from_records(&records, header.clone(), true)?,
+        gaussians: cloud_from_records(records, header.clone(), true)?,
         header,
-        ids: gaussians.iter().map(|(id, _)| id.0).collect(),
-        source_bins: gaussians.iter().map(|(_, g)| g.bin_id).collect(),
+        ids: gaussians.clone().map(|(id, _)| id.0).collect(),
+        source_bins: gaussians.map(|(_, g)| g.bin_id).collect(),
         ..MapUpdate::default()
     })
 }

@@ -117,6 +117,13 @@ impl CdrWriter {
         }
     }
 
+    /// A writer holding only the header, with room for `bytes` more.
+    pub fn with_capacity(bytes: usize) -> Self {
+        let mut w = Self::new();
+        w.buf.reserve(bytes);
+        w
+    }
+
     /// The finished payload, header included.
     pub fn into_bytes(self) -> Vec<u8> {
         self.buf

@@ -117,18 +117,17 @@ pub fn cloud_from_gaussians(
 ) -> Result<PointCloud2, ConvertError> {
     set.check_lengths()?;
     let o = origin.unwrap_or(DVec3::ZERO);
-    let records: Vec<Record> = (0..set.len())
-        .map(|i| {
-            let g = set.get(i);
-            record(o + g.mean.as_dvec3(), &g)
-        })
-        .collect();
-    cloud_from_records(&records, header, origin.is_some())
+    let records = (0..set.len()).map(|i| {
+        let g = set.get(i);
+        record(o + g.mean.as_dvec3(), &g)
+    });
+    cloud_from_records(records, header, origin.is_some())
 }
 
-/// The cloud of `records`, positions FLOAT64 when `f64_positions`, else FLOAT32.
+/// The cloud of `records`, positions FLOAT64 when `f64_positions`, else FLOAT32. The
+/// records are taken one by one into the cloud's data, never held together beside it.
 pub fn cloud_from_records(
-    records: &[Record],
+    records: impl ExactSizeIterator<Item = Record>,
     header: Header,
     f64_positions: bool,
 ) -> Result<PointCloud2, ConvertError> {

@@ -51,6 +51,12 @@ impl Message for MapUpdate {
         self.gaussians.write(w);
     }
 
+    /// The cloud and the three id lists, with room for the header.
+    fn size_hint(&self) -> usize {
+        let ids = self.ids.len() + self.source_bins.len() + self.removed_ids.len();
+        self.gaussians.size_hint() + 8 * ids + 256
+    }
+
     fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
         Ok(Self {
             header: Header::read(r)?,

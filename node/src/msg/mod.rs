@@ -44,9 +44,15 @@ pub trait Message: Sized {
     /// Reads the fields.
     fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError>;
 
+    /// About how many bytes the fields take, reserved before they are written so that a
+    /// large payload is not copied each time it outgrows its buffer (0: grow as written).
+    fn size_hint(&self) -> usize {
+        0
+    }
+
     /// The whole payload, encapsulation header first.
     fn encode(&self) -> Vec<u8> {
-        let mut w = CdrWriter::new();
+        let mut w = CdrWriter::with_capacity(self.size_hint());
         self.write(&mut w);
         w.into_bytes()
     }

@@ -283,6 +283,11 @@ impl Message for PointCloud2 {
         w.bool(self.is_dense);
     }
 
+    /// The data and room for the header and field descriptions.
+    fn size_hint(&self) -> usize {
+        self.data.len() + 64 * self.fields.len() + 256
+    }
+
     fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
         let header = Header::read(r)?;
         let height = r.u32("height")?;

@@ -6,9 +6,11 @@ use std::path::PathBuf;
 
 use glam::{DAffine3, DMat3, DQuat, DVec2, DVec3, Quat, Vec3};
 use node::fusion::{
-    bev_image, local_set, save_bev_png, BevView, FusionConfig, FusionError, GaussianId, GlobalMap,
-    Keep, MapReplica, StoreError,
+    bev_image, decode_update, local_set, map_snapshot_message, save_bev_png, snapshot_message,
+    BevView, FusionConfig, FusionError, GaussianId, GlobalMap, Keep, MapReplica, StoreError,
+    Update,
 };
+use node::msg::Message;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use renderer::{Gaussian, GaussianSet};
@@ -250,6 +252,22 @@ fn replayed_increments_equal_the_snapshot_over_50_random_bins() {
     }
     assert_eq!(late.unwrap().snapshot(), map.snapshot());
     assert!(replaced > 0 && evicted > 0 && skipped > 0 && pruned > 0);
+    // The snapshot message built from the map is the message of its snapshot, byte for
+    // byte, and its size hint covers the whole payload (the buffer never regrows).
+    let header = node::msg::std_msgs::Header::default();
+    let direct = map_snapshot_message(&map, header.clone()).unwrap();
+    let copied = snapshot_message(&map.snapshot(), map.increments(), header).unwrap();
+    let bytes = direct.encode();
+    assert_eq!(bytes, copied.encode());
+    assert!(
+        direct.size_hint() + 4 >= bytes.len(),
+        "{} bytes",
+        bytes.len()
+    );
+    let Update::Snapshot(decoded) = decode_update(&direct).unwrap() else {
+        panic!("a snapshot decodes as a snapshot");
+    };
+    assert_eq!(decoded.gaussians.len(), map.len());
     assert!(map.len() > budget / 2);
     // A repeated increment does not fit and leaves the replica unchanged.
     let (set, pose) = random_bin(&mut rng, 51);

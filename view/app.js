@@ -4,9 +4,14 @@
 // stage.
 //
 // The map is loaded tile by tile (/api/tiles lists the tiles within RADIUS_M of the camera,
-// nearest first, within BUDGET Gaussians; /map/tile.ply serves one), each tile its own splat
-// scene: a change reloads only the tiles whose version changed, and what the page draws is
-// bounded by the budget however large the map grows. `?radius=R&budget=N` override both.
+// nearest first, until the page's budget of Gaussians, the last tile cut to its most opaque;
+// /map/tile.ply serves one), each tile its own splat scene: a change reloads only the tiles
+// whose version or cut changed, and what the page draws is bounded by the budget however
+// large the map grows. The budget follows the frame time: above FRAME_MS it shrinks to what
+// the measured rate draws in FRAME_MS, well below it grows again, up to BUDGET, so a slow
+// renderer (software WebGL) shows fewer splats at a usable rate rather than all of them at
+// seconds a frame. `?radius=R&budget=N&frame_ms=T` override the three (`frame_ms=0`: a fixed
+// budget of N; the default in test mode, below).
 //
 // Test mode (`?pinhole=fx,fy,cx,cy,width,height&pose=r00,..,r22,x,y,z`): only the splat
 // canvas, at exactly width x height, seen by that pinhole camera (OpenCV axes, camera to
@@ -23,9 +28,17 @@ const pose = params.get('pose')?.split(',').map(Number);
 const test = Boolean(pinhole && pose);
 const RADIUS_M = Number(params.get('radius') ?? 160);
 const BUDGET = Number(params.get('budget') ?? 1000000);
+// Test mode compares pictures, so it draws every listed splat unless asked otherwise.
+const FRAME_MS = Number(params.get('frame_ms') ?? (test ? 0 : 100));
+// The adaptive budget starts here (a page on a fast renderer grows to BUDGET in a few
+// steps), never drops below MIN_BUDGET, and is judged on the median of FRAME_WINDOW frames.
+const START_BUDGET = FRAME_MS > 0 ? Math.min(BUDGET, 250000) : BUDGET;
+const MIN_BUDGET = 1000;
+const FRAME_WINDOW = 5;
 window.__view = {
   splatReady: false, mapVersion: null, loads: 0, plottedBins: 0, error: null,
   tiles: 0, gaussians: 0, tileLoads: 0,
+  budget: START_BUDGET, budgetChanges: 0, budgetChangedAt: 0, frameMs: null,
 };
 
 const $ = (id) => document.getElementById(id);
@@ -112,8 +125,11 @@ let loading = false;
 let loadedVersion = null;
 let lastLoad = 0;
 let followedBin = null;
-// The tiles shown, in the viewer's scene order: { key, version, gaussians }.
+// The tiles shown, in the viewer's scene order: { key, version, take }.
 let shown = [];
+let budget = START_BUDGET;
+// Set when the budget changed and the tiles must be listed again.
+let budgetDue = false;
 // Where the camera was when the tiles were last listed; moving a quarter of a tile from
 // there lists them again.
 let listedAt = null;
@@ -127,23 +143,26 @@ async function loadMap(version) {
   try {
     const p = viewer.camera.position;
     listedAt = p.clone();
-    const res = await fetch(`/api/tiles?x=${p.x}&y=${p.y}&radius=${RADIUS_M}&budget=${BUDGET}`,
+    budgetDue = false;
+    const res = await fetch(`/api/tiles?x=${p.x}&y=${p.y}&radius=${RADIUS_M}&budget=${budget}`,
       { cache: 'no-store' });
     if (!res.ok) return;
     const listing = await res.json();
     tileM = listing.tile_m;
     const want = new Map(listing.tiles.map((t) => [`${t.x}_${t.y}`, t]));
-    const keep = shown.filter((s) => want.get(s.key)?.version === s.version);
+    const same = (s) => want.get(s.key)?.version === s.version && want.get(s.key)?.take === s.take;
+    const keep = shown.filter(same);
     const drop = shown.map((s, i) => (keep.includes(s) ? -1 : i)).filter((i) => i >= 0);
     const have = new Set(keep.map((s) => s.key));
     const added = [];
     let complete = true;
     for (const [key, t] of want) {
       if (have.has(key)) continue;
-      const r = await fetch(`/map/tile.ply?x=${t.x}&y=${t.y}&v=${t.version}`, { cache: 'no-store' });
+      const cut = t.take < t.gaussians ? `&take=${t.take}` : '';
+      const r = await fetch(`/map/tile.ply?x=${t.x}&y=${t.y}&v=${t.version}${cut}`, { cache: 'no-store' });
       if (!r.ok) { complete = false; continue; }
       const v = Number(r.headers.get('X-Tile-Version'));
-      added.push({ key, version: v, gaussians: t.gaussians, url: URL.createObjectURL(await r.blob()) });
+      added.push({ key, version: v, take: t.take, url: URL.createObjectURL(await r.blob()) });
     }
     if (drop.length) await viewer.removeSplatScenes(drop, false);
     if (added.length) {
@@ -154,9 +173,9 @@ async function loadMap(version) {
       })), false);
     }
     for (const a of added) URL.revokeObjectURL(a.url);
-    shown = keep.concat(added.map(({ key, version, gaussians }) => ({ key, version, gaussians })));
+    shown = keep.concat(added.map(({ key, version, take }) => ({ key, version, take })));
     window.__view.tiles = shown.length;
-    window.__view.gaussians = shown.reduce((n, s) => n + s.gaussians, 0);
+    window.__view.gaussians = shown.reduce((n, s) => n + s.take, 0);
     window.__view.tileLoads += added.length;
     if (complete) {
       loadedVersion = listing.version;
@@ -264,7 +283,8 @@ async function poll() {
       `(showing version ${loadedVersion}: ${shown.length} tiles, ${window.__view.gaussians} Gaussians)`;
     const due = test ? loadedVersion === null : performance.now() - lastLoad > MAP_RELOAD_MS;
     const moved = listedAt !== null && viewer.camera.position.distanceTo(listedAt) > tileM / 4;
-    if (map.origin && (map.version !== loadedVersion || moved) && !loading && due) loadMap(map.version);
+    const changed = map.version !== loadedVersion || moved;
+    if (map.origin && !loading && ((changed && due) || budgetDue)) loadMap(map.version);
     if (!test) {
       const latest = s.bins[s.bins.length - 1];
       if (latest && $('follow').checked && followedBin !== latest.position.join()) {
@@ -286,4 +306,34 @@ async function poll() {
   }
   setTimeout(poll, POLL_MS);
 }
+// The budget's governor: the median interval of the last FRAME_WINDOW frames drawn with the
+// current tiles. Over 1.25 FRAME_MS: the budget becomes what that rate draws in 0.9
+// FRAME_MS; under half of it, with the budget binding: 1.5 times more, up to BUDGET. The
+// frames are judged only once the tiles of the last change are shown.
+const frames = [];
+function watchFrames(ts) {
+  const settled = FRAME_MS > 0 && !loading && !budgetDue && loadedVersion !== null &&
+    !viewer.sortRunning;
+  if (!settled) frames.length = 0;
+  else frames.push(ts);
+  if (frames.length > FRAME_WINDOW) {
+    const gaps = frames.slice(1).map((t, i) => t - frames[i]).sort((a, b) => a - b);
+    const median = gaps[Math.floor(gaps.length / 2)];
+    frames.shift();
+    window.__view.frameMs = median;
+    const drawn = window.__view.gaussians;
+    let next = budget;
+    if (median > 1.25 * FRAME_MS) next = Math.max(MIN_BUDGET, Math.floor(drawn * 0.9 * FRAME_MS / median));
+    else if (median < 0.5 * FRAME_MS && drawn >= 0.95 * budget) next = Math.min(BUDGET, Math.ceil(budget * 1.5));
+    if (next !== budget) {
+      budget = next;
+      budgetDue = true;
+      Object.assign(window.__view, {
+        budget, budgetChanges: window.__view.budgetChanges + 1, budgetChangedAt: performance.now(),
+      });
+    }
+  }
+  requestAnimationFrame(watchFrames);
+}
+requestAnimationFrame(watchFrames);
 poll();

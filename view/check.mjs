@@ -2,8 +2,9 @@
 // Debian's Chromium through playwright-core (never a downloaded browser), watches the
 // latency charts grow as bins arrive, screenshots the page, then opens the splat viewer
 // alone at the first bin's camera and screenshots its canvas, saving the state and the map
-// PLY it showed. Prints `page loaded` once the page polls the node, then one JSON line;
-// exits non-zero with a message when something fails.
+// PLY it showed; last, opens that view with a frame-time target no renderer meets (1 ms) and
+// waits for its budget to fall to the floor. Prints `page loaded` once the page polls the
+// node, then one JSON line; exits non-zero with a message when something fails.
 //
 //   node view/check.mjs --url http://127.0.0.1:PORT/ --out DIR --bins N [--timeout S]
 import { chromium } from 'playwright-core';
@@ -118,6 +119,19 @@ await testPage.waitForFunction(() => window.__view.splatReady, null, { timeout: 
   .catch(() => fail('the splat viewer never became ready'));
 const shown = await testPage.evaluate(() => window.__view);
 await testPage.locator('#splat').screenshot({ path: join(out, 'splat.png'), timeout: 60000 });
+await testPage.close();
+
+// 4. The same view with a 1 ms frame-time target: the budget shrinks until the floor, the
+// last tile cut to its most opaque splats.
+const slowPage = await context.newPage();
+slowPage.on('pageerror', (e) => consoleErrors.push(String(e)));
+await slowPage.goto(`${base}${query}&frame_ms=1`, { waitUntil: 'load' });
+await slowPage.waitForFunction(() => {
+  const v = window.__view;
+  return v.error || (v.budget === 1000 && v.splatReady && v.gaussians <= v.budget && v.frameMs !== null);
+}, null, { timeout: Math.max(left(), 60000), polling: 250 })
+  .catch(() => fail('the budget never came down to its floor'));
+const adaptive = await slowPage.evaluate(() => window.__view);
 
 const nonLoopback = requests.filter((u) => !isLocal(u));
 const summary = {
@@ -130,7 +144,14 @@ const summary = {
   splat_version: shown.mapVersion,
   splat_tiles: shown.tiles,
   splat_gaussians: shown.gaussians,
-  viewer_error: shown.error,
+  viewer_error: shown.error ?? adaptive.error,
+  adaptive: {
+    budget: adaptive.budget,
+    budget_changes: adaptive.budgetChanges,
+    tiles: adaptive.tiles,
+    gaussians: adaptive.gaussians,
+    frame_ms: adaptive.frameMs,
+  },
   webgl,
   camera: { bin_id: bin.bin_id, intrinsics: k },
   seconds: (Date.now() - started) / 1000,

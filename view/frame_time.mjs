@@ -1,12 +1,13 @@
 // Frame time of the live view's splat viewer in headless Chromium (Debian's, through
 // playwright-core; never a downloaded browser), called by `stereosplat bench view`: opens
 // the page in its fixed-camera mode at the given pinhole and pose with the given tile radius
-// and Gaussian budget, waits until the splats are drawn, then records requestAnimationFrame
-// times for a while. Prints one JSON line; exits non-zero with a message when something
-// fails.
+// and Gaussian budget, waits until the splats are drawn and (with a frame-time target) until
+// the page's budget has not changed for `--settle` seconds, then records
+// requestAnimationFrame times for a while. Prints one JSON line; exits non-zero with a
+// message when something fails.
 //
 //   node view/frame_time.mjs --url URL --pinhole fx,fy,cx,cy,w,h --pose r00,..,r22,x,y,z
-//        --radius R --budget N [--seconds S] [--timeout S]
+//        --radius R --budget N [--frame-ms T] [--settle S] [--seconds S] [--timeout S]
 import { chromium } from 'playwright-core';
 import { chromiumArgs } from '../scripts/chromium_args.mjs';
 
@@ -39,10 +40,23 @@ const page = await browser.newPage({ viewport: { width, height }, deviceScaleFac
 const errors = [];
 page.on('pageerror', (e) => errors.push(String(e)));
 const started = Date.now();
-const query = `?pinhole=${pinhole}&pose=${pose}&radius=${arg('radius', '160')}&budget=${arg('budget', '1000000')}`;
+const frameMs = arg('frame-ms', '0');
+const query = `?pinhole=${pinhole}&pose=${pose}&radius=${arg('radius', '160')}` +
+  `&budget=${arg('budget', '1000000')}&frame_ms=${frameMs}`;
 await page.goto(base + query, { waitUntil: 'load' });
 await page.waitForFunction(() => window.__view.splatReady || window.__view.error, null, { timeout: timeoutMs })
   .catch(() => fail('the splat viewer never became ready'));
+// With a target, the page adapts its budget: wait until it has held still for `settle`
+// seconds with its tiles shown.
+if (Number(frameMs) > 0) {
+  const settleMs = Number(arg('settle', '30')) * 1000;
+  await page.waitForFunction((ms) => {
+    const v = window.__view;
+    const quiet = performance.now() - Math.max(v.budgetChangedAt, 0) > ms;
+    return v.error || (v.splatReady && v.frameMs !== null && quiet && v.tiles > 0);
+  }, settleMs, { timeout: Math.max(1000, timeoutMs - (Date.now() - started)), polling: 500 })
+    .catch(() => fail('the page budget never settled'));
+}
 const loadS = (Date.now() - started) / 1000;
 const shown = await page.evaluate(() => window.__view);
 if (shown.error) await fail(`the viewer failed: ${shown.error}`);
@@ -69,6 +83,9 @@ console.log(JSON.stringify({
   load_s: loadS,
   tiles: shown.tiles,
   gaussians: shown.gaussians,
+  frame_ms_target: Number(frameMs),
+  budget: shown.budget,
+  budget_changes: shown.budgetChanges,
   frames: intervals.length,
   frame_ms_median: quantile(0.5),
   frame_ms_p90: quantile(0.9),

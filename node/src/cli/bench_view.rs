@@ -1,9 +1,10 @@
 //! `stereosplat bench view`: how the live view's page fares with a large map, as JSON on
 //! stdout. Serves a saved map (`view --map`) on loopback and opens the page in headless
-//! Chromium (`view/frame_time.mjs`) twice from the same camera: once loading every tile
-//! (what a page that loads the whole map draws) and once loading the tiles near its camera
-//! within the page's default radius and Gaussian budget. Reports for each the load time,
-//! the Gaussians drawn and the frame times, and the ratio of the median frame times.
+//! Chromium (`view/frame_time.mjs`) three times from the same camera: loading every tile
+//! (what a page that loads the whole map draws); loading the tiles near its camera within
+//! the page's default radius and a fixed Gaussian budget; and the page as it opens by
+//! default, its budget following its frame time. Reports for each the load time, the
+//! Gaussians drawn and the frame times, and the ratio of the median frame times.
 //!
 //! The camera looks straight down from [`ALTITUDE_M`] above the tile holding the most
 //! Gaussians, so both runs draw the densest ground of the map.
@@ -35,9 +36,15 @@ pub struct BenchViewArgs {
     /// Tiles the page loads around its camera in the near-tiles run, metres.
     #[arg(long, default_value_t = crate::view::DEFAULT_RADIUS_M)]
     radius_m: f64,
-    /// Gaussians the page loads at most in the near-tiles run.
+    /// Gaussians the page loads at most in the near-tiles run, and the adaptive run's ceiling.
     #[arg(long, default_value_t = crate::view::DEFAULT_BUDGET)]
     budget: usize,
+    /// The page's frame-time target in the adaptive run, milliseconds (the page's default).
+    #[arg(long, default_value_t = 100.0)]
+    frame_ms: f64,
+    /// Seconds the adaptive page's budget must hold still before its frames are recorded.
+    #[arg(long, default_value_t = 30.0)]
+    settle_s: f64,
     /// Side of the view's tiles, metres.
     #[arg(long, default_value_t = 64.0)]
     tile_m: f64,
@@ -71,7 +78,7 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
     let view =
         runtime.block_on(async { anyhow::Ok(Bound::bind(&config).await?.serve_saved(state)) })?;
     let url = view.url();
-    let page = |radius: f64, budget: usize| -> Result<Value> {
+    let page = |radius: f64, budget: usize, frame_ms: f64| -> Result<Value> {
         let script = default_node_modules().with_file_name("frame_time.mjs");
         let out = Command::new("node")
             .arg(&script)
@@ -90,6 +97,8 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
                 &budget.to_string(),
             ])
             .args(["--seconds", &args.seconds.to_string()])
+            .args(["--frame-ms", &frame_ms.to_string()])
+            .args(["--settle", &args.settle_s.to_string()])
             .arg("--chromium")
             .arg(&args.chromium)
             .output()
@@ -107,18 +116,23 @@ pub fn run(args: &BenchViewArgs) -> Result<()> {
         }
         Ok(report)
     };
-    let whole = page(crate::view::MAX_RADIUS_M, crate::view::MAX_BUDGET)?;
-    let near = page(args.radius_m, args.budget)?;
+    let whole = page(crate::view::MAX_RADIUS_M, crate::view::MAX_BUDGET, 0.0)?;
+    let near = page(args.radius_m, args.budget, 0.0)?;
+    let adaptive = page(args.radius_m, args.budget, args.frame_ms)?;
     runtime.block_on(view.stop());
-    let ratio = whole["frame_ms_median"].as_f64().unwrap_or(f64::NAN)
-        / near["frame_ms_median"].as_f64().unwrap_or(f64::NAN);
+    let median = |v: &Value| v["frame_ms_median"].as_f64().unwrap_or(f64::NAN);
     let report = json!({
         "map": args.map,
         "gaussians": total,
         "camera": { "pinhole": pinhole, "above_densest_tile_m": ALTITUDE_M },
         "every_tile": whole,
         "near_tiles": { "radius_m": args.radius_m, "budget": args.budget, "page": near },
-        "median_frame_ratio_every_to_near": ratio,
+        "adaptive": {
+            "radius_m": args.radius_m, "budget_cap": args.budget, "frame_ms": args.frame_ms,
+            "page": adaptive,
+        },
+        "median_frame_ratio_every_to_near": median(&whole) / median(&near),
+        "median_frame_ratio_near_to_adaptive": median(&near) / median(&adaptive),
     });
     println!("{}", serde_json::to_string_pretty(&report)?);
     Ok(())

@@ -9,8 +9,8 @@
 //! | `/lib/splats/gaussian-splats-3d.module.js` | the splat viewer, from `view/node_modules` |
 //! | `/api/state` | JSON: map version and size, bin cameras, latency rows, counters |
 //! | `/map.ply` | the map the view holds as one 3DGS PLY relative to the state's `map.origin`; header `X-Map-Version` |
-//! | `/api/tiles?x=X&y=Y[&radius=R][&budget=N]` | JSON: the map's tiles within `R` metres (default [`DEFAULT_RADIUS_M`]) of the page point `(X, Y)` (relative to `map.origin`), nearest first, within `N` Gaussians (default [`DEFAULT_BUDGET`]) |
-//! | `/map/tile.ply?x=TX&y=TY` | one tile as 3DGS PLY relative to `map.origin`; header `X-Tile-Version`; 503 with `Retry-After` while a tile the view let go is fetched from the node |
+//! | `/api/tiles?x=X&y=Y[&radius=R][&budget=N]` | JSON: the map's tiles within `R` metres (default [`DEFAULT_RADIUS_M`]) of the page point `(X, Y)` (relative to `map.origin`), nearest first, until `N` Gaussians (default [`DEFAULT_BUDGET`]; the last tile's `take` may be part of it) |
+//! | `/map/tile.ply?x=TX&y=TY[&take=N]` | one tile (its `N` most opaque Gaussians with `take`, as `/api/tiles` lists) as 3DGS PLY relative to `map.origin`; header `X-Tile-Version`; 503 with `Retry-After` while a tile the view let go is fetched from the node |
 //! | `/render.png`, `/input.png`, `/bev.png` | the latest bin's render and input, the bird's-eye view; header `X-Bin-Id` |
 //!
 //! Paths are matched whole against this table and never joined onto a folder: a library
@@ -160,7 +160,7 @@ async fn api_tiles(State(s): State<Shared>, uri: Uri) -> Response {
 }
 
 async fn tile_ply(State(s): State<Shared>, uri: Uri) -> Response {
-    let params = match params(&uri, &["x", "y", "v"]) {
+    let params = match params(&uri, &["x", "y", "v", "take"]) {
         Ok(p) => p,
         Err(e) => return error(StatusCode::BAD_REQUEST, &e),
     };
@@ -171,7 +171,17 @@ async fn tile_ply(State(s): State<Shared>, uri: Uri) -> Response {
             "/map/tile.ply needs whole numbers x and y",
         );
     };
-    let answer = s.state().tile_ply((x as i64, y as i64));
+    let take = match params[3] {
+        None => None,
+        Some(t) if t.fract() == 0.0 && (1.0..=MAX_BUDGET as f64).contains(&t) => Some(t as usize),
+        Some(_) => {
+            return error(
+                StatusCode::BAD_REQUEST,
+                &format!("take must be a whole number in 1..={MAX_BUDGET}"),
+            )
+        }
+    };
+    let answer = s.state().tile_ply((x as i64, y as i64), take);
     match answer {
         TilePly::Ready(version, bytes) => with_header(
             ok("application/octet-stream", bytes),

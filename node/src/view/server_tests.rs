@@ -310,11 +310,12 @@ async fn connections_beyond_the_limit_wait_for_a_free_slot() {
 
 #[tokio::test]
 async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
-    use crate::fusion::{GaussianId, Snapshot, Update};
+    use crate::fusion::{GaussianId, Snapshot, Update, WorldGaussian};
     use glam::{DAffine3, DVec3};
 
     // 64 m tiles kept within 100 m of the vehicle: Gaussians at x = 1, 2 (tile 0), 70 (tile
-    // 1) and 1001 (tile 15); the vehicle at x = 1000 lets tiles 0 and 1 go.
+    // 1), 1001 and a fainter one at 1003 (tile 15); the vehicle at x = 1000 lets tiles 0
+    // and 1 go.
     let mut state = ViewState::with_tiles(super::TileRules {
         keep_m: 100.0,
         ..super::TileRules::default()
@@ -322,10 +323,13 @@ async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
     let g = |x: f64| super::test_gaussian::at(DVec3::new(x, 1.0, 0.5));
     let snapshot = Snapshot {
         last_bin_id: Some(0),
-        gaussians: [1.0, 2.0, 70.0, 1001.0]
+        gaussians: [1.0, 2.0, 70.0, 1001.0, 1003.0]
             .iter()
             .enumerate()
-            .map(|(i, &x)| (GaussianId(i as u64), g(x)))
+            .map(|(i, &x)| {
+                let opacity = if x == 1003.0 { 0.3 } else { 0.8 };
+                (GaussianId(i as u64), WorldGaussian { opacity, ..g(x) })
+            })
             .collect(),
     };
     state.map_update(1, Update::Snapshot(snapshot));
@@ -351,9 +355,22 @@ async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
         .collect();
     assert_eq!(
         tiles,
-        vec![(15, 1, true), (1, 1, false), (0, 2, false)],
+        vec![(15, 2, true), (1, 1, false), (0, 2, false)],
         "nearest first"
     );
+    // A budget of 3 takes tile 15 whole and 1 of tile 1's Gaussians; 1 takes part of 15.
+    for (budget, want) in [(3, vec![(15, 2), (1, 1)]), (1, vec![(15, 1)])] {
+        let uri = format!("/api/tiles?x=999&y=0&radius=2000&budget={budget}");
+        let a = request(addr, "GET", &uri).await;
+        let listing: serde_json::Value = serde_json::from_slice(&a.body).unwrap();
+        let takes: Vec<(i64, u64)> = listing["tiles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| (t["x"].as_i64().unwrap(), t["take"].as_u64().unwrap()))
+            .collect();
+        assert_eq!(takes, want, "budget {budget}");
+    }
     let a = request(addr, "GET", "/api/tiles?x=999&y=0&radius=10").await;
     let listing: serde_json::Value = serde_json::from_slice(&a.body).unwrap();
     assert_eq!(listing["tiles"].as_array().unwrap().len(), 1, "within 10 m");
@@ -362,11 +379,18 @@ async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
     assert_eq!(a.status, 200);
     assert!(a.header("x-tile-version").is_some());
     let set = renderer::ply::read_ply(a.body.as_slice()).unwrap();
-    assert_eq!(set.len(), 1);
+    assert_eq!(set.len(), 2);
     assert!(
         (set.means[0].x - 1000.0).abs() < 1e-3,
         "relative to the origin"
     );
+    // `take` serves the tile's most opaque: the fainter Gaussian at 1003 goes first.
+    let a = request(addr, "GET", "/map/tile.ply?x=15&y=0&v=3&take=1").await;
+    let set = renderer::ply::read_ply(a.body.as_slice()).unwrap();
+    assert_eq!(set.len(), 1);
+    assert!((set.means[0].x - 1000.0).abs() < 1e-3);
+    let a = request(addr, "GET", "/map/tile.ply?x=15&y=0&take=50").await;
+    assert_eq!(renderer::ply::read_ply(a.body.as_slice()).unwrap().len(), 2);
     // A tile the view let go is fetched from the node: the page is told to retry.
     let a = request(addr, "GET", "/map/tile.ply?x=0&y=0").await;
     assert_eq!((a.status, a.header("retry-after")), (503, Some("1")));
@@ -388,6 +412,10 @@ async fn tiles_are_listed_near_a_point_and_served_one_by_one() {
         "/map/tile.ply?x=0.5&y=0",
         "/map/tile.ply?x=1e300&y=0",
         "/map/tile.ply?y=0",
+        "/map/tile.ply?x=0&y=0&take=0",
+        "/map/tile.ply?x=0&y=0&take=1.5",
+        "/map/tile.ply?x=0&y=0&take=-3",
+        "/map/tile.ply?x=0&y=0&take=1e300",
     ] {
         let a = request(addr, "GET", bad).await;
         assert_eq!(a.status, 400, "{bad}: {a:?}");

@@ -12,7 +12,7 @@ use glam::{DAffine3, DVec2, DVec3};
 use renderer::Intrinsics;
 use serde_json::{json, Value};
 
-use super::tiles::{TileRules, ViewTiles};
+use super::tiles::{most_opaque, TileRules, ViewTiles};
 use crate::fusion::{local_set, GaussianId, TileKey, Update, WorldGaussian};
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::sensor_msgs::Image;
@@ -227,19 +227,21 @@ impl ViewState {
     }
 
     /// The map's tiles (held or let go) within `radius` metres of `point` (page
-    /// coordinates: relative to the origin), nearest first, as many as fit `budget`
-    /// Gaussians, as the page's JSON: `{"version", "tile_m", "tiles": [{"x", "y",
-    /// "version", "gaussians", "held"}]}`.
+    /// coordinates: relative to the origin), nearest first, until `budget` Gaussians are
+    /// listed ([`super::tiles::ViewTiles::near`]), as the page's JSON: `{"version",
+    /// "tile_m", "tiles": [{"x", "y", "version", "gaussians", "take", "held"}]}`; `take`
+    /// is how many of the tile's Gaussians to ask `/map/tile.ply` for.
     pub fn tiles_near(&self, point: DVec3, radius: f64, budget: usize) -> Value {
         let world = self.origin.unwrap_or(DVec3::ZERO) + point;
         let tiles: Vec<Value> = self
             .tiles
             .near(world, radius, budget)
             .into_iter()
-            .map(|((x, y), info)| {
+            .map(|t| {
+                let ((x, y), info) = (t.key, t.info);
                 json!({
                     "x": x, "y": y, "version": info.version,
-                    "gaussians": info.gaussians, "held": info.held,
+                    "gaussians": info.gaussians, "take": t.take, "held": info.held,
                 })
             })
             .collect();
@@ -250,16 +252,20 @@ impl ViewState {
         })
     }
 
-    /// One tile as a 3DGS PLY relative to the origin, with its version.
-    pub fn tile_ply(&mut self, tile: TileKey) -> TilePly {
+    /// One tile as a 3DGS PLY relative to the origin, with its version: all its Gaussians,
+    /// or its `take` most opaque ([`super::tiles::most_opaque`]).
+    pub fn tile_ply(&mut self, tile: TileKey, take: Option<usize>) -> TilePly {
         let Some(origin) = self.origin else {
             return TilePly::Unknown;
         };
         match self.tiles.tile(tile) {
-            Some((version, gaussians)) => match ply_of(gaussians.iter(), origin) {
-                Some(bytes) => TilePly::Ready(version, bytes),
-                None => TilePly::Unknown,
-            },
+            Some((version, gaussians)) => {
+                let kept = most_opaque(&gaussians, take.unwrap_or(usize::MAX));
+                match ply_of(kept.into_iter().map(|i| &gaussians[i]), origin) {
+                    Some(bytes) => TilePly::Ready(version, bytes),
+                    None => TilePly::Unknown,
+                }
+            }
             None if self.tiles.is_let_go(tile) => TilePly::Fetching,
             None => TilePly::Unknown,
         }

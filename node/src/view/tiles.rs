@@ -74,6 +74,40 @@ pub struct TileInfo {
     pub held: bool,
 }
 
+/// A tile listed for a page ([`ViewTiles::near`]) and how many of its Gaussians it draws.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NearTile {
+    /// The tile.
+    pub key: TileKey,
+    /// Its version and size.
+    pub info: TileInfo,
+    /// Gaussians of it the page draws: all of them, or fewer for the last tile of a budget.
+    pub take: usize,
+}
+
+/// The indices of the `take` most opaque of `gaussians`, in their order (ties keep the
+/// earlier): the part of a tile a page draws when its budget cuts the tile, since the
+/// opaque Gaussians are the ones a picture shows. All of them when `take` reaches the
+/// length. NaN opacities count as the least opaque.
+pub fn most_opaque(gaussians: &[WorldGaussian], take: usize) -> Vec<usize> {
+    if take >= gaussians.len() {
+        return (0..gaussians.len()).collect();
+    }
+    let opacity = |i: usize| {
+        let o = gaussians[i].opacity;
+        if o.is_nan() {
+            f32::NEG_INFINITY
+        } else {
+            o
+        }
+    };
+    let mut order: Vec<usize> = (0..gaussians.len()).collect();
+    order.sort_by(|&a, &b| opacity(b).total_cmp(&opacity(a)).then(a.cmp(&b)));
+    order.truncate(take);
+    order.sort_unstable();
+    order
+}
+
 /// A held tile.
 #[derive(Debug, Default)]
 struct Tile {
@@ -354,9 +388,12 @@ impl ViewTiles {
         }
     }
 
-    /// The tiles (held or let go) within `radius` metres of `point`, nearest first, as many
-    /// as fit `budget` Gaussians (the nearest one always).
-    pub fn near(&self, point: DVec3, radius: f64, budget: usize) -> Vec<(TileKey, TileInfo)> {
+    /// The tiles (held or let go) within `radius` metres of `point`, nearest first, until
+    /// `budget` Gaussians are listed: each tile takes all its Gaussians while they fit and
+    /// the first that does not fit takes what is left (its most opaque, see
+    /// [`most_opaque`]), so a page's budget bounds what it draws even when one tile holds
+    /// more.
+    pub fn near(&self, point: DVec3, radius: f64, budget: usize) -> Vec<NearTile> {
         let side = self.rules.side_m;
         let held = self.held.iter().map(|(k, t)| {
             let info = TileInfo {
@@ -372,14 +409,15 @@ impl ViewTiles {
             .filter(|(d, _, _)| *d <= radius)
             .collect();
         found.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let mut total = 0usize;
+        let mut left = budget;
         let mut out = Vec::new();
         for (_, key, info) in found {
-            if !out.is_empty() && total.saturating_add(info.gaussians) > budget {
+            if left == 0 {
                 break;
             }
-            total = total.saturating_add(info.gaussians);
-            out.push((key, info));
+            let take = info.gaussians.min(left);
+            left -= take;
+            out.push(NearTile { key, info, take });
         }
         out
     }

@@ -96,7 +96,7 @@ fn tiles_the_vehicle_leaves_are_let_go_then_fetched_into_a_bounded_cache() {
 }
 
 #[test]
-fn the_page_gets_the_nearest_tiles_within_its_budget() {
+fn the_page_gets_the_nearest_tiles_until_its_budget_with_the_last_one_cut() {
     let mut t = ViewTiles::new(rules());
     let mut added = Vec::new();
     for tile in 0..5u64 {
@@ -105,13 +105,45 @@ fn the_page_gets_the_nearest_tiles_within_its_budget() {
         }
     }
     t.apply(&inc(0, &added, &[]), 1).unwrap();
-    let near = t.near(DVec3::new(0.0, 0.0, 0.0), 1000.0, 6);
-    let keys: Vec<TileKey> = near.iter().map(|(k, _)| *k).collect();
-    assert_eq!(keys, vec![(0, 0), (1, 0), (2, 0)], "1 + 2 + 3 Gaussians");
-    assert_eq!(t.near(DVec3::ZERO, 15.0, 1000).len(), 2, "within 15 m");
-    let one = t.near(DVec3::new(45.0, 0.0, 0.0), 1000.0, 1);
-    assert_eq!(one.len(), 1, "the nearest tile always, even over budget");
-    assert_eq!(one[0].0, (4, 0));
+    let listed = |at: f64, radius: f64, budget: usize| -> Vec<(TileKey, usize, usize)> {
+        t.near(DVec3::new(at, 0.0, 0.0), radius, budget)
+            .into_iter()
+            .map(|n| (n.key, n.info.gaussians, n.take))
+            .collect()
+    };
+    // 1 + 2 + 3 Gaussians fit 6 exactly; with 8 the fourth tile gives 2 of its 4.
+    assert_eq!(
+        listed(0.0, 1000.0, 6),
+        vec![((0, 0), 1, 1), ((1, 0), 2, 2), ((2, 0), 3, 3)]
+    );
+    assert_eq!(listed(0.0, 1000.0, 8).last(), Some(&((3, 0), 4, 2)));
+    assert_eq!(listed(0.0, 15.0, 1000).len(), 2, "within 15 m");
+    // A budget smaller than the nearest tile takes part of it, never more than asked.
+    assert_eq!(listed(45.0, 1000.0, 3), vec![((4, 0), 5, 3)]);
+    assert_eq!(listed(45.0, 1000.0, 0), vec![]);
+    let total: usize = listed(0.0, 1000.0, usize::MAX).iter().map(|l| l.2).sum();
+    assert_eq!(total, 15, "an unbounded budget takes every Gaussian");
+}
+
+#[test]
+fn a_cut_tile_keeps_its_most_opaque_gaussians_in_their_order() {
+    let opacities = [0.5, 0.9, f32::NAN, 0.9, 0.1, 1.0, 0.0];
+    let gaussians: Vec<WorldGaussian> = opacities
+        .iter()
+        .map(|&o| WorldGaussian {
+            opacity: o,
+            ..g(0.0, 0.0)
+        })
+        .collect();
+    assert_eq!(most_opaque(&gaussians, 3), vec![1, 3, 5]);
+    // Ties keep the earlier: of the two 0.9s only index 1 fits beside 1.0.
+    assert_eq!(most_opaque(&gaussians, 2), vec![1, 5]);
+    assert_eq!(most_opaque(&gaussians, 0), Vec::<usize>::new());
+    // NaN is the least opaque: the last to be kept.
+    assert_eq!(most_opaque(&gaussians, 6), vec![0, 1, 3, 4, 5, 6]);
+    assert_eq!(most_opaque(&gaussians, 7), (0..7).collect::<Vec<_>>());
+    assert_eq!(most_opaque(&gaussians, usize::MAX).len(), 7);
+    assert!(most_opaque(&[], 5).is_empty());
 }
 
 #[test]

@@ -284,6 +284,15 @@ fn the_live_view_shows_the_map_as_splats_and_charts_bins_as_they_arrive() {
         "{summary}"
     );
     assert!(summary["splat_tiles"].as_u64().unwrap() >= 1, "{summary}");
+    // Asked for 1 ms frames, the page came down to its floor of 1,000 Gaussians: the tiles
+    // nearest its camera, the last cut to its most opaque, drawn from the node's `take`.
+    let adaptive = &summary["adaptive"];
+    assert_eq!(adaptive["budget"].as_u64(), Some(1000), "{summary}");
+    assert!(
+        adaptive["budget_changes"].as_u64().unwrap() >= 1,
+        "{summary}"
+    );
+    assert_eq!(adaptive["gaussians"].as_u64(), Some(1000), "{summary}");
     let camera = first_bin_camera(&state);
     let ShotScore {
         lit,

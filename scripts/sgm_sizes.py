@@ -1,9 +1,10 @@
-"""The SGM baseline's accuracy against its time at a few working sizes, on GENERATED drives
-only (held-out KITTI-360-layout streets at 1408x376 with exact per-pixel depth): the data
-the working size of `stereosplat reconstruct --method sgm` is chosen on. Writes sizes.md
-and sizes.json into --out.
+"""The SGM baseline's accuracy against its time at a few working sizes, on GENERATED
+validation drives only (KITTI-360-layout streets at 1408x376 with exact per-pixel depth,
+seeds from 2,000,000: never trained on, never the held-out evaluation): the data the working
+size of `stereosplat reconstruct --method sgm` and its median filter are chosen on. Writes
+sizes.md and sizes.json into --out.
 
-    python3 scripts/sgm_sizes.py --bin BIN --data out/sgm_sizes/data --out results/sgm \
+    python3 scripts/sgm_sizes.py --bin BIN --data out/sgm_sizes/validation --out results/sgm \
         --runs out/sgm_sizes/runs --command "bash scripts/sgm_vs_opencv.sh"
 
 Each frame of each drive goes through `reconstruct` at every `--working-pixels` budget of
@@ -23,6 +24,8 @@ from sgm_vs_opencv import against_truth, ours
 
 WIDTH, HEIGHT = 1408, 376
 DRIVES, FRAMES = 2, 3
+# The first validation seed (node::cli::synth's VALIDATION_SEED_BASE).
+VALIDATION_SEED = 2_000_000
 # Pixel budgets: an eighth, a quarter, a third, two thirds and all of a 1408x376 frame.
 BUDGETS = (66176, 132352, 176469, 352938, 529408)
 FARTHEST_M = 80.0
@@ -50,9 +53,10 @@ def main():
     ap.add_argument("--command", required=True)
     args = ap.parse_args()
     if not (args.data / "data_2d_raw").is_dir():
-        subprocess.run([args.bin, "synth-heldout", "--out", str(args.data), "--frames", str(FRAMES),
-                        "--width", str(WIDTH), "--height", str(HEIGHT), "--sequences", str(DRIVES)],
-                       check=True, stdout=subprocess.DEVNULL)
+        for seed in range(VALIDATION_SEED, VALIDATION_SEED + DRIVES):
+            subprocess.run([args.bin, "synth", "--seed", str(seed), "--out", str(args.data),
+                            "--frames", str(FRAMES), "--width", str(WIDTH), "--height", str(HEIGHT)],
+                           check=True, stdout=subprocess.DEVNULL)
     fx, baseline, cx, cy = rig(args.data)
     flags = ["--fx", str(fx), "--cx", str(cx), "--cy", str(cy), "--baseline", str(baseline)]
     # Every budget with the defaults, and the default budget without the median filter.
@@ -80,7 +84,8 @@ def main():
     lines = [
         "# SGM: accuracy against time by working size (generated drives)",
         "",
-        f"Made by `{args.command}` (scripts/sgm_sizes.py): {DRIVES} held-out generated drives x "
+        f"Made by `{args.command}` (scripts/sgm_sizes.py): {DRIVES} generated validation drives "
+        f"(seeds {VALIDATION_SEED} and up) x "
         f"{FRAMES} frames at {WIDTH}x{HEIGHT}, rig fx {fx:.1f} px, baseline {baseline:.2f} m; "
         f"scored at the input size against the exact depth up to {FARTHEST_M:.0f} m, means over "
         "frames (columns as in README.md).",

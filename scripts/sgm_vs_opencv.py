@@ -227,7 +227,7 @@ def main():
         "mean |left - right at x - d| in [0, 1] over the pixels each method covers. SGM alone:",
         "matching and Gaussians on a generated pair of that size, threads as the machine has.",
         "The working size `reconstruct` gives SGM (its default pixel budget) was chosen on",
-        "generated drives: sizes.md.",
+        "generated validation drives: sizes.md.",
         "",
         table,
         "Goal: bad-3 on covered pixels within 1.5x of OpenCV's at no less coverage.",

@@ -34,8 +34,8 @@ for size in 544x112 451x390 511x345 484x363 741x500 640x480 1282x1110; do
   "$bin" bench model --preset sgm --width "${size%x*}" --height "${size#*x}" --runs 5 --warmup 1 \
     --cache "out/sgm_bench/$size"
 done >"$runs/bench.jsonl"
-# The working size, chosen on generated drives only (sizes.md).
-python3 scripts/sgm_sizes.py --bin "$bin" --data out/sgm_sizes/data --out "$out" \
+# The working size and the median, chosen on generated validation drives only (sizes.md).
+python3 scripts/sgm_sizes.py --bin "$bin" --data out/sgm_sizes/validation --out "$out" \
   --runs out/sgm_sizes/runs --command "$command"
 python3 scripts/sgm_vs_opencv.py --bin "$bin" --data "$data" --out "$out" --runs "$runs" \
   --bench "$runs/bench.jsonl" --command "$command"

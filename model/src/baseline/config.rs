@@ -42,7 +42,7 @@ pub struct SgmConfig {
     /// Largest disparity step, pixels, between neighbours of one speckle region.
     pub speckle_range: f32,
     /// Apply the 3x3 median filter to the valid disparities (on by default: chosen on
-    /// generated streets, `results/sgm/sizes.md`).
+    /// generated validation streets, `results/sgm/sizes.md`).
     pub median: bool,
     /// Nearest depth kept, metres: a safety clamp, and with the baseline the rig's share of
     /// the disparity range (`fx * baseline / min_depth`, within the width fractions).

@@ -260,8 +260,14 @@ impl ViewState {
         };
         match self.tiles.tile(tile) {
             Some((version, gaussians)) => {
-                let kept = most_opaque(&gaussians, take.unwrap_or(usize::MAX));
-                match ply_of(kept.into_iter().map(|i| &gaussians[i]), origin) {
+                let bytes = match take {
+                    Some(take) if take < gaussians.len() => {
+                        let kept = most_opaque(&gaussians, take);
+                        ply_of(kept.into_iter().map(|i| &gaussians[i]), origin)
+                    }
+                    _ => ply_of(gaussians.iter(), origin),
+                };
+                match bytes {
                     Some(bytes) => TilePly::Ready(version, bytes),
                     None => TilePly::Unknown,
                 }

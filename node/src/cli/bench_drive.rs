@@ -24,7 +24,7 @@ use serde::Serialize;
 
 use super::bench_node::{with_fields, BenchNodeSettings};
 use super::progress;
-use super::stream::rate_of;
+use super::stream::{rate_of, seconds_ns};
 use super::synth::cached_sequence;
 use crate::fusion::{AtTornTail, FusionConfig, GlobalMap, JournalWriter, Keep};
 use crate::msg::latency::BinLatency;
@@ -153,8 +153,10 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
             compaction: Compaction {
                 min_bytes: args.compact_after_mib.saturating_mul(1 << 20),
             },
-            release_memory_every: Duration::try_from_secs_f64(args.release_memory_every_s)
-                .context("--release-memory-every-s must be a number of seconds from 0")?,
+            release_memory_every: Duration::from_nanos(seconds_ns(
+                args.release_memory_every_s,
+                "--release-memory-every-s",
+            )? as u64),
             ..NodeConfig::default()
         },
         &args.out,

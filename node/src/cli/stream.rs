@@ -326,7 +326,9 @@ fn page_radius(metres: f64) -> Result<Option<Paging>> {
     Ok((metres > 0.0).then_some(Paging { radius_m: metres }))
 }
 
-fn seconds_ns(seconds: f64, flag: &str) -> Result<i64> {
+/// `seconds` of a duration flag as nanoseconds: finite, from 0 to about 292 years, else an
+/// error naming `flag`.
+pub(super) fn seconds_ns(seconds: f64, flag: &str) -> Result<i64> {
     anyhow::ensure!(
         seconds.is_finite() && (0.0..9.2e9).contains(&seconds),
         "{flag} must be a number of seconds from 0, not {seconds}"

@@ -102,7 +102,13 @@ pub fn most_opaque(gaussians: &[WorldGaussian], take: usize) -> Vec<usize> {
         }
     };
     let mut order: Vec<usize> = (0..gaussians.len()).collect();
-    order.sort_by(|&a, &b| opacity(b).total_cmp(&opacity(a)).then(a.cmp(&b)));
+    // Only the first `take` need finding, not a whole sorted order (ties by index make the
+    // order total, so the set is the same).
+    if take > 0 {
+        order.select_nth_unstable_by(take - 1, |&a, &b| {
+            opacity(b).total_cmp(&opacity(a)).then(a.cmp(&b))
+        });
+    }
     order.truncate(take);
     order.sort_unstable();
     order

@@ -135,7 +135,7 @@ def summarize(typename, msg):
             'model_end_ns', 'render_end_ns', 'publish_ns', 'queue_depth', 'drops',
             'bad_messages', 'check_verdict', 'check_action', 'fallback_verdict',
             'check_samples', 'base_end_ns', 'pseudo_render_end_ns', 'enhance_end_ns',
-            'plus_end_ns', 'fuse_end_ns')}
+            'plus_end_ns', 'fuse_end_ns', 'map_fused_ns')}
         fields.update({name: float(getattr(msg, name))
                        for name in ('check_score', 'fallback_score')})
         fields['operating_point'] = str(msg.operating_point)

@@ -4,8 +4,10 @@
 //! against bin number beside it.
 //!
 //! Per bin (from the node's own latency messages): arrival to publish, the wait for the
-//! worker, the model, the render, and everything after them until the bin is published
-//! (fusion, the journal, publishing; `after_model`). Then the process's resident memory
+//! worker, the model, the render, and everything from the model's end until the bin is
+//! published (`after_model`), split into the fusion into the global map with its journal
+//! record and paging (`map_fusion`) and the publishing of the bin's messages (`publish`).
+//! The render runs on the worker beside them, so it is not part of `after_model`. Then the process's resident memory
 //! every 50 frames, the bytes the checkpoint wrote (journal records and base rewrites, from
 //! the node's counters), the time to restore the final checkpoint and the time to replay a
 //! journal as large as the map (the most a restore can have to replay on top of its base),
@@ -78,24 +80,28 @@ struct BinRow {
     model: f64,
     render: f64,
     after_model: f64,
+    map_fusion: f64,
+    publish: f64,
 }
 
 impl BinRow {
     fn of(l: &BinLatency) -> Self {
-        let ms = |a: i64, b: i64| (b - a).max(0) as f64 / 1e6;
-        // The render counts when the map waited for it (it ended before the publish).
-        let rendered = if l.render_end_ns > 0 && l.render_end_ns <= l.publish_ns {
-            l.render_end_ns
-        } else {
-            l.model_end_ns
+        let ms = |a: i64, b: i64| {
+            if a > 0 && b > 0 {
+                (b - a).max(0) as f64 / 1e6
+            } else {
+                0.0
+            }
         };
         Self {
             bin_id: l.bin_id,
             arrival_to_publish: ms(l.first_frame_arrival_ns, l.publish_ns),
             wait: ms(l.first_frame_arrival_ns, l.model_start_ns),
             model: ms(l.model_start_ns, l.model_end_ns),
-            render: ms(l.model_end_ns, rendered),
-            after_model: ms(rendered.max(l.model_end_ns), l.publish_ns),
+            render: ms(l.model_end_ns, l.render_end_ns),
+            after_model: ms(l.model_end_ns, l.publish_ns),
+            map_fusion: ms(l.model_end_ns, l.map_fused_ns),
+            publish: ms(l.map_fused_ns, l.publish_ns),
         }
     }
 }
@@ -109,6 +115,8 @@ struct Stretch {
     render_p50: f64,
     after_model_p50: f64,
     after_model_max: f64,
+    map_fusion_p50: f64,
+    publish_p50: f64,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -129,6 +137,8 @@ impl Stretch {
             render_p50: col(|r| r.render),
             after_model_p50: col(|r| r.after_model),
             after_model_max: rows.iter().map(|r| r.after_model).fold(0.0, f64::max),
+            map_fusion_p50: col(|r| r.map_fusion),
+            publish_p50: col(|r| r.publish),
         }
     }
 }
@@ -221,6 +231,8 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         "first_tenth": first,
         "last_tenth": last,
         "after_model_last_over_first": last.after_model_p50 / first.after_model_p50.max(1e-9),
+        "map_fusion_last_over_first": last.map_fusion_p50 / first.map_fusion_p50.max(1e-9),
+        "publish_last_over_first": last.publish_p50 / first.publish_p50.max(1e-9),
         "rss_mib": report.rss_samples.iter().map(|&(f, b)| (f, mib(b))).collect::<Vec<_>>(),
         "rss_after_first_minute_mib": minute.map(|(_, b)| mib(b)),
         "rss_max_after_first_minute_mib": later_max.map(mib),
@@ -248,12 +260,21 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
 /// bin number) into `dir`.
 fn write_series(dir: &Path, rows: &[BinRow]) -> Result<()> {
     std::fs::create_dir_all(dir)?;
-    let mut csv =
-        String::from("bin_id,arrival_to_publish_ms,wait_ms,model_ms,render_ms,after_model_ms\n");
+    let mut csv = String::from(
+        "bin_id,arrival_to_publish_ms,wait_ms,model_ms,render_ms,after_model_ms,\
+         map_fusion_ms,publish_ms\n",
+    );
     for r in rows {
         csv += &format!(
-            "{},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
-            r.bin_id, r.arrival_to_publish, r.wait, r.model, r.render, r.after_model
+            "{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}\n",
+            r.bin_id,
+            r.arrival_to_publish,
+            r.wait,
+            r.model,
+            r.render,
+            r.after_model,
+            r.map_fusion,
+            r.publish
         );
     }
     std::fs::write(dir.join("series.csv"), csv)?;
@@ -265,6 +286,7 @@ fn write_series(dir: &Path, rows: &[BinRow]) -> Result<()> {
         series("arrival to publish", |r| r.arrival_to_publish),
         series("model", |r| r.model),
         series("after the model", |r| r.after_model),
+        series("map fusion and journal", |r| r.map_fusion),
     ];
     model::curve::write_png_titled(
         &dir.join("latency.png"),

@@ -13,12 +13,13 @@
 //! `uint8 check_action`, `uint8 fallback_verdict`, `uint32 check_samples`,
 //! `float64 check_score`, `float64 fallback_score`, and from version 2 on the progressive
 //! pass's stage stamps `int64 base_end_ns`, `int64 pseudo_render_end_ns`,
-//! `int64 enhance_end_ns`, `int64 plus_end_ns`, `int64 fuse_end_ns`, and from version 3 on
-//! `string operating_point`. Each version only appends, so an older payload (an older
-//! recording) is a newer one cut short: the reader takes a payload that ends right after
-//! `fallback_score` as version 1 (stage stamps 0, no point) and one that ends right after
-//! `fuse_end_ns` as version 2 (no point); one that ends inside the appended fields is a
-//! truncation error.
+//! `int64 enhance_end_ns`, `int64 plus_end_ns`, `int64 fuse_end_ns`, from version 3 on
+//! `string operating_point`, and from version 4 on `int64 map_fused_ns`. Each version only
+//! appends, so an older payload (an older recording) is a newer one cut short: the reader
+//! takes a payload that ends right after `fallback_score` as version 1 (stage stamps 0, no
+//! point), one that ends right after `fuse_end_ns` as version 2 (no point) and one that ends
+//! right after `operating_point` as version 3 (`map_fused_ns` 0); one that ends inside the
+//! appended fields is a truncation error.
 //!
 //! `stereosplat_msgs/msg/Diagnostics`: `int64 stamp_ns`, `Counter[] counters`, where
 //! `stereosplat_msgs/msg/Counter` is `string kind`, `uint64 count`.
@@ -85,6 +86,10 @@ pub struct BinLatency {
     pub fuse_end_ns: i64,
     /// The operating point the map was made with (empty in version-1 and 2 payloads).
     pub operating_point: String,
+    /// When the bin's map was fused into the global map and its change journaled (tiles
+    /// paged in and out with it included); publishing the bin's messages follows, up to
+    /// `publish_ns`. 0 in older payloads.
+    pub map_fused_ns: i64,
 }
 
 impl BinLatency {
@@ -128,6 +133,7 @@ impl Message for BinLatency {
             w.i64(t);
         }
         w.string(&self.operating_point);
+        w.i64(self.map_fused_ns);
     }
 
     fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
@@ -161,6 +167,10 @@ impl Message for BinLatency {
         }
         if r.remaining() > 0 {
             l.operating_point = r.string("operating_point")?;
+        }
+        // A version-3 payload ends after the string, before any padding to the stamp.
+        if r.remaining() > 0 {
+            l.map_fused_ns = r.i64("map_fused_ns")?;
         }
         Ok(l)
     }

@@ -76,6 +76,9 @@ pub struct Stamps {
     pub model_end_ns: i64,
     /// Renders of the bin (if any) were done.
     pub render_end_ns: i64,
+    /// The map was fused into the global map and its change journaled (set by the node's
+    /// outputs, never sent to or from a worker process).
+    pub map_fused_ns: i64,
     /// The map was published.
     pub publish_ns: i64,
     /// The progressive pass's stage ends within the model, in `BinLatency`'s order (G_base,

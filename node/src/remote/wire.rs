@@ -341,6 +341,8 @@ fn read_stamps(r: &mut CdrReader<'_>) -> Result<Stamps, WireError> {
         render_end_ns: r.i64("render_end_ns")?,
         publish_ns: r.i64("publish_ns")?,
         stage_end_ns: [0; 5],
+        // Stamped by the node's outputs after the worker is done.
+        map_fused_ns: 0,
     };
     for v in &mut s.stage_end_ns {
         *v = r.i64("stage_end_ns")?;

@@ -1,7 +1,7 @@
 //! Percentiles of the node's per-bin latency ([`BinLatency`] messages), for `monitor`, the
 //! demo's summary and `bench node`.
 //!
-//! Every [`BinLatency`] gives up to ten stage durations (nanoseconds on the node's clock):
+//! Every [`BinLatency`] gives up to twelve stage durations (nanoseconds on the node's clock):
 //!
 //! | stage | from | to |
 //! | --- | --- | --- |
@@ -10,6 +10,8 @@
 //! | `model` | model start | model end |
 //! | `render` | model end | render end |
 //! | `before_close_margin` | map published | bin close |
+//! | `map_fusion` | model end | map fused into the global map and journaled |
+//! | `publish` | map fused | map published |
 //! | `base` | model start | G_base done (progressive pass only, as the next four) |
 //! | `pseudo_render` | G_base done | pseudo views rendered |
 //! | `enhance` | pseudo views rendered | pseudo views enhanced |
@@ -17,6 +19,8 @@
 //! | `fuse` | pseudo pairs done | G_base and G_plus fused |
 //!
 //! A stage is left out for a bin when either of its stamps is 0 (the bin never reached it).
+//! `map_fusion` and `publish` split what the node does with a bin's map before a subscriber
+//! has it; the render runs beside them on the worker.
 //! `before_close_margin` is not a latency but a margin: the bin's first stereo pair goes to
 //! the worker as soon as the bin opens, so its map is normally published before the frame
 //! that closes the bin (8 m later) arrives, and the margin says how long before. A negative
@@ -97,7 +101,7 @@ impl CheckCounts {
 type Stamps = fn(&BinLatency) -> (i64, i64);
 
 /// Names and stamps of the stages, in the order of the module's table.
-const STAGES: [(&str, Stamps); 10] = [
+const STAGES: [(&str, Stamps); 12] = [
     ("arrival_to_publish", |l| {
         (l.first_frame_arrival_ns, l.publish_ns)
     }),
@@ -105,6 +109,8 @@ const STAGES: [(&str, Stamps); 10] = [
     ("model", |l| (l.model_start_ns, l.model_end_ns)),
     ("render", |l| (l.model_end_ns, l.render_end_ns)),
     ("before_close_margin", |l| (l.publish_ns, l.bin_close_ns)),
+    ("map_fusion", |l| (l.model_end_ns, l.map_fused_ns)),
+    ("publish", |l| (l.map_fused_ns, l.publish_ns)),
     ("base", |l| (l.model_start_ns, l.base_end_ns)),
     ("pseudo_render", |l| (l.base_end_ns, l.pseudo_render_end_ns)),
     ("enhance", |l| (l.pseudo_render_end_ns, l.enhance_end_ns)),
@@ -117,7 +123,7 @@ const MARGIN: usize = 4;
 
 /// The stages after this index split the model's time; they are shown only when some bin
 /// had the progressive pass.
-const SPLIT_FROM: usize = 5;
+const SPLIT_FROM: usize = 7;
 
 /// Each stage's duration for one bin in nanoseconds, in [`STAGES`] order, `None` where a
 /// stamp is 0.
@@ -199,11 +205,13 @@ impl LatencyStats {
             model: stage(2),
             render: stage(3),
             before_close_margin: MarginSummary::of(&self.durations[MARGIN]),
-            base: stage(5),
-            pseudo_render: stage(6),
-            enhance: stage(7),
-            plus: stage(8),
-            fuse: stage(9),
+            map_fusion: stage(5),
+            publish: stage(6),
+            base: stage(7),
+            pseudo_render: stage(8),
+            enhance: stage(9),
+            plus: stage(10),
+            fuse: stage(11),
             max_queue_depth: self.max_queue_depth,
             drops: self.last.as_ref().map_or(0, |l| l.drops),
             bad_messages: self.last.as_ref().map_or(0, |l| l.bad_messages),
@@ -285,6 +293,10 @@ pub struct LatencySummary {
     pub render: Option<StageSummary>,
     /// How long before its bin closed each map was published (negative: after).
     pub before_close_margin: Option<MarginSummary>,
+    /// Model end to the map fused into the global map and journaled (tiles paged with it).
+    pub map_fusion: Option<StageSummary>,
+    /// Map fused to map published (the bin's messages put on the network).
+    pub publish: Option<StageSummary>,
     /// The progressive pass's G_base (`null` without the pass, as the next four).
     pub base: Option<StageSummary>,
     /// Rendering the pseudo views.
@@ -351,11 +363,13 @@ impl LatencySummary {
             (STAGES[1].0, self.wait),
             (STAGES[2].0, self.model),
             (STAGES[3].0, self.render),
-            (STAGES[5].0, self.base),
-            (STAGES[6].0, self.pseudo_render),
-            (STAGES[7].0, self.enhance),
-            (STAGES[8].0, self.plus),
-            (STAGES[9].0, self.fuse),
+            (STAGES[5].0, self.map_fusion),
+            (STAGES[6].0, self.publish),
+            (STAGES[7].0, self.base),
+            (STAGES[8].0, self.pseudo_render),
+            (STAGES[9].0, self.enhance),
+            (STAGES[10].0, self.plus),
+            (STAGES[11].0, self.fuse),
         ]
     }
 }
@@ -559,6 +573,8 @@ mod tests {
                 ("model", Some(40.0)),
                 ("render", Some(0.0)),
                 ("before_close_margin", None),
+                ("map_fusion", None),
+                ("publish", None),
             ]
         );
     }
@@ -574,10 +590,14 @@ mod tests {
             l.plus_end_ns,
             l.fuse_end_ns,
         ] = [12, 15, 15, 30, 31].map(|ms| start + ms * MS);
+        // Fused half a millisecond after the model, published half a millisecond later.
+        l.map_fused_ns = l.model_end_ns + MS / 2;
         let stages = bin_stages_ms(&l);
         assert_eq!(
             stages[5..],
             [
+                ("map_fusion", Some(0.5)),
+                ("publish", Some(0.5)),
                 ("base", Some(12.0)),
                 ("pseudo_render", Some(3.0)),
                 ("enhance", Some(0.0)),
@@ -590,9 +610,11 @@ mod tests {
         let s = stats.summary();
         assert_eq!(s.plus.unwrap().p50_ms, 15.0);
         assert!(s.to_string().contains("pseudo_render"));
+        assert_eq!(s.map_fusion.unwrap().p50_ms, 0.5);
+        assert!(s.to_string().contains("map_fusion"));
         // Without the pass those stages are neither listed nor printed.
         let plain = bin(1, 10, 3, 40, 0, 100);
-        assert_eq!(bin_stages_ms(&plain).len(), 5);
+        assert_eq!(bin_stages_ms(&plain).len(), 7);
         let mut stats = LatencyStats::new();
         stats.push(&plain);
         assert!(!stats.summary().to_string().contains("pseudo_render"));

@@ -220,6 +220,7 @@ impl<'a> Outputs<'a> {
                 if let Ok(inc) = &fused {
                     self.journal(inc);
                 }
+                stamps.map_fused_ns = now_ns();
                 let frame = format!("bin_{}", out.bin_id);
                 match cloud_from_gaussians(&set, header(&frame), None) {
                     Ok(cloud) => self.put(keys::BIN_MAP, cloud.encode()).await?,
@@ -538,6 +539,7 @@ impl<'a> Outputs<'a> {
                 enhance_end_ns: s.stage_end_ns[2],
                 plus_end_ns: s.stage_end_ns[3],
                 fuse_end_ns: s.stage_end_ns[4],
+                map_fused_ns: s.map_fused_ns,
                 operating_point: self.point_names.get(point).cloned().unwrap_or_default(),
             };
             self.put(keys::LATENCY, msg.encode()).await?;

@@ -34,16 +34,33 @@ fn every_sample_round_trips_through_cdr() {
     );
     // BinLatency: u64 + 6 i64 + u32 (+4 pad) + 2 u64, then 3 u8 (+1 pad) + u32 + 2 f64,
     // after the 4-byte header; version 2 appends 5 i64, version 3 a string (u32 length,
-    // the 13 bytes of "tiny-scale0.5" and a NUL).
-    let v3 = s.latency.encode();
+    // the 13 bytes of "tiny-scale0.5" and a NUL), version 4 an i64 (after 6 bytes of
+    // padding to its alignment).
+    let v4 = s.latency.encode();
     let point = 4 + 14;
-    assert_eq!(v3.len(), 4 + 8 + 48 + 8 + 16 + 4 + 4 + 16 + 40 + point);
-    // Older payloads (recordings from before the stage split, or before the operating
-    // point) are version 3 cut short: they decode with what they lack empty; a payload
-    // ending inside the appended fields is truncated.
+    let fused = 6 + 8;
+    assert_eq!(
+        v4.len(),
+        4 + 8 + 48 + 8 + 16 + 4 + 4 + 16 + 40 + point + fused
+    );
+    // Older payloads (recordings from before the stage split, the operating point or the
+    // fusion stamp) are version 4 cut short: they decode with what they lack empty; a
+    // payload ending inside the appended fields is truncated.
+    let v3 = v4[..v4.len() - fused].to_vec();
+    let v3_decoded = BinLatency {
+        map_fused_ns: 0,
+        ..s.latency.clone()
+    };
+    assert_eq!(BinLatency::decode(&v3).unwrap(), v3_decoded);
+    for cut in [1, 7, 8, 13] {
+        assert!(
+            BinLatency::decode(&v4[..v4.len() - cut]).is_err(),
+            "cut {cut} of version 4"
+        );
+    }
     let v2 = BinLatency {
         operating_point: String::new(),
-        ..s.latency.clone()
+        ..v3_decoded
     };
     assert_eq!(BinLatency::decode(&v3[..v3.len() - point]).unwrap(), v2);
     let v1 = BinLatency {

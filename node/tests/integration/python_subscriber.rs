@@ -282,6 +282,7 @@ async fn a_python_zenoh_subscriber_decodes_with_rosbags_what_a_rust_subscriber_d
             ("enhance_end_ns", r.enhance_end_ns as i128),
             ("plus_end_ns", r.plus_end_ns as i128),
             ("fuse_end_ns", r.fuse_end_ns as i128),
+            ("map_fused_ns", r.map_fused_ns as i128),
         ];
         for (name, value) in fields {
             assert_eq!(p[name].as_i64().map(i128::from), Some(value), "{name}");

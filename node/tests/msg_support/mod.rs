@@ -105,6 +105,7 @@ pub fn samples() -> Samples {
             plus_end_ns: stamp + 1_240_000_000,
             fuse_end_ns: stamp + 1_245_000_000,
             operating_point: "tiny-scale0.5".into(),
+            map_fused_ns: stamp + 1_262_000_000,
         },
         diagnostics: Diagnostics {
             stamp_ns: -42,

@@ -80,7 +80,7 @@ pub fn latency(m: &BinLatency) -> Value {
            "fallback_score": m.fallback_score, "base_end_ns": m.base_end_ns,
            "pseudo_render_end_ns": m.pseudo_render_end_ns, "enhance_end_ns": m.enhance_end_ns,
            "plus_end_ns": m.plus_end_ns, "fuse_end_ns": m.fuse_end_ns,
-           "operating_point": m.operating_point})
+           "operating_point": m.operating_point, "map_fused_ns": m.map_fused_ns})
 }
 
 /// A `Diagnostics` as its JSON field values.

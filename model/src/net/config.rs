@@ -68,14 +68,6 @@ pub struct Config {
     /// against the correlation's 6, and ignored the cost volume (`results/stereosplat_tiny/`).
     #[serde(default)]
     pub depth_logit_bound: Option<f32>,
-    /// Add a second correlation to the depth head's matching term: the backbone's own 1/4
-    /// features (before the mono encoder's and the transformer's mixing), which a CNN keeps
-    /// local, as stereo matchers do; its weight is learned and starts at zero, so weights
-    /// trained without it load and start unchanged. A candidate for matching that transfers
-    /// from generated streets to real photographs; the shipped weights use
-    /// `census_matching` instead.
-    #[serde(default)]
-    pub backbone_matching: bool,
     /// Add the soft census correlation of the grey images (`census_volume`) to the
     /// depth head's matching term at a learned weight from zero: a cost that a camera's gain,
     /// offset and texture statistics cannot move, so matching that transfers from the
@@ -104,13 +96,11 @@ pub struct Config {
     /// the cells of the first pair where SGM matched consistently, on scenes whose fitted far
     /// end passes `auto_depth_range_max_far` (near scenes only: on the streets SGM is the
     /// weaker matcher, and its hints pull the network off). The same SGM run as
-    /// `auto_depth_range`'s fit, run for this even when the range is not used. `None`: off.
-    /// Training with it set adds each sample's hints, as inference does.
+    /// `auto_depth_range`'s fit, run for this even when the range is not used. The bump's
+    /// width is [`super::guidance::GUIDANCE_WIDTH`]. `None`: off. Training with it set adds
+    /// each sample's hints, as inference does.
     #[serde(default)]
     pub sgm_guidance: Option<f32>,
-    /// With `sgm_guidance`: the bump's standard deviation, in candidates.
-    #[serde(default = "one_f32")]
-    pub sgm_guidance_width: f32,
     /// Channels of the Gaussian heads.
     pub head_channels: usize,
     /// With `sgm_guidance`'s hints present (near scenes): each Gaussian of the first pair
@@ -352,12 +342,10 @@ impl Config {
             pair_fusion_margin: Some(1.0),
             unet_channels: 32,
             depth_logit_bound: Some(4.0),
-            backbone_matching: false,
             census_matching: true,
             auto_depth_range: true,
             auto_depth_range_max_far: Some(50.0),
             sgm_guidance: Some(10.0),
-            sgm_guidance_width: 2.0,
             head_channels: 24,
             sgm_snap: true,
             gaussian_stride: 2,

@@ -24,8 +24,6 @@ const EXTRA_WEIGHT_SCALE: f64 = 10.0;
 /// switches it on.
 #[derive(Clone, Copy, Default)]
 pub struct ExtraCosts<'a> {
-    /// With `backbone_matching`: the backbone's own 1/4 features' correlation.
-    pub backbone: Option<&'a Tensor>,
     /// With `census_matching`: the aggregated census correlation of the grey images.
     pub census: Option<&'a Tensor>,
     /// With `sgm_guidance`: the hints' bumps ([`super::guidance`]), added as they are.
@@ -57,10 +55,8 @@ pub struct DepthHead {
     candidates: Tensor,
     /// The preset's bound on the U-Net's logits.
     logit_bound: Option<f32>,
-    /// With `backbone_matching`: the learned weight of the backbone features' correlation
-    /// in the matching term, over [`EXTRA_WEIGHT_SCALE`] (from 0).
-    backbone_weight: Option<Tensor>,
-    /// With `census_matching`: the same for the census correlation.
+    /// With `census_matching`: the learned weight of the census correlation in the matching
+    /// term, over [`EXTRA_WEIGHT_SCALE`] (from 0).
     census_weight: Option<Tensor>,
 }
 
@@ -96,7 +92,6 @@ impl DepthHead {
             )?,
             candidates: Tensor::from_vec(steps, (1, d, 1, 1), vb.device())?,
             logit_bound: cfg.depth_logit_bound,
-            backbone_weight: extra_weight(&vb, cfg.backbone_matching, "zero_backbone_weight")?,
             census_weight: extra_weight(&vb, cfg.census_matching, "zero_census_weight")?,
         })
     }
@@ -118,14 +113,9 @@ impl DepthHead {
         let x = self.up.forward(&Tensor::cat(&[&up, &x1], 1)?)?;
         let sharpened = cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
         let mut sharpened = sharpened;
-        for (weight, extra) in [
-            (&self.backbone_weight, extra.backbone),
-            (&self.census_weight, extra.census),
-        ] {
-            if let (Some(weight), Some(extra)) = (weight, extra) {
-                let weight = (weight * EXTRA_WEIGHT_SCALE)?.reshape((1, 1, 1, 1))?;
-                sharpened = (sharpened + extra.broadcast_mul(&weight)?)?;
-            }
+        if let (Some(weight), Some(census)) = (&self.census_weight, extra.census) {
+            let weight = (weight * EXTRA_WEIGHT_SCALE)?.reshape((1, 1, 1, 1))?;
+            sharpened = (sharpened + census.broadcast_mul(&weight)?)?;
         }
         if let Some(guidance) = extra.guidance {
             sharpened = (sharpened + guidance)?;
@@ -172,9 +162,9 @@ mod tests {
     use candle_core::{DType, Device, Var};
     use candle_nn::VarMap;
 
-    fn head(backbone_matching: bool) -> (DepthHead, VarMap, Config) {
+    fn head() -> (DepthHead, VarMap, Config) {
         let cfg = Config {
-            backbone_matching,
+            census_matching: true,
             ..Config::tiny()
         };
         let varmap = VarMap::new();
@@ -186,21 +176,21 @@ mod tests {
         let (d, c) = (cfg.candidates, cfg.cost_channels);
         let cost = (Tensor::rand(-1f32, 1.0, (2, d, 4, 8), &Device::Cpu).unwrap() * scale).unwrap();
         let features = Tensor::randn(0f32, 1.0, (2, c, 4, 8), &Device::Cpu).unwrap();
-        let backbone =
+        let census =
             (Tensor::rand(-1f32, 1.0, (2, d, 4, 8), &Device::Cpu).unwrap() * scale).unwrap();
-        (cost, features, backbone)
+        (cost, features, census)
     }
 
     #[test]
-    fn the_backbone_correlation_starts_at_zero_weight() {
-        let (head, _vars, cfg) = head(true);
-        let (cost, features, backbone) = inputs(&cfg, 1.0);
+    fn the_census_correlation_starts_at_zero_weight() {
+        let (head, _vars, cfg) = head();
+        let (cost, features, census) = inputs(&cfg, 1.0);
         let with = head
             .forward(
                 &cost,
                 &features,
                 ExtraCosts {
-                    backbone: Some(&backbone),
+                    census: Some(&census),
                     ..ExtraCosts::default()
                 },
             )
@@ -219,22 +209,22 @@ mod tests {
 
     #[test]
     fn the_matching_term_stays_finite_at_the_extremes() {
-        let (head, varmap, cfg) = head(true);
+        let (head, varmap, cfg) = head();
         for (name, var) in varmap.data().lock().unwrap().iter() {
-            if name.contains("zero_backbone_weight") {
+            if name.contains("zero_census_weight") {
                 var.set(&Tensor::new(&[1e3f32], &Device::Cpu).unwrap())
                     .unwrap();
             }
         }
         for scale in [0.0, 1.0, 1e4] {
-            let (cost, features, backbone) = inputs(&cfg, scale);
-            let backbone = Var::from_tensor(&backbone).unwrap();
+            let (cost, features, census) = inputs(&cfg, scale);
+            let census = Var::from_tensor(&census).unwrap();
             let out = head
                 .forward(
                     &cost,
                     &features,
                     ExtraCosts {
-                        backbone: Some(backbone.as_tensor()),
+                        census: Some(census.as_tensor()),
                         ..ExtraCosts::default()
                     },
                 )
@@ -248,7 +238,7 @@ mod tests {
             );
             let grads = out.inverse.sum_all().unwrap().backward().unwrap();
             let g: Vec<f32> = grads
-                .get(&backbone)
+                .get(&census)
                 .unwrap()
                 .flatten_all()
                 .unwrap()

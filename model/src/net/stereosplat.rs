@@ -18,7 +18,7 @@ use super::depth_head::{peak, DepthHead, ExtraCosts};
 use super::depth_range::{fit_scene, rig_range, DepthRange};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
-use super::guidance::{hint_volume, snap_targets, GuidanceStrength, SgmHints};
+use super::guidance::{hint_volume, snap_targets, GuidanceStrength, SgmHints, GUIDANCE_WIDTH};
 use super::transformer::MultiViewTransformer;
 use super::volume::{BranchInputs, GaussiansPerBranch, VolumeBranch, VolumeOutput};
 use super::Config;
@@ -260,11 +260,6 @@ impl StereoSplat {
         // The plane sweep of every correlation: the network's candidates on the 1/4 grid.
         let sweep = |f: &Tensor| cost_volume(f, cameras, &self.depths, &self.cfg, COST_STRIDE);
         let cost = sweep(&unit_features(&features)?)?;
-        let backbone_cost = self
-            .cfg
-            .backbone_matching
-            .then(|| sweep(&unit_features(&bb.quarter)?))
-            .transpose()?;
         let census_cost = self
             .cfg
             .census_matching
@@ -281,14 +276,13 @@ impl StereoSplat {
                 COST_STRIDE,
                 GuidanceStrength {
                     height,
-                    width: self.cfg.sgm_guidance_width,
+                    width: GUIDANCE_WIDTH,
                 },
                 &self.device,
             )?),
             _ => None,
         };
         let extra = ExtraCosts {
-            backbone: backbone_cost.as_ref(),
             census: census_cost.as_ref(),
             guidance: guidance.as_ref(),
         };

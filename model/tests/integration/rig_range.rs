@@ -43,8 +43,10 @@ fn kitti360s_share_gives_the_trained_metres_on_its_rig_and_presets_keep_metres()
     // A 10 cm desk rig with the same lens reaches 17 cm.
     let desk = rig_range(&[at(0.0), at(0.1)], &cfg).unwrap();
     assert!((desk.near - 0.168).abs() < 2e-3, "{desk:?}");
-    // `tiny`'s candidates follow the rig; `small` has no weights trained for it.
+    // `tiny`'s and `tiny-3d`'s candidates follow the rig; `small` has no weights trained
+    // for it.
     assert_eq!(Config::tiny().rig_disparity_fraction, Some(0.233_181));
+    assert_eq!(Config::tiny_3d().rig_disparity_fraction, Some(0.233_181));
     assert_eq!(rig_range(&pair(640, 0.1), &Config::small()), None);
 }
 

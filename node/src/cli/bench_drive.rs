@@ -11,7 +11,10 @@
 //! every 50 frames, the bytes the checkpoint wrote (journal records and base rewrites, from
 //! the node's counters), the time to restore the final checkpoint and the time to replay a
 //! journal as large as the map (the most a restore can have to replay on top of its base),
-//! and how many of the published bins still have Gaussians in the final map. The goals it is
+//! and how many of the published bins still have Gaussians in the final map. Resident memory
+//! is also sampled every second with whether the journal was being folded into the base
+//! then ([`super::rss_trace`], `rss.csv`), so the drive's memory reads apart from the
+//! compactions' transient. The goals it is
 //! read against are in `docs/long-drives.md`.
 
 use std::path::{Path, PathBuf};
@@ -26,6 +29,7 @@ use serde::Serialize;
 
 use super::bench_node::{with_fields, BenchNodeSettings};
 use super::progress;
+use super::rss_trace::RssTrace;
 use super::stream::{rate_of, seconds_ns};
 use super::synth::cached_sequence;
 use crate::fusion::{AtTornTail, FusionConfig, GlobalMap, JournalWriter, Keep};
@@ -175,12 +179,18 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     let _ = std::fs::remove_dir_all(&map_dir);
     let runtime = tokio::runtime::Runtime::new()?;
     let bar = progress::bar(sequence.frames().len(), "drive");
+    let mut trace = RssTrace::new(map_dir.join(JOURNAL));
+    let mut show = progress::hook(&bar);
+    let mut hook = |done: usize, total: usize| {
+        trace.observe(done);
+        show(done, total);
+    };
     let report = runtime.block_on(run_loopback(
         config,
         &sequence,
         rate_of(args.rate)?,
         Duration::from_secs(30),
-        &mut progress::hook(&bar),
+        &mut hook,
         &mut |_| {},
         |_| {},
     ))?;
@@ -192,6 +202,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     let first = Stretch::of(&rows[..tenth.min(rows.len())]);
     let last = Stretch::of(&rows[rows.len().saturating_sub(tenth)..]);
     write_series(&args.out, &rows)?;
+    trace.write_csv(&args.out.join("rss.csv"))?;
 
     let mib = |b: u64| b as f64 / (1 << 20) as f64;
     // Resident memory after the first minute of driving (600 frames) and its largest after.
@@ -203,6 +214,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         .map(|&(_, b)| b)
         .max();
     let counters = &report.node.counters;
+    let rss_split = trace.split_from(600);
     let journal = counters.get("map/journal_bytes");
     let compacted = counters.get("map/compacted_bytes");
     let bins = report.node.bins_published.max(1);
@@ -237,6 +249,11 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         "rss_after_first_minute_mib": minute.map(|(_, b)| mib(b)),
         "rss_max_after_first_minute_mib": later_max.map(mib),
         "rss_growth_after_first_minute": minute.zip(later_max).map(|((_, a), b)| b as f64 / a as f64),
+        "rss_each_second_after_first_minute": rss_split,
+        "rss_growth_outside_compaction": minute
+            .zip(rss_split.max_outside_compaction_mib)
+            .map(|((_, a), b)| b / mib(a)),
+        "compaction_ms_last": counters.get("map/compaction_ms"),
         "journal_bytes_per_bin": journal / bins,
         "compacted_bytes_per_bin": compacted / bins,
         "written_over_increments": (journal + compacted) as f64 / journal.max(1) as f64,
@@ -249,6 +266,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         "bins_in_final_map": bins_in_map.len(),
         "wall_s": report.wall_s,
         "series": args.out.join("series.csv"),
+        "rss_series": args.out.join("rss.csv"),
         "plot": args.out.join("latency.png"),
     });
     with_fields(&mut out, args.node.report());

@@ -26,6 +26,7 @@ pub mod operating_args;
 pub mod progress;
 pub mod reconstruct;
 pub mod render;
+pub mod rss_trace;
 #[cfg(unix)]
 pub mod scene_source;
 pub mod shader_cache;

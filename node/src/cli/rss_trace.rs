@@ -1,0 +1,170 @@
+//! Resident memory sampled every second of a `bench drive`, each sample marked with whether
+//! the map's journal was being folded into its base then (a compaction: the compactor holds a
+//! second copy of the map in memory for a few seconds), so the drive's memory can be read
+//! apart from that bounded, periodic transient.
+//!
+//! A compaction is seen from the journal's folder: the segment being folded stays there
+//! until the base is rewritten, beside the one the next bins are written to, so two segments
+//! or more mean a compaction is under way. (Between closing a segment and the next bin's
+//! record there is one; those moments, under a bin's length, count as outside.)
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use serde::Serialize;
+
+use crate::fusion::segments;
+use crate::service::loopback::rss_bytes;
+
+/// How often the trace samples.
+const PERIOD: Duration = Duration::from_secs(1);
+
+/// One sample.
+#[derive(Clone, Copy, Debug)]
+pub struct RssSample {
+    /// Seconds since the trace started.
+    pub seconds: f64,
+    /// Frames replayed by then.
+    pub frame: usize,
+    /// The process's resident memory, bytes.
+    pub bytes: u64,
+    /// Whether a compaction was under way.
+    pub compacting: bool,
+}
+
+/// The samples of a drive and the journal folder they watch.
+pub struct RssTrace {
+    journal: PathBuf,
+    start: Instant,
+    last: Option<Instant>,
+    samples: Vec<RssSample>,
+}
+
+/// The largest resident memory from a frame on, outside compactions and during them, MiB.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct RssSplit {
+    /// Largest outside compactions (`None`: no such sample).
+    pub max_outside_compaction_mib: Option<f64>,
+    /// Largest during compactions (`None`: no compaction was sampled).
+    pub max_during_compaction_mib: Option<f64>,
+    /// Samples taken during compactions (about seconds).
+    pub compacting_samples: usize,
+    /// All samples counted.
+    pub samples: usize,
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1 << 20) as f64
+}
+
+impl RssTrace {
+    /// A trace watching the journal folder `journal`.
+    pub fn new(journal: impl Into<PathBuf>) -> Self {
+        Self {
+            journal: journal.into(),
+            start: Instant::now(),
+            last: None,
+            samples: Vec::new(),
+        }
+    }
+
+    /// Takes a sample when a second has passed since the last one; `frame` is the frames
+    /// replayed so far.
+    pub fn observe(&mut self, frame: usize) {
+        let now = Instant::now();
+        if self.last.is_some_and(|t| now.duration_since(t) < PERIOD) {
+            return;
+        }
+        self.last = Some(now);
+        // A folder that cannot be read counts as no compaction: the sample is still kept.
+        let compacting = segments(&self.journal).is_ok_and(|s| s.len() >= 2);
+        self.samples.push(RssSample {
+            seconds: now.duration_since(self.start).as_secs_f64(),
+            frame,
+            bytes: rss_bytes(),
+            compacting,
+        });
+    }
+
+    /// The samples so far, oldest first.
+    pub fn samples(&self) -> &[RssSample] {
+        &self.samples
+    }
+
+    /// The largest resident memory from frame `from` on, apart and during compactions.
+    pub fn split_from(&self, from: usize) -> RssSplit {
+        let later = || self.samples.iter().filter(move |s| s.frame >= from);
+        let max = |compacting: bool| {
+            later()
+                .filter(|s| s.compacting == compacting)
+                .map(|s| s.bytes)
+                .max()
+                .map(mib)
+        };
+        RssSplit {
+            max_outside_compaction_mib: max(false),
+            max_during_compaction_mib: max(true),
+            compacting_samples: later().filter(|s| s.compacting).count(),
+            samples: later().count(),
+        }
+    }
+
+    /// Writes the samples as CSV: seconds, frame, resident MiB, compacting (0 or 1).
+    pub fn write_csv(&self, path: &Path) -> Result<()> {
+        let mut csv = String::from("seconds,frame,rss_mib,compacting\n");
+        for s in &self.samples {
+            csv += &format!(
+                "{:.1},{},{:.1},{}\n",
+                s.seconds,
+                s.frame,
+                mib(s.bytes),
+                u8::from(s.compacting)
+            );
+        }
+        std::fs::write(path, csv)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn two_segments_mark_a_compaction_and_the_split_keeps_them_apart() {
+        let dir = crate::untrusted_input::scratch_dir().join("rss_trace");
+        let _ = std::fs::remove_dir_all(&dir);
+        let journal = dir.join("journal");
+        let mut trace = RssTrace::new(&journal);
+        // No folder yet: not compacting.
+        trace.observe(0);
+        std::fs::create_dir_all(&journal).unwrap();
+        std::fs::write(crate::fusion::segment_path(&journal, 1), b"").unwrap();
+        trace.last = None;
+        trace.observe(10);
+        std::fs::write(crate::fusion::segment_path(&journal, 9), b"").unwrap();
+        trace.last = None;
+        trace.observe(20);
+        // Within a second of the last sample nothing is taken.
+        trace.observe(21);
+        let flags: Vec<bool> = trace.samples().iter().map(|s| s.compacting).collect();
+        assert_eq!(flags, [false, false, true]);
+        assert!(trace.samples().iter().all(|s| s.bytes > 0));
+        let split = trace.split_from(10);
+        assert_eq!((split.samples, split.compacting_samples), (2, 1));
+        assert!(split.max_outside_compaction_mib.unwrap() > 0.0);
+        assert!(split.max_during_compaction_mib.unwrap() > 0.0);
+        // From beyond the last frame: nothing to report, no division anywhere.
+        let none = trace.split_from(usize::MAX);
+        assert_eq!(none.samples, 0);
+        assert!(none.max_outside_compaction_mib.is_none());
+        assert!(none.max_during_compaction_mib.is_none());
+        let csv = dir.join("rss.csv");
+        trace.write_csv(&csv).unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        assert_eq!(text.lines().count(), 4);
+        assert!(text.lines().last().unwrap().ends_with(",1"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

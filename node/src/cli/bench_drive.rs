@@ -7,15 +7,16 @@
 //! worker, the model, the render, and everything from the model's end until the bin is
 //! published (`after_model`), split into the fusion into the global map with its journal
 //! record and paging (`map_fusion`) and the publishing of the bin's messages (`publish`).
-//! The render runs on the worker beside them, so it is not part of `after_model`. Then the process's resident memory
-//! every 50 frames, the bytes the checkpoint wrote (journal records and base rewrites, from
-//! the node's counters), the time to restore the final checkpoint and the time to replay a
-//! journal as large as the map (the most a restore can have to replay on top of its base),
-//! and how many of the published bins still have Gaussians in the final map. Resident memory
-//! is also sampled every second with whether the journal was being folded into the base
-//! then ([`super::rss_trace`], `rss.csv`), so the drive's memory reads apart from the
-//! compactions' transient. The goals it is
-//! read against are in `docs/long-drives.md`.
+//! The render runs on the worker beside them, so it is not part of `after_model`.
+//!
+//! Then the process's resident memory every 50 frames, and every second with whether the
+//! journal was being folded into the base then ([`super::rss_trace`], `rss.csv`), so the
+//! drive's memory reads apart from the compactions' transient; the bytes the checkpoint
+//! wrote (journal records and base rewrites, from the node's counters), the time to restore
+//! the final checkpoint and the time to replay a journal as large as the map (the most a
+//! restore can have to replay on top of its base), and how many of the published bins still
+//! have Gaussians in the final map. The goals it is read against are in
+//! `docs/long-drives.md`.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};

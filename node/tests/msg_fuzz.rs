@@ -40,13 +40,13 @@ fn every_truncation_is_a_typed_error() {
         assert!(decode(&bytes).is_ok(), "{name} decodes whole");
         for len in 0..bytes.len() {
             let err = decode(&bytes[..len]);
-            // BinLatency version 3 cut to exactly version 2 (before its operating point, a
-            // string of 4 + 14 bytes in the sample) or version 1 (40 bytes of stage stamps
-            // earlier) is an older payload.
-            let point = 4 + 14;
-            if name == BinLatency::KIND.ros_name()
-                && [bytes.len() - point, bytes.len() - point - 40].contains(&len)
-            {
+            // BinLatency version 4 cut to exactly version 3 (before its fusion stamp, 8 bytes
+            // after 6 of padding), version 2 (before the operating point, a string of 4 + 14
+            // bytes in the sample) or version 1 (40 bytes of stage stamps earlier) is an
+            // older payload.
+            let v3 = bytes.len() - (6 + 8);
+            let v2 = v3 - (4 + 14);
+            if name == BinLatency::KIND.ros_name() && [v3, v2, v2 - 40].contains(&len) {
                 assert!(err.is_ok(), "{name} cut to an older version decodes");
                 continue;
             }

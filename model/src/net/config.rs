@@ -449,8 +449,8 @@ impl Config {
     /// left out were each chosen on generated validation drives (`SETTING_PRESET=tiny-3d
     /// bash scripts/setting_choices.sh`, `results/setting_choices/tiny-3d/`): desks' AbsRel
     /// 2.01 with candidates in metres, 0.25 from the rig (SGM 0.30), 1.27 with the branch
-    /// on as well; rooms and streets unchanged by either. The script trains in two phases, the second with these
-    /// near-scene settings, and ships the blend 0.15 x first + 0.85 x second
+    /// on as well; rooms and streets unchanged by either. The script trains in two phases,
+    /// the second with these near-scene settings, and ships the blend 0.15 x first + 0.85 x second
     /// (`interpolate-weights`): on the held-out streets (`stereosplat eval --data
     /// data/heldout272 --method stereosplat --preset tiny-3d --stride 5`) the blend beats
     /// both phases' PSNR and AbsRel. On real pairs (`bash scripts/real_pairs.sh --preset

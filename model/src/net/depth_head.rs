@@ -111,8 +111,8 @@ impl DepthHead {
         let x2 = self.bottom.forward(&self.down.forward(&x1)?)?;
         let up = upsample_bilinear(&x2, h, w)?;
         let x = self.up.forward(&Tensor::cat(&[&up, &x1], 1)?)?;
-        let sharpened = cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
-        let mut sharpened = sharpened;
+        let mut sharpened =
+            cost.broadcast_mul(&self.log_temperature.exp()?.reshape((1, 1, 1, 1))?)?;
         if let (Some(weight), Some(census)) = (&self.census_weight, extra.census) {
             let weight = (weight * EXTRA_WEIGHT_SCALE)?.reshape((1, 1, 1, 1))?;
             sharpened = (sharpened + census.broadcast_mul(&weight)?)?;

@@ -257,9 +257,14 @@ impl StereoSplat {
         let features = self
             .project
             .forward(&Tensor::cat(&[&mono, &attended], 1)?)?;
-        // The plane sweep of every correlation: the network's candidates on the 1/4 grid.
-        let sweep = |f: &Tensor| cost_volume(f, cameras, &self.depths, &self.cfg, COST_STRIDE);
-        let cost = sweep(&unit_features(&features)?)?;
+        // The plane sweep: the network's candidates on the 1/4 grid.
+        let cost = cost_volume(
+            &unit_features(&features)?,
+            cameras,
+            &self.depths,
+            &self.cfg,
+            COST_STRIDE,
+        )?;
         let census_cost = self
             .cfg
             .census_matching

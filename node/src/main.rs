@@ -111,6 +111,11 @@ enum BenchCommand {
 }
 
 fn main() -> Result<()> {
+    // First of all, single-threaded: glibc's allocator settings for a long-running node,
+    // which it reads only as a program starts (node::service::memory).
+    if let Some(e) = node::service::memory::restart_with_allocator_tunables() {
+        eprintln!("warning: could not restart with the allocator's settings ({e}); going on with its defaults");
+    }
     // Before any thread or wgpu/Mesa start: a private runtime folder when the environment
     // has none, so Mesa does not print its XDG_RUNTIME_DIR error lines.
     #[cfg(unix)]

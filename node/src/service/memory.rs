@@ -7,6 +7,12 @@
 //! (`malloc_trim`), and a [`Releaser`] does so every few seconds on its own thread, off the
 //! publish path (`docs/long-drives.md` has the measurement). On other allocators both do
 //! nothing.
+//!
+//! The `stereosplat` binary also runs with [`ALLOCATOR_TUNABLES`]: blocks of 4 MiB and more
+//! (a bin's tensors, a snapshot, a compaction's copy of the map) are mapped on their own and
+//! returned to the system when freed, on transparent huge pages. glibc reads these settings
+//! only as a program starts, from `GLIBC_TUNABLES`, so the binary restarts itself once with
+//! them ([`restart_with_allocator_tunables`]).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
@@ -22,6 +28,83 @@ pub fn release_freed_memory() {
     // no pointer and is thread-safe.
     unsafe {
         libc::malloc_trim(0);
+    }
+}
+
+/// glibc's allocator settings the `stereosplat` binary runs with: blocks of 4 MiB and more
+/// mapped on their own, so freeing one returns it to the system at once (glibc otherwise
+/// raises this threshold to the largest block ever freed and keeps such blocks in its
+/// heaps); the top of the heap given back only past 32 MiB free, so a bin's transients do
+/// not grow and shrink it every time; transparent huge pages for both, which makes mapping
+/// a fresh block cost one page fault per 2 MiB instead of one per 4 KiB. Without the huge
+/// pages the first two cost the model 4% of its time, with them nothing measurable
+/// (`docs/long-drives.md`). A glibc without one of them ignores it.
+pub const ALLOCATOR_TUNABLES: &str = "glibc.malloc.mmap_threshold=4194304:\
+glibc.malloc.trim_threshold=33554432:glibc.malloc.hugetlb=1";
+
+/// The environment variable glibc reads its tunables from.
+const TUNABLES_VAR: &str = "GLIBC_TUNABLES";
+/// Set on the restarted program, so it knows `GLIBC_TUNABLES` is its own.
+const RESTARTED_VAR: &str = "STEREOSPLAT_ALLOCATOR_RESTARTED";
+
+/// What the program does at start about [`ALLOCATOR_TUNABLES`], given whether
+/// `GLIBC_TUNABLES` and the restart's marker are set.
+#[derive(Debug, PartialEq, Eq)]
+enum AtStart {
+    /// Unset: restart under the tunables.
+    Restart,
+    /// Restarted: clear both variables, so programs it starts (a launch's nodes) restart
+    /// with the whole string themselves (glibc cuts the variable it read at its first `:`).
+    Clear,
+    /// Set by the user (even empty): their choice, kept.
+    Keep,
+}
+
+fn at_start(tunables_set: bool, restarted: bool) -> AtStart {
+    match (tunables_set, restarted) {
+        (_, true) => AtStart::Clear,
+        (false, false) => AtStart::Restart,
+        (true, false) => AtStart::Keep,
+    }
+}
+
+/// Replaces the running program (`exec`, same arguments) with itself under
+/// [`ALLOCATOR_TUNABLES`] when `GLIBC_TUNABLES` is unset; call it first thing in `main`,
+/// before any thread starts. Returns `None` when no restart was wanted (the variable is set,
+/// or the allocator is not glibc's), or the error of a restart that failed: the program
+/// then goes on with the allocator's defaults. Set `GLIBC_TUNABLES` (empty for glibc's
+/// defaults) to keep your own.
+pub fn restart_with_allocator_tunables() -> Option<std::io::Error> {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        use std::os::unix::process::CommandExt;
+        let set = |name| std::env::var_os(name).is_some();
+        match at_start(set(TUNABLES_VAR), set(RESTARTED_VAR)) {
+            AtStart::Keep => None,
+            AtStart::Clear => {
+                // Single-threaded at this point (the caller's contract).
+                std::env::remove_var(TUNABLES_VAR);
+                std::env::remove_var(RESTARTED_VAR);
+                None
+            }
+            AtStart::Restart => {
+                let mut args = std::env::args_os();
+                let arg0 = args.next().unwrap_or_default();
+                // `/proc/self/exe` is this very binary, even if its file was replaced since.
+                let err = std::process::Command::new("/proc/self/exe")
+                    .arg0(arg0)
+                    .args(args)
+                    .env(TUNABLES_VAR, ALLOCATOR_TUNABLES)
+                    .env(RESTARTED_VAR, "1")
+                    .exec();
+                Some(err)
+            }
+        }
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        let _ = (TUNABLES_VAR, RESTARTED_VAR, at_start);
+        None
     }
 }
 
@@ -136,6 +219,20 @@ mod tests {
         }
         assert!(count(&r, "memory/release_ms_max") < 30_000);
         drop(r);
+    }
+
+    #[test]
+    fn the_program_restarts_only_when_the_user_set_no_tunables() {
+        assert_eq!(at_start(false, false), AtStart::Restart);
+        assert_eq!(at_start(true, false), AtStart::Keep);
+        assert_eq!(at_start(true, true), AtStart::Clear);
+        // A marker without the tunables (a user's copy of the environment) restarts nothing.
+        assert_eq!(at_start(false, true), AtStart::Clear);
+        // One tunable string glibc can read: names separated by ':', no spaces.
+        assert!(ALLOCATOR_TUNABLES
+            .split(':')
+            .all(|t| t.starts_with("glibc.malloc.") && t.split('=').count() == 2));
+        assert!(!ALLOCATOR_TUNABLES.contains(char::is_whitespace));
     }
 
     #[test]

@@ -9,7 +9,8 @@
 //! on `diagnostics`, and frames lost before the binner in the synchroniser's counters or not
 //! taken by zenoh); afterwards the drive replayed at 1x gives every one of its bins (the jump
 //! back in time resets the synchroniser), each with arrival-to-publish under a generous guard.
-//! The figures are printed.
+//! The node restarts itself under the allocator's settings (`node::service::memory`) unless
+//! the test was given `GLIBC_TUNABLES`. The figures are printed.
 
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
@@ -82,6 +83,17 @@ impl NodeProcess {
                 * 1024
         };
         (kib("VmRSS:"), kib("VmHWM:"))
+    }
+
+    /// Whether the process restarted itself under the allocator's settings
+    /// (`node::service::memory::ALLOCATOR_TUNABLES`): its starting environment (what
+    /// `/proc/PID/environ` shows) holds the restart's marker.
+    fn restarted_with_allocator_settings(&self) -> bool {
+        let environ =
+            std::fs::read(format!("/proc/{}/environ", self.child.id())).expect("/proc/PID/environ");
+        environ
+            .split(|&b| b == 0)
+            .any(|v| v == b"STEREOSPLAT_ALLOCATOR_RESTARTED=1")
     }
 
     /// SIGTERM, then the JSON summary it prints on stdout.
@@ -194,6 +206,12 @@ async fn twenty_times_the_frame_rate_keeps_memory_bounded_and_the_node_recovers(
     let (samples, _subs) = listen(&session, &keys).await;
     tokio::time::sleep(Duration::from_secs(1)).await;
     let (rss_start, _) = node.memory();
+    // A node started without GLIBC_TUNABLES runs with the allocator's settings; one given
+    // the variable keeps it.
+    assert_eq!(
+        node.restarted_with_allocator_settings(),
+        std::env::var_os("GLIBC_TUNABLES").is_none()
+    );
 
     // The overload: frame k of the loop stamped k x 100 ms, put every 5 ms.
     let infos = |t: i64| {

@@ -13,11 +13,14 @@
 # most the start's + 0.005 (the streets may not pay for the near scenes).
 # Writes OUT_DIR/README.md and scores.json.
 #   bash scripts/choose_checkpoint.sh RUN_DIR INIT_WEIGHTS [OUT_DIR]
+# PRESET (default tiny) scores another preset's settings; CANDIDATES ("NAME|FILE ...")
+# scores those files instead of the run's kept checkpoints (the starting weights are always
+# scored and may be chosen), e.g. the blends of scripts/train_tiny_3d.sh.
 # Builds the release binary unless STEREOSPLAT_BIN names one; the validation drives go to
 # data/validation_choice, the runs to RUN_DIR/choice_runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-run="$1" init="$2" out="${3:-$1/choice}" every="${EVERY:-300}"
+run="$1" init="$2" out="${3:-$1/choice}" every="${EVERY:-300}" preset="${PRESET:-tiny}"
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 [ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --quiet --bin stereosplat
 data=data/validation_choice
@@ -30,10 +33,15 @@ for seed in 2000300 2000301; do
 done
 mkdir -p "$out" "$run/choice_runs"
 weights=("start|$init")
-for f in $(ls "$run"/kept/step_*.safetensors 2>/dev/null | sort -V); do
-  step=${f##*step_}; step=${step%.safetensors}
-  if ((step % every == 0)); then weights+=("$step|$f"); fi
-done
+if [ -n "${CANDIDATES:-}" ]; then
+  read -r -a listed <<<"$CANDIDATES"
+  weights+=("${listed[@]}")
+else
+  for f in $(ls "$run"/kept/step_*.safetensors 2>/dev/null | sort -V); do
+    step=${f##*step_}; step=${step%.safetensors}
+    if ((step % every == 0)); then weights+=("$step|$f"); fi
+  done
+fi
 # kind, bin length (m), stride
 for row in "desk 0.1 1" "room 0.5 1" "street 8 5" "plain 8 5"; do
   read -r kind bin_length stride <<<"$row"
@@ -42,15 +50,15 @@ for row in "desk 0.1 1" "room 0.5 1" "street 8 5" "plain 8 5"; do
     for root in "$data/${kind}_"*; do
       dir="$run/choice_runs/$kind-$name/$(basename "$root")"
       [ -f "$dir/eval.json" ] && continue
-      "$bin" eval --data "$root" --method stereosplat --weights "$file" \
+      "$bin" eval --data "$root" --method stereosplat --preset "$preset" --weights "$file" \
         --bin-length "$bin_length" --stride "$stride" --max-bins 6 --pictures 0 --no-lpips \
         --out "$dir" >/dev/null
     done
   done
 done
-python3 - "$run/choice_runs" "$out" "${weights[@]}" <<'PY'
+python3 - "$run/choice_runs" "$out" "$preset" "${weights[@]}" <<'PY'
 import json, pathlib, sys
-runs, out, weights = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]), sys.argv[3:]
+runs, out, preset, weights = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]), sys.argv[3], sys.argv[4:]
 kinds = ["desk", "room", "street"]
 guards = ["street", "plain"]
 def parts(kind, name):
@@ -84,8 +92,8 @@ lines = [
     "",
     "Made by `bash scripts/choose_checkpoint.sh`: 2 validation sequences per kind (seeds",
     "2,000,000 and 2,000,001, randomised rigs at the node's working size, 544x112; plain:",
-    "streets on KITTI-360's rig at 272x72, seeds 2,000,300 and 2,000,301), the `tiny`",
-    "preset's settings, at most 6 bins per sequence. Each cell: bin-average PSNR /",
+    "streets on KITTI-360's rig at 272x72, seeds 2,000,300 and 2,000,301), the",
+    f"`{preset}` preset's settings, at most 6 bins per sequence. Each cell: bin-average PSNR /",
     "AbsRel of the rendered depth against the generator's LiDAR (frame-weighted over the",
     "kind's sequences). The rule, fixed before any checkpoint was scored: the lowest sum",
     "over the three kinds of AbsRel relative to the starting weights' (per kind, each",

@@ -13,8 +13,11 @@
 #    mix are fitted, hinted and run without the volume branch as real rooms are at inference
 #    (the first phase's cost-volume Gaussians, trained beside the branch, left a quarter of a
 #    room uncovered). About 70 min on a 2-core machine shared with other work.
-# 3. The shipped file: the point 0.85 of the way from the first phase's weights to the
-#    second's, tensor by tensor (`stereosplat interpolate-weights`), written to model/weights/.
+# 3. The shipped file: a point on the straight line from the first phase's weights to the
+#    second's, tensor by tensor (`stereosplat interpolate-weights`, t = 0.25, 0.5, 0.75,
+#    0.85 and 0.9, and the two ends), chosen on generated validation drives by the rule of
+#    scripts/choose_checkpoint.sh with the preset's settings (never on real pairs or the
+#    held-out drives; runs/tiny_3d/blends/choice/README.md), written to model/weights/.
 # Resumable: run it again after any interruption; a finished phase is skipped.
 #   bash scripts/train_tiny_3d.sh
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
@@ -41,7 +44,22 @@ if [ -f "$near_run/checkpoint/state.json" ]; then
 else
   "$bin" train "${near[@]}" --init "$first/stereosplat_tiny.safetensors"
 fi
-"$bin" interpolate-weights --from "$first/stereosplat_tiny.safetensors" \
-  --to "$near_run/stereosplat_tiny-3d.safetensors" --t 0.85 \
-  --out model/weights/stereosplat_tiny-3d.safetensors
-echo "weights: model/weights/stereosplat_tiny-3d.safetensors"
+blends=runs/tiny_3d/blends
+mkdir -p "$blends"
+candidates=("t1|$near_run/stereosplat_tiny-3d.safetensors")
+for t in 0.25 0.5 0.75 0.85 0.9; do
+  file="$blends/t$t.safetensors"
+  [ -f "$file" ] || "$bin" interpolate-weights --from "$first/stereosplat_tiny.safetensors" \
+    --to "$near_run/stereosplat_tiny-3d.safetensors" --t "$t" --out "$file"
+  candidates+=("t$t|$file")
+done
+PRESET=tiny-3d CANDIDATES="${candidates[*]}" bash scripts/choose_checkpoint.sh "$blends" \
+  "$first/stereosplat_tiny.safetensors"
+chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
+  "$blends/choice/scores.json")
+case "$chosen" in
+  start) cp "$first/stereosplat_tiny.safetensors" model/weights/stereosplat_tiny-3d.safetensors ;;
+  t1) cp "$near_run/stereosplat_tiny-3d.safetensors" model/weights/stereosplat_tiny-3d.safetensors ;;
+  *) cp "$blends/$chosen.safetensors" model/weights/stereosplat_tiny-3d.safetensors ;;
+esac
+echo "weights: model/weights/stereosplat_tiny-3d.safetensors ($chosen; start: the first phase, t1: the near phase)"

@@ -5,8 +5,10 @@
 //!
 //! A compaction is seen from the journal's folder: the segment being folded stays there
 //! until the base is rewritten, beside the one the next bins are written to, so two segments
-//! or more mean a compaction is under way. (Between closing a segment and the next bin's
-//! record there is one; those moments, under a bin's length, count as outside.)
+//! or more mean a compaction is under way; and the oldest segment changing since the last
+//! sample means one ended within that second (it may have begun and ended between two
+//! samples). (Between closing a segment and the next bin's record there is one; those
+//! moments, under a bin's length, count as outside.)
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -38,6 +40,8 @@ pub struct RssTrace {
     journal: PathBuf,
     start: Instant,
     last: Option<Instant>,
+    /// The oldest segment at the last sample.
+    oldest: Option<PathBuf>,
     samples: Vec<RssSample>,
 }
 
@@ -65,6 +69,7 @@ impl RssTrace {
             journal: journal.into(),
             start: Instant::now(),
             last: None,
+            oldest: None,
             samples: Vec::new(),
         }
     }
@@ -78,7 +83,11 @@ impl RssTrace {
         }
         self.last = Some(now);
         // A folder that cannot be read counts as no compaction: the sample is still kept.
-        let compacting = segments(&self.journal).is_ok_and(|s| s.len() >= 2);
+        let now_segments = segments(&self.journal).unwrap_or_default();
+        let oldest = now_segments.first().cloned();
+        let folded = self.oldest.is_some() && oldest != self.oldest;
+        let compacting = now_segments.len() >= 2 || folded;
+        self.oldest = oldest;
         self.samples.push(RssSample {
             seconds: now.duration_since(self.start).as_secs_f64(),
             frame,
@@ -148,11 +157,18 @@ mod tests {
         trace.observe(20);
         // Within a second of the last sample nothing is taken.
         trace.observe(21);
+        // The folded segment removed: a compaction ended within the last second.
+        std::fs::remove_file(crate::fusion::segment_path(&journal, 1)).unwrap();
+        trace.last = None;
+        trace.observe(30);
+        // The same segment alone again: outside.
+        trace.last = None;
+        trace.observe(40);
         let flags: Vec<bool> = trace.samples().iter().map(|s| s.compacting).collect();
-        assert_eq!(flags, [false, false, true]);
+        assert_eq!(flags, [false, false, true, true, false]);
         assert!(trace.samples().iter().all(|s| s.bytes > 0));
         let split = trace.split_from(10);
-        assert_eq!((split.samples, split.compacting_samples), (2, 1));
+        assert_eq!((split.samples, split.compacting_samples), (4, 2));
         assert!(split.max_outside_compaction_mib.unwrap() > 0.0);
         assert!(split.max_during_compaction_mib.unwrap() > 0.0);
         // From beyond the last frame: nothing to report, no division anywhere.
@@ -163,8 +179,9 @@ mod tests {
         let csv = dir.join("rss.csv");
         trace.write_csv(&csv).unwrap();
         let text = std::fs::read_to_string(&csv).unwrap();
-        assert_eq!(text.lines().count(), 4);
-        assert!(text.lines().last().unwrap().ends_with(",1"));
+        assert_eq!(text.lines().count(), 6);
+        assert!(text.lines().nth(3).unwrap().ends_with(",1"));
+        assert!(text.lines().last().unwrap().ends_with(",0"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

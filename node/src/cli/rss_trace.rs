@@ -7,8 +7,9 @@
 //! until the base is rewritten, beside the one the next bins are written to, so two segments
 //! or more mean a compaction is under way; and the oldest segment changing since the last
 //! sample means one ended within that second (it may have begun and ended between two
-//! samples). (Between closing a segment and the next bin's record there is one; those
-//! moments, under a bin's length, count as outside.)
+//! samples). The folder shows a compaction up to a bin late: the closed segment stays alone
+//! until the next bin's record opens the next one, while the compactor has already begun
+//! reading the base. So the sample before the first that shows one counts as in it too.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -88,6 +89,11 @@ impl RssTrace {
         let folded = self.oldest.is_some() && oldest != self.oldest;
         let compacting = now_segments.len() >= 2 || folded;
         self.oldest = oldest;
+        if compacting {
+            if let Some(before) = self.samples.last_mut() {
+                before.compacting = true;
+            }
+        }
         self.samples.push(RssSample {
             seconds: now.duration_since(self.start).as_secs_f64(),
             frame,
@@ -141,7 +147,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn two_segments_mark_a_compaction_and_the_split_keeps_them_apart() {
+    fn a_compaction_is_marked_from_the_sample_before_it_shows_to_its_fold() {
         let dir = crate::untrusted_input::scratch_dir().join("rss_trace");
         let _ = std::fs::remove_dir_all(&dir);
         let journal = dir.join("journal");
@@ -165,10 +171,11 @@ mod tests {
         trace.last = None;
         trace.observe(40);
         let flags: Vec<bool> = trace.samples().iter().map(|s| s.compacting).collect();
-        assert_eq!(flags, [false, false, true, true, false]);
+        // The sample before the first that showed it counts as in the compaction.
+        assert_eq!(flags, [false, true, true, true, false]);
         assert!(trace.samples().iter().all(|s| s.bytes > 0));
         let split = trace.split_from(10);
-        assert_eq!((split.samples, split.compacting_samples), (4, 2));
+        assert_eq!((split.samples, split.compacting_samples), (4, 3));
         assert!(split.max_outside_compaction_mib.unwrap() > 0.0);
         assert!(split.max_during_compaction_mib.unwrap() > 0.0);
         // From beyond the last frame: nothing to report, no division anywhere.
@@ -180,7 +187,7 @@ mod tests {
         trace.write_csv(&csv).unwrap();
         let text = std::fs::read_to_string(&csv).unwrap();
         assert_eq!(text.lines().count(), 6);
-        assert!(text.lines().nth(3).unwrap().ends_with(",1"));
+        assert!(text.lines().nth(2).unwrap().ends_with(",1"));
         assert!(text.lines().last().unwrap().ends_with(",0"));
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -57,9 +57,7 @@ PRESET=tiny-3d CANDIDATES="${candidates[*]}" bash scripts/choose_checkpoint.sh "
   "$first/stereosplat_tiny.safetensors"
 chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
   "$blends/choice/scores.json")
-case "$chosen" in
-  start) cp "$first/stereosplat_tiny.safetensors" model/weights/stereosplat_tiny-3d.safetensors ;;
-  t1) cp "$near_run/stereosplat_tiny-3d.safetensors" model/weights/stereosplat_tiny-3d.safetensors ;;
-  *) cp "$blends/$chosen.safetensors" model/weights/stereosplat_tiny-3d.safetensors ;;
-esac
+for c in "start|$first/stereosplat_tiny.safetensors" "${candidates[@]}"; do
+  [ "${c%%|*}" = "$chosen" ] && cp "${c#*|}" model/weights/stereosplat_tiny-3d.safetensors
+done
 echo "weights: model/weights/stereosplat_tiny-3d.safetensors ($chosen; start: the first phase, t1: the near phase)"

@@ -58,6 +58,6 @@ PRESET=tiny-3d CANDIDATES="${candidates[*]}" bash scripts/choose_checkpoint.sh "
 chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
   "$blends/choice/scores.json")
 for c in "start|$first/stereosplat_tiny.safetensors" "${candidates[@]}"; do
-  [ "${c%%|*}" = "$chosen" ] && cp "${c#*|}" model/weights/stereosplat_tiny-3d.safetensors
+  if [ "${c%%|*}" = "$chosen" ]; then cp "${c#*|}" model/weights/stereosplat_tiny-3d.safetensors; fi
 done
 echo "weights: model/weights/stereosplat_tiny-3d.safetensors ($chosen; start: the first phase, t1: the near phase)"

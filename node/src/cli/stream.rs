@@ -136,7 +136,9 @@ pub struct RunArgs {
     tile_m: f64,
     /// Return the memory the allocator keeps after it is freed to the system every this
     /// many seconds, with its arenas capped at one per core, so resident memory follows the
-    /// map in memory on a long drive (0: neither). docs/long-drives.md
+    /// map in memory on a long drive (0: neither). The binary also runs under allocator
+    /// settings of its own unless GLIBC_TUNABLES is set (empty: glibc's defaults).
+    /// docs/long-drives.md
     #[arg(long, default_value_t = 5.0)]
     release_memory_every_s: f64,
     /// Rasterizer of the per-bin renders (input view and bird's-eye view); `off` for none.

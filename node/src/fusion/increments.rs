@@ -59,14 +59,14 @@ pub struct Snapshot {
 }
 
 impl Snapshot {
-    /// The snapshot of an id-ordered store.
-    pub(super) fn of(
-        gaussians: &BTreeMap<GaussianId, WorldGaussian>,
+    /// The snapshot of an id-ordered store's entries.
+    pub(super) fn of<'a>(
+        gaussians: impl Iterator<Item = (&'a GaussianId, &'a WorldGaussian)>,
         last_bin_id: Option<u64>,
     ) -> Self {
         Self {
             last_bin_id,
-            gaussians: gaussians.iter().map(|(&id, g)| (id, *g)).collect(),
+            gaussians: gaussians.map(|(&id, g)| (id, *g)).collect(),
         }
     }
 }
@@ -158,6 +158,6 @@ impl MapReplica {
 
     /// Everything held, as a snapshot.
     pub fn snapshot(&self) -> Snapshot {
-        Snapshot::of(&self.gaussians, self.last_bin_id)
+        Snapshot::of(self.gaussians.iter(), self.last_bin_id)
     }
 }

@@ -35,6 +35,7 @@ mod wire;
 
 use std::collections::BTreeMap;
 
+use imbl::OrdMap;
 use rustc_hash::FxHashMap as HashMap;
 
 use glam::{DAffine3, DMat3, DQuat, DVec2, DVec3, Quat, Vec3};
@@ -246,10 +247,15 @@ pub fn pose_problem(pose: &DAffine3) -> Option<&'static str> {
 
 /// The fused world map: Gaussians by id plus the cell hash that the fusion rule and the
 /// budget act on.
+///
+/// The Gaussians live in a persistent ordered map ([`imbl::OrdMap`]): a copy of the stored
+/// parts ([`GlobalMap::stored`]) shares them, so the node hands the map to its compactor
+/// without copying it, and the map then copies only the tree nodes it changes while the copy
+/// is alive.
 #[derive(Clone, Debug)]
 pub struct GlobalMap {
     config: FusionConfig,
-    gaussians: BTreeMap<GaussianId, WorldGaussian>,
+    gaussians: OrdMap<GaussianId, WorldGaussian>,
     cells: CellIndex,
     paged: BTreeMap<TileKey, PagedTile>,
     next_id: u64,
@@ -265,7 +271,7 @@ impl GlobalMap {
         config.validate()?;
         Ok(Self {
             config,
-            gaussians: BTreeMap::new(),
+            gaussians: OrdMap::new(),
             cells: CellIndex::new(config.cell_size),
             paged: BTreeMap::new(),
             next_id: 0,
@@ -350,7 +356,7 @@ impl GlobalMap {
 
     /// Everything in the map, sorted by id: what a late subscriber starts from.
     pub fn snapshot(&self) -> Snapshot {
-        Snapshot::of(&self.gaussians, self.last_bin_id)
+        Snapshot::of(self.gaussians.iter(), self.last_bin_id)
     }
 
     /// Fuses one bin map (`set` in the bin's frame, `bin_to_world` its pose) into the map by
@@ -515,11 +521,26 @@ impl GlobalMap {
         evicted
     }
 
+    /// A copy of the parts the map's file stores, for writing it elsewhere (the compactor's
+    /// thread): O(1) in the map's size, since it shares the Gaussians with the map.
+    pub fn stored(&self) -> StoredMap {
+        StoredMap {
+            config: self.config,
+            gaussians: self.gaussians.clone(),
+            paged: self.paged.clone(),
+            next_id: self.next_id,
+            last_bin_id: self.last_bin_id,
+            latest_origin: self.latest_origin,
+            increments: self.increments,
+            epoch: self.epoch,
+        }
+    }
+
     /// Rebuilds a map from stored parts (the cells follow from the positions); used by
     /// restore after the parts were checked.
-    fn from_parts(parts: Stored) -> Self {
+    fn from_parts(parts: StoredMap) -> Self {
         let mut cells = CellIndex::new(parts.config.cell_size);
-        for (&id, g) in &parts.gaussians {
+        for (&id, g) in parts.gaussians.iter() {
             let key = cell_of(g.position, parts.config.cell_size);
             cells.push(key, id, g.confidence);
         }
@@ -537,10 +558,13 @@ impl GlobalMap {
     }
 }
 
-/// The parts of a map a file stores (everything but the cell hash, which follows).
-struct Stored {
+/// The parts of a map its file stores (everything but the cell hash, which follows from
+/// the positions). Taken from a live map ([`GlobalMap::stored`]) it shares the map's
+/// Gaussians, so it costs O(1) to take and can be written while the map goes on changing.
+#[derive(Clone, Debug)]
+pub struct StoredMap {
     config: FusionConfig,
-    gaussians: BTreeMap<GaussianId, WorldGaussian>,
+    gaussians: OrdMap<GaussianId, WorldGaussian>,
     paged: BTreeMap<TileKey, PagedTile>,
     next_id: u64,
     last_bin_id: Option<u64>,

@@ -20,8 +20,11 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Quat, Vec3};
+use imbl::OrdMap;
 
-use super::{FusionConfig, GaussianId, GlobalMap, Keep, PagedTile, Stored, WorldGaussian};
+use super::{
+    FusionConfig, GaussianId, GlobalMap, Keep, PagedTile, StoredMap, TileKey, WorldGaussian,
+};
 
 const MAGIC: &[u8; 8] = b"SSGMAP\0\n";
 const VERSION: u32 = 4;
@@ -104,6 +107,56 @@ fn fnv1a_from(h: u64, bytes: &[u8]) -> u64 {
 impl GlobalMap {
     /// The map in the file format described in the module doc.
     pub fn to_bytes(&self) -> Vec<u8> {
+        self.stored().to_bytes()
+    }
+
+    /// Writes the map in the file format into `w` ([`StoredMap::write_to`]); returns the
+    /// bytes written.
+    pub fn write_to(&self, w: &mut impl Write) -> std::io::Result<u64> {
+        self.stored().write_to(w)
+    }
+
+    /// The size of the map's file ([`GlobalMap::to_bytes`]) in bytes, without writing it.
+    pub fn stored_bytes(&self) -> u64 {
+        file_bytes(self.paged.len(), self.len())
+    }
+
+    /// Writes the map to `path` atomically ([`StoredMap::save`]); returns the bytes written.
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<u64, StoreError> {
+        self.stored().save(path)
+    }
+
+    /// Reads a map written by [`GlobalMap::save`].
+    pub fn load(path: impl AsRef<Path>) -> Result<GlobalMap, StoreError> {
+        let path = path.as_ref();
+        // The file's bytes are dropped before the map's cell index is built, so a load
+        // holds at most the file and the Gaussians at once, not the whole map beside them.
+        let stored = {
+            let bytes = std::fs::read(path).map_err(|source| StoreError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            parse(&bytes, path)?
+        };
+        Ok(GlobalMap::from_parts(stored))
+    }
+
+    /// Parses the file format; `path` only names the source in errors.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<GlobalMap, StoreError> {
+        parse(bytes, path).map(GlobalMap::from_parts)
+    }
+}
+
+/// The size in bytes of a map file with `paged` paged-out tiles and `gaussians` records:
+/// the header (122 bytes with the tile count), 32 bytes per paged tile, the records and the
+/// checksum (8).
+fn file_bytes(paged: usize, gaussians: usize) -> u64 {
+    130 + 32 * paged as u64 + (gaussians * RECORD_BYTES) as u64
+}
+
+impl StoredMap {
+    /// The map in the file format described in the module doc.
+    pub fn to_bytes(&self) -> Vec<u8> {
         let mut b = Vec::with_capacity(self.stored_bytes() as usize);
         self.write_to(&mut b)
             .expect("writing into a Vec cannot fail");
@@ -139,7 +192,7 @@ impl GlobalMap {
                 b.extend_from_slice(&v.to_le_bytes());
             }
         }
-        b.extend_from_slice(&(self.len() as u64).to_le_bytes());
+        b.extend_from_slice(&(self.gaussians.len() as u64).to_le_bytes());
         let mut sum = FNV_START;
         let mut written = 0u64;
         let mut flush = |b: &mut Vec<u8>, sum: &mut u64| -> std::io::Result<()> {
@@ -149,7 +202,7 @@ impl GlobalMap {
             b.clear();
             Ok(())
         };
-        for (id, g) in self.gaussians() {
+        for (&id, g) in self.gaussians.iter() {
             put_gaussian(&mut b, id, g);
             if b.len() >= WRITE_CHUNK * RECORD_BYTES {
                 flush(&mut b, &mut sum)?;
@@ -160,11 +213,19 @@ impl GlobalMap {
         Ok(written + 8)
     }
 
-    /// The size of the map's file ([`GlobalMap::to_bytes`]) in bytes, without writing it.
+    /// The size of the map's file ([`StoredMap::to_bytes`]) in bytes, without writing it.
     pub fn stored_bytes(&self) -> u64 {
-        // Header (122 bytes with the tile count), paged tiles (32 each) and checksum (8)
-        // besides the records.
-        130 + 32 * self.paged.len() as u64 + (self.len() * RECORD_BYTES) as u64
+        file_bytes(self.paged.len(), self.gaussians.len())
+    }
+
+    /// The tiles the map has paged out, with their file versions and counts.
+    pub fn paged_tiles(&self) -> &BTreeMap<TileKey, PagedTile> {
+        &self.paged
+    }
+
+    /// The sequence number of the map's last increment.
+    pub fn increments(&self) -> u64 {
+        self.increments
     }
 
     /// Writes the map to `path` atomically (see the module doc): a crash at any moment
@@ -182,31 +243,11 @@ impl GlobalMap {
         })?;
         Ok(written)
     }
-
-    /// Reads a map written by [`GlobalMap::save`].
-    pub fn load(path: impl AsRef<Path>) -> Result<GlobalMap, StoreError> {
-        let path = path.as_ref();
-        // The file's bytes are dropped before the map's cell index is built, so a load
-        // holds at most the file and the Gaussians at once, not the whole map beside them.
-        let stored = {
-            let bytes = std::fs::read(path).map_err(|source| StoreError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?;
-            parse(&bytes, path)?
-        };
-        Ok(GlobalMap::from_parts(stored))
-    }
-
-    /// Parses the file format; `path` only names the source in errors.
-    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<GlobalMap, StoreError> {
-        parse(bytes, path).map(GlobalMap::from_parts)
-    }
 }
 
 /// The stored parts of a map in the file format (the module doc); `path` only names the
 /// source in errors.
-fn parse(bytes: &[u8], path: &Path) -> Result<Stored, StoreError> {
+fn parse(bytes: &[u8], path: &Path) -> Result<StoredMap, StoreError> {
     let mut r = Reader {
         bytes,
         pos: 0,
@@ -290,7 +331,7 @@ fn parse(bytes: &[u8], path: &Path) -> Result<Stored, StoreError> {
     if count.checked_mul(RECORD_BYTES as u64) != Some(left) {
         return Err(r.invalid(r.pos - 8, "count does not match the file length"));
     }
-    let mut gaussians = BTreeMap::new();
+    let mut gaussians = OrdMap::new();
     let mut previous: Option<u64> = None;
     for _ in 0..count {
         let at = r.pos;
@@ -301,7 +342,7 @@ fn parse(bytes: &[u8], path: &Path) -> Result<Stored, StoreError> {
         previous = Some(id.0);
         gaussians.insert(id, g);
     }
-    Ok(Stored {
+    Ok(StoredMap {
         config,
         gaussians,
         paged,

@@ -8,11 +8,14 @@
 //! least [`Compaction::min_bytes`]): the rewrite then costs no more bytes than the journal
 //! it folds in, so the bytes written per bin stay within about twice the bin's change
 //! however large the map grows, and a restore replays at most about one base's worth of
-//! journal. The compactor loads the base from disk, replays the closed segments, writes the
-//! base atomically and only then removes the segments, so a crash at any point leaves a
-//! base and segments that restore every published bin ([`super::map_files::restore`]). While
-//! it works, its copy of the map in memory adds to the node's resident size: the map only
-//! (the base file is dropped once parsed, and the new base is written a chunk at a time).
+//! journal. When the node closes a segment it hands the compactor a copy of the map as it
+//! stands after the segment's last record ([`GlobalMap::stored`]); the compactor writes it
+//! as the base, atomically, and only then removes the segments it covers and the tile files
+//! no later record names, so a crash at any point leaves a base and segments that restore
+//! every published bin ([`super::map_files::restore`]). The copy shares the map's Gaussians
+//! (a persistent tree), so the compaction neither reads the base back nor replays the
+//! journal, and holds in memory only the tree nodes the node changes while it writes (a bin
+//! or two) and one chunk of the file.
 //!
 //! Paging ([`Paging`], [`crate::fusion::PagedTile`]): before a bin is fused, every tile on
 //! disk within the paging radius of the bin's origin is read back into the map
@@ -33,8 +36,8 @@ use std::time::Instant;
 use glam::DVec3;
 
 use crate::fusion::{
-    collect_garbage, segments, tile_distance, write_tile, AtTornTail, GlobalMap, Increment,
-    JournalWriter, PageEvent, StoreError, TileKey,
+    collect_garbage, segments, tile_distance, write_tile, GlobalMap, Increment, JournalWriter,
+    PageEvent, StoreError, StoredMap, TileKey,
 };
 
 use super::map_files::{checkpoint, CHECKPOINT, JOURNAL, TILES};
@@ -95,7 +98,7 @@ pub struct MapStore {
     paging: Option<Paging>,
     paged_in: Vec<PageEvent>,
     tile_counts: [u64; 3],
-    tx: Option<mpsc::Sender<PathBuf>>,
+    tx: Option<mpsc::Sender<(PathBuf, StoredMap)>>,
     thread: Option<JoinHandle<()>>,
     folded: Arc<Folded>,
 }
@@ -117,17 +120,17 @@ impl MapStore {
             false => Some(GlobalMap::new(*map.config()).expect("a map's settings are valid")),
         };
         let folded = Arc::<Folded>::default();
-        let (tx, rx) = mpsc::channel::<PathBuf>();
+        let (tx, rx) = mpsc::channel::<(PathBuf, StoredMap)>();
         let base = dir.join(CHECKPOINT);
-        let journal = dir.join(JOURNAL);
         let tiles = dir.join(TILES);
         let shared = folded.clone();
         let thread = std::thread::Builder::new()
             .name("map-compactor".into())
             .spawn(move || {
-                while let Ok(upto) = rx.recv() {
+                while let Ok((upto, map)) = rx.recv() {
                     let start = Instant::now();
-                    let folded = compact(&base, &journal, &tiles, &upto);
+                    let folded = compact(&map, &base, &tiles, &upto);
+                    drop(map);
                     release_freed_memory();
                     match folded {
                         Ok(bytes) => {
@@ -148,7 +151,7 @@ impl MapStore {
                 source,
             })?;
         if let Some(last) = segments(&dir.join(JOURNAL))?.pop() {
-            let _ = tx.send(last);
+            let _ = tx.send((last, map.stored()));
         }
         Ok(Self {
             writer: JournalWriter::new(dir.join(JOURNAL)),
@@ -274,7 +277,7 @@ impl MapStore {
         let base_bytes = map.stored_bytes();
         if self.writer.segment_bytes() >= self.compaction.min_bytes.max(base_bytes) {
             if let (Some(path), Some(tx)) = (self.writer.close_segment()?, &self.tx) {
-                let _ = tx.send(path);
+                let _ = tx.send((path, map.stored()));
             }
         }
         Ok(true)
@@ -314,18 +317,13 @@ impl Drop for MapStore {
     }
 }
 
-/// Folds the segments of `journal` up to `upto` (inclusive) into the base: loads it,
-/// replays them (reading paged-in tiles from `tiles`), saves it atomically, then removes them
-/// and the tile files no later record can name. Returns the base's size in bytes.
-fn compact(base: &Path, journal: &Path, tiles: &Path, upto: &Path) -> Result<u64, StoreError> {
-    let mut map = GlobalMap::load(base)?;
-    let folded: Vec<PathBuf> = segments(journal)?
-        .into_iter()
-        .filter(|p| p.as_path() <= upto)
-        .collect();
-    map.replay_journal(&folded, tiles, AtTornTail::Fail)?;
+/// Writes `map` (the map after the record that ends the segment `upto`) as the base
+/// atomically, then removes the segments up to `upto` (inclusive), which it holds, and the
+/// tile files no later record can name. Returns the base's size in bytes.
+fn compact(map: &StoredMap, base: &Path, tiles: &Path, upto: &Path) -> Result<u64, StoreError> {
     let bytes = map.save(base)?;
-    for path in &folded {
+    let journal = upto.parent().unwrap_or(Path::new("."));
+    for path in segments(journal)?.iter().filter(|p| p.as_path() <= upto) {
         std::fs::remove_file(path).map_err(|source| StoreError::Io {
             path: path.clone(),
             source,

@@ -2,7 +2,8 @@
 //! the map bit for bit, whenever a crash stops the node (between a record and the base's
 //! rewrite, during the rewrite, in the middle of a record); a torn last record is cut and
 //! said; damage anywhere else is a typed error; the background compactor keeps the bytes
-//! written within the bytes journaled.
+//! written within the bytes journaled, and the copy of the map it writes stays the map as it
+//! was when taken while the map goes on changing.
 //!
 //! The crashes here are simulated on the files (the states a crash can leave); a real
 //! SIGKILL of a running node is in `node_crash.rs`.
@@ -240,5 +241,40 @@ fn the_compactor_folds_the_journal_into_the_base_within_the_bytes_journaled() {
     );
     assert!(segments(&dir.join(JOURNAL)).unwrap().len() <= 2);
     assert_eq!(restored(&dir).to_bytes(), map.to_bytes());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_compactor_s_copy_writes_the_map_as_it_was_however_the_map_changes_after() {
+    let dir = scratch("stored_copy");
+    let mut map = map_with(1.0, 0.1, 300);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for k in 0..20u64 {
+        let (set, pose) = random_bin(&mut rng, k);
+        map.insert_bin(k, &set, pose).unwrap();
+    }
+    let before = map.to_bytes();
+    let copy = map.stored();
+    assert_eq!(copy.stored_bytes(), map.stored_bytes());
+    // Replaced cells, evictions (budget 300) and new ids after the copy was taken.
+    let (mut evicted, mut replaced) = (0, 0);
+    for k in 20..40u64 {
+        let (set, pose) = random_bin(&mut rng, k);
+        let inc = map.insert_bin(k, &set, pose).unwrap();
+        (evicted, replaced) = (evicted + inc.stats.evicted, replaced + inc.stats.replaced);
+    }
+    assert!(
+        evicted > 0 && replaced > 0,
+        "{evicted} evicted, {replaced} replaced"
+    );
+    assert_ne!(map.to_bytes(), before);
+    assert_eq!(copy.to_bytes(), before);
+    assert_eq!(copy.increments(), 20);
+    let path = dir.join(CHECKPOINT);
+    copy.save(&path).unwrap();
+    assert_eq!(GlobalMap::load(&path).unwrap().to_bytes(), before);
+    // The map itself still saves and restores as it now is.
+    map.save(&path).unwrap();
+    assert_eq!(GlobalMap::load(&path).unwrap().to_bytes(), map.to_bytes());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -51,7 +51,7 @@ pub use tiles::{
     collect_garbage, read_tile, tile_distance, tile_path, write_tile, PageEvent, PagedTile, TileKey,
 };
 pub use wire::{
-    decode_update, increment_message, map_snapshot_message, snapshot_message, Update, WireError,
+    decode_update, encode_map_snapshot, increment_message, snapshot_message, Update, WireError,
 };
 
 use cells::{eviction_order, CellIndex};

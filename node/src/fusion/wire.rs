@@ -4,7 +4,10 @@
 use glam::DVec3;
 
 use super::{GaussianId, GlobalMap, Increment, Snapshot, WorldGaussian};
-use crate::msg::gaussians::{cloud_from_records, gaussian, record, records_from_cloud};
+use crate::msg::cdr::CdrWriter;
+use crate::msg::gaussians::{
+    cloud_from_records, cloud_layout, gaussian, put_record, record, records_from_cloud, Record,
+};
 use crate::msg::map_update::MapUpdate;
 use crate::msg::std_msgs::Header;
 use crate::msg::ConvertError;
@@ -66,16 +69,35 @@ pub fn snapshot_message(
     ))
 }
 
-/// The whole map in memory as a snapshot message numbered by its increments, the same
-/// message as [`snapshot_message`] of [`GlobalMap::snapshot`], built from the map without
-/// a copy of it first: the periodic snapshot of a large map is the node's largest message.
-pub fn map_snapshot_message(map: &GlobalMap, header: Header) -> Result<MapUpdate, ConvertError> {
-    let gaussians = map.gaussians.iter().map(|(id, g)| (*id, g));
-    Ok(as_snapshot(
-        message(gaussians, header)?,
+/// The whole map in memory as an encoded snapshot message numbered by its increments: the
+/// bytes of [`snapshot_message`] of [`GlobalMap::snapshot`], written straight from the map
+/// with no message or copy of the map beside them, since the periodic snapshot of a large
+/// map is the node's largest message.
+pub fn encode_map_snapshot(map: &GlobalMap, header: Header) -> Result<Vec<u8>, ConvertError> {
+    let cloud = cloud_layout(map.len(), header.clone(), true)?;
+    let bytes = cloud.row_step as usize;
+    let head = as_snapshot(
+        MapUpdate {
+            header,
+            gaussians: cloud,
+            ..MapUpdate::default()
+        },
         map.last_bin_id,
         map.increments(),
-    ))
+    );
+    let mut w = CdrWriter::with_capacity(bytes + 16 * map.len() + 1024);
+    let gaussians = map.gaussians.iter();
+    head.write_streamed(
+        &mut w,
+        gaussians.clone().map(|(id, _)| id.0),
+        gaussians.clone().map(|(_, g)| g.bin_id),
+        (bytes, |data: &mut Vec<u8>| {
+            for (_, g) in gaussians {
+                put_record(data, &world_record(g), true);
+            }
+        }),
+    );
+    Ok(w.into_bytes())
 }
 
 /// `msg` marked as the snapshot after `last_bin_id`, numbered `sequence`.
@@ -91,17 +113,7 @@ fn message<'a>(
     gaussians: impl ExactSizeIterator<Item = (GaussianId, &'a WorldGaussian)> + Clone,
     header: Header,
 ) -> Result<MapUpdate, ConvertError> {
-    let records = gaussians.clone().map(|(_, g)| {
-        let rest = renderer::Gaussian {
-            mean: glam::Vec3::ZERO,
-            log_scale: g.log_scale,
-            rotation: g.rotation,
-            opacity: g.opacity,
-            color: g.color,
-            confidence: g.confidence,
-        };
-        record(g.position, &rest)
-    });
+    let records = gaussians.clone().map(|(_, g)| world_record(g));
     Ok(MapUpdate {
         gaussians: cloud_from_records(records, header.clone(), true)?,
         header,
@@ -109,6 +121,19 @@ fn message<'a>(
         source_bins: gaussians.map(|(_, g)| g.bin_id).collect(),
         ..MapUpdate::default()
     })
+}
+
+/// The cloud record of a world Gaussian (its position in f64).
+fn world_record(g: &WorldGaussian) -> Record {
+    let rest = renderer::Gaussian {
+        mean: glam::Vec3::ZERO,
+        log_scale: g.log_scale,
+        rotation: g.rotation,
+        opacity: g.opacity,
+        color: g.color,
+        confidence: g.confidence,
+    };
+    record(g.position, &rest)
 }
 
 /// The increment or snapshot a message holds. A snapshot without bins taken

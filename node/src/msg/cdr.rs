@@ -192,8 +192,17 @@ impl CdrWriter {
 
     /// A `uint8[]` sequence: count then bytes.
     pub fn bytes(&mut self, v: &[u8]) {
-        self.seq_len(v.len());
-        self.buf.extend_from_slice(v);
+        self.bytes_from(v.len(), |b| b.extend_from_slice(v));
+    }
+
+    /// A `uint8[]` sequence of `n` bytes that `fill` appends to the payload, so a large
+    /// sequence is written in place instead of built apart and copied. `fill` must append
+    /// exactly `n` bytes (checked in debug builds).
+    pub fn bytes_from(&mut self, n: usize, fill: impl FnOnce(&mut Vec<u8>)) {
+        self.seq_len(n);
+        let start = self.buf.len();
+        fill(&mut self.buf);
+        debug_assert_eq!(self.buf.len() - start, n, "bytes_from's count");
     }
 
     /// A `float64[]` sequence: count then values.
@@ -204,8 +213,13 @@ impl CdrWriter {
 
     /// A `uint64[]` sequence: count then values.
     pub fn u64_seq(&mut self, v: &[u64]) {
+        self.u64_seq_from(v.iter().copied());
+    }
+
+    /// A `uint64[]` sequence of the values `v` yields.
+    pub fn u64_seq_from(&mut self, v: impl ExactSizeIterator<Item = u64>) {
         self.seq_len(v.len());
-        for &x in v {
+        for x in v {
             self.u64(x);
         }
     }

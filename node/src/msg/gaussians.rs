@@ -131,6 +131,22 @@ pub fn cloud_from_records(
     header: Header,
     f64_positions: bool,
 ) -> Result<PointCloud2, ConvertError> {
+    let mut cloud = cloud_layout(records.len(), header, f64_positions)?;
+    cloud.data.reserve_exact(cloud.row_step as usize);
+    for v in records {
+        put_record(&mut cloud.data, &v, f64_positions);
+    }
+    Ok(cloud)
+}
+
+/// The cloud of `points` records (positions FLOAT64 when `f64_positions`) without its data:
+/// the fields, sizes and steps, for a writer that appends the records itself
+/// ([`put_record`], [`PointCloud2::write_with_data`]).
+pub fn cloud_layout(
+    points: usize,
+    header: Header,
+    f64_positions: bool,
+) -> Result<PointCloud2, ConvertError> {
     let (pos_type, pos_size) = match f64_positions {
         true => (datatype::FLOAT64, 8),
         false => (datatype::FLOAT32, 4),
@@ -152,19 +168,8 @@ pub fn cloud_from_records(
         .collect();
     let point_step = 3 * pos_size + 4 * 13;
     let too_large = || ConvertError::TooLarge("the Gaussian cloud");
-    let width = u32::try_from(records.len()).map_err(|_| too_large())?;
+    let width = u32::try_from(points).map_err(|_| too_large())?;
     let row_step = width.checked_mul(point_step).ok_or_else(too_large)?;
-    let mut data = Vec::with_capacity(row_step as usize);
-    for v in records {
-        for (j, x) in v.iter().enumerate() {
-            if j < 3 && f64_positions {
-                data.extend_from_slice(&x.to_le_bytes());
-            } else {
-                data.extend_from_slice(&(*x as f32).to_le_bytes());
-            }
-        }
-        data.extend_from_slice(&packed_rgb([v[3], v[4], v[5]]).to_le_bytes());
-    }
     Ok(PointCloud2 {
         header,
         height: 1,
@@ -173,9 +178,21 @@ pub fn cloud_from_records(
         is_bigendian: false,
         point_step,
         row_step,
-        data,
+        data: Vec::new(),
         is_dense: true,
     })
+}
+
+/// Appends one record to a cloud's data in the layout of [`cloud_layout`].
+pub fn put_record(data: &mut Vec<u8>, v: &Record, f64_positions: bool) {
+    for (j, x) in v.iter().enumerate() {
+        if j < 3 && f64_positions {
+            data.extend_from_slice(&x.to_le_bytes());
+        } else {
+            data.extend_from_slice(&(*x as f32).to_le_bytes());
+        }
+    }
+    data.extend_from_slice(&packed_rgb([v[3], v[4], v[5]]).to_le_bytes());
 }
 
 /// Where one channel sits in a record and how it is stored.

@@ -37,18 +37,40 @@ pub struct MapUpdate {
     pub gaussians: PointCloud2,
 }
 
-impl Message for MapUpdate {
-    const KIND: MessageKind = MessageKind::MapUpdate;
-
-    fn write(&self, w: &mut CdrWriter) {
+impl MapUpdate {
+    /// Writes the message with its ids, source bins and cloud data drawn from `ids`,
+    /// `source_bins` and `data` (a byte count and what appends them) instead of its own
+    /// lists: a snapshot of a large map is encoded straight from the map, with no message
+    /// beside the payload.
+    pub fn write_streamed(
+        &self,
+        w: &mut CdrWriter,
+        ids: impl ExactSizeIterator<Item = u64>,
+        source_bins: impl ExactSizeIterator<Item = u64>,
+        data: (usize, impl FnOnce(&mut Vec<u8>)),
+    ) {
         self.header.write(w);
         w.u64(self.sequence);
         w.bool(self.snapshot);
         w.u64(self.bin_id);
-        w.u64_seq(&self.ids);
-        w.u64_seq(&self.source_bins);
+        w.u64_seq_from(ids);
+        w.u64_seq_from(source_bins);
         w.u64_seq(&self.removed_ids);
-        self.gaussians.write(w);
+        self.gaussians.write_with_data(w, data.0, data.1);
+    }
+}
+
+impl Message for MapUpdate {
+    const KIND: MessageKind = MessageKind::MapUpdate;
+
+    fn write(&self, w: &mut CdrWriter) {
+        let data = &self.gaussians.data;
+        self.write_streamed(
+            w,
+            self.ids.iter().copied(),
+            self.source_bins.iter().copied(),
+            (data.len(), |b: &mut Vec<u8>| b.extend_from_slice(data)),
+        );
     }
 
     /// The cloud and the three id lists, with room for the header.

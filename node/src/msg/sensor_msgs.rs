@@ -265,10 +265,11 @@ pub struct PointCloud2 {
     pub is_dense: bool,
 }
 
-impl Message for PointCloud2 {
-    const KIND: MessageKind = MessageKind::PointCloud2;
-
-    fn write(&self, w: &mut CdrWriter) {
+impl PointCloud2 {
+    /// Writes the cloud with `n` bytes of data that `data` appends in place of
+    /// [`PointCloud2::data`] (which is not written): a large cloud goes straight into the
+    /// payload instead of being built beside it.
+    pub fn write_with_data(&self, w: &mut CdrWriter, n: usize, data: impl FnOnce(&mut Vec<u8>)) {
         self.header.write(w);
         w.u32(self.height);
         w.u32(self.width);
@@ -279,8 +280,16 @@ impl Message for PointCloud2 {
         w.bool(self.is_bigendian);
         w.u32(self.point_step);
         w.u32(self.row_step);
-        w.bytes(&self.data);
+        w.bytes_from(n, data);
         w.bool(self.is_dense);
+    }
+}
+
+impl Message for PointCloud2 {
+    const KIND: MessageKind = MessageKind::PointCloud2;
+
+    fn write(&self, w: &mut CdrWriter) {
+        self.write_with_data(w, self.data.len(), |b| b.extend_from_slice(&self.data));
     }
 
     /// The data and room for the header and field descriptions.

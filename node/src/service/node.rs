@@ -424,8 +424,8 @@ pub async fn run_with(
                 }
                 let Some(region) = region else {
                     match outputs.snapshot(outputs.snapshot_header()) {
-                        Ok(m) => q
-                            .reply(q.key_expr().clone(), m.encode())
+                        Ok(bytes) => q
+                            .reply(q.key_expr().clone(), bytes)
                             .attachment(outputs.snapshot_attachment())
                             .await
                             .map_err(zenoh_err)?,

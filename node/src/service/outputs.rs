@@ -42,7 +42,7 @@ use super::static_frames::StaticFrames;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
 use crate::fusion::{
-    bev_image, increment_message, map_snapshot_message, snapshot_message, BevView, GaussianId,
+    bev_image, encode_map_snapshot, increment_message, snapshot_message, BevView, GaussianId,
     GlobalMap, Increment, Snapshot, WorldGaussian,
 };
 use crate::msg::gaussians::cloud_from_gaussians;
@@ -195,7 +195,8 @@ impl<'a> Outputs<'a> {
         match out.result {
             Ok(set) => {
                 if std::mem::take(&mut self.resume_pending) {
-                    self.put_update(self.snapshot(header(WORLD))).await?;
+                    self.put_encoded_update(self.snapshot(header(WORLD)))
+                        .await?;
                 }
                 // A map that failed its check and was not dimmed (SGM's fallback failed too,
                 // or the policy only flags) is published for what it is but kept out of the
@@ -260,7 +261,8 @@ impl<'a> Outputs<'a> {
                                 .bins_published
                                 .is_multiple_of(self.snapshot_every);
                         if due {
-                            self.put_update(self.snapshot(header(WORLD))).await?;
+                            self.put_encoded_update(self.snapshot(header(WORLD)))
+                                .await?;
                         }
                     }
                     Err(_) => self.counters.add("error/fusion", 1),
@@ -339,9 +341,10 @@ impl<'a> Outputs<'a> {
         self.flush_latency(drops).await
     }
 
-    /// The whole map as a MapUpdate snapshot at the current sequence number.
-    pub fn snapshot(&self, header: Header) -> Result<MapUpdate, crate::msg::ConvertError> {
-        map_snapshot_message(&self.map, header)
+    /// The whole map in memory as an encoded MapUpdate snapshot at the current sequence
+    /// number, written straight from the map ([`encode_map_snapshot`]).
+    pub fn snapshot(&self, header: Header) -> Result<Vec<u8>, crate::msg::ConvertError> {
+        encode_map_snapshot(&self.map, header)
     }
 
     /// The attachment of a whole-map snapshot reply: the tiles it does not hold because
@@ -467,8 +470,16 @@ impl<'a> Outputs<'a> {
         &mut self,
         msg: Result<MapUpdate, crate::msg::ConvertError>,
     ) -> Result<(), ServiceError> {
-        match msg {
-            Ok(m) => self.put(keys::MAP_UPDATE, m.encode()).await,
+        self.put_encoded_update(msg.map(|m| m.encode())).await
+    }
+
+    /// Publishes an encoded MapUpdate; one that could not be encoded is counted.
+    async fn put_encoded_update(
+        &mut self,
+        payload: Result<Vec<u8>, crate::msg::ConvertError>,
+    ) -> Result<(), ServiceError> {
+        match payload {
+            Ok(bytes) => self.put(keys::MAP_UPDATE, bytes).await,
             Err(_) => {
                 self.counters.add("error/encode_map_update", 1);
                 Ok(())

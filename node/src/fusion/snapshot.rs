@@ -86,7 +86,7 @@ pub enum StoreError {
     },
 }
 
-/// Records a file write hands to the writer at once ([`GlobalMap::write_to`]).
+/// Records a file write hands to the writer at once ([`StoredMap::write_to`]).
 const WRITE_CHUNK: usize = 4096;
 
 /// FNV-1a's starting state.
@@ -108,12 +108,6 @@ impl GlobalMap {
     /// The map in the file format described in the module doc.
     pub fn to_bytes(&self) -> Vec<u8> {
         self.stored().to_bytes()
-    }
-
-    /// Writes the map in the file format into `w` ([`StoredMap::write_to`]); returns the
-    /// bytes written.
-    pub fn write_to(&self, w: &mut impl Write) -> std::io::Result<u64> {
-        self.stored().write_to(w)
     }
 
     /// The size of the map's file ([`GlobalMap::to_bytes`]) in bytes, without writing it.

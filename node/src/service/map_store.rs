@@ -122,6 +122,7 @@ impl MapStore {
         let folded = Arc::<Folded>::default();
         let (tx, rx) = mpsc::channel::<(PathBuf, StoredMap)>();
         let base = dir.join(CHECKPOINT);
+        let journal = dir.join(JOURNAL);
         let tiles = dir.join(TILES);
         let shared = folded.clone();
         let thread = std::thread::Builder::new()
@@ -129,7 +130,7 @@ impl MapStore {
             .spawn(move || {
                 while let Ok((upto, map)) = rx.recv() {
                     let start = Instant::now();
-                    let folded = compact(&map, &base, &tiles, &upto);
+                    let folded = compact(&map, &base, &journal, &tiles, &upto);
                     drop(map);
                     release_freed_memory();
                     match folded {
@@ -318,11 +319,16 @@ impl Drop for MapStore {
 }
 
 /// Writes `map` (the map after the record that ends the segment `upto`) as the base
-/// atomically, then removes the segments up to `upto` (inclusive), which it holds, and the
-/// tile files no later record can name. Returns the base's size in bytes.
-fn compact(map: &StoredMap, base: &Path, tiles: &Path, upto: &Path) -> Result<u64, StoreError> {
+/// atomically, then removes the segments of `journal` up to `upto` (inclusive), which it
+/// holds, and the tile files no later record can name. Returns the base's size in bytes.
+fn compact(
+    map: &StoredMap,
+    base: &Path,
+    journal: &Path,
+    tiles: &Path,
+    upto: &Path,
+) -> Result<u64, StoreError> {
     let bytes = map.save(base)?;
-    let journal = upto.parent().unwrap_or(Path::new("."));
     for path in segments(journal)?.iter().filter(|p| p.as_path() <= upto) {
         std::fs::remove_file(path).map_err(|source| StoreError::Io {
             path: path.clone(),

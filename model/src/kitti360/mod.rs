@@ -18,6 +18,7 @@ pub mod calibration;
 pub mod error;
 pub mod exact_depth;
 pub mod images;
+pub mod laps;
 pub mod layout;
 pub mod lidar_depth;
 pub mod poses;

@@ -11,12 +11,15 @@
 //!
 //! Then the process's resident memory every 50 frames, and every second with whether the
 //! journal was being folded into the base then ([`super::rss_trace`], `rss.csv`), so the
-//! drive's memory reads apart from the compactions' transient; the bytes the checkpoint
+//! drive's memory reads apart from the compactions' transient, and summarised per minute
+//! (the level and the peaks, whose spread over the minutes says whether memory stays flat);
+//! the bytes the checkpoint
 //! wrote (journal records and base rewrites, from the node's counters), the time to restore
 //! the final checkpoint and the time to replay a journal as large as the map (the most a
 //! restore can have to replay on top of its base), and how many of the published bins still
 //! have Gaussians in the final map. The goals it is read against are in
-//! `docs/long-drives.md`.
+//! `docs/long-drives.md`. `--laps` plays the drive several times end to end
+//! ([`chain_laps`]), for an hour of driving without generating an hour of frames.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -24,6 +27,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Args;
 use glam::DAffine3;
+use model::kitti360::laps::chain_laps;
 use model::synth::SynthConfig;
 use renderer::{Gaussian, GaussianSet};
 use serde::Serialize;
@@ -37,6 +41,7 @@ use crate::fusion::{AtTornTail, FusionConfig, GlobalMap, JournalWriter, Keep};
 use crate::msg::latency::BinLatency;
 use crate::service::loopback::run_loopback;
 use crate::service::map_files::{restore, whole_map, CHECKPOINT, JOURNAL};
+use crate::service::replay::Drive;
 use crate::service::{Compaction, NodeConfig, StartMap};
 
 /// Flags of `bench drive`.
@@ -54,6 +59,11 @@ pub struct BenchDriveArgs {
     /// Seed of the generated drive.
     #[arg(long, default_value_t = 5)]
     seed: u64,
+    /// Play the generated drive this many times end to end, each lap continuing where the
+    /// last one ended (the same images on new ground): 8 laps of the default drive are an
+    /// hour of driving from eight minutes of generated frames.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    laps: u32,
     /// Folder for the drive (kept between runs), the node's map, `series.csv` and
     /// `latency.png`.
     #[arg(long, default_value = "out/bench_drive")]
@@ -159,6 +169,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         ..SynthConfig::default()
     };
     let sequence = cached_sequence(&drive_dir, &synth)?;
+    let frames = chain_laps(sequence.frames(), args.laps);
     let map_dir = args.out.join("map");
     let config = args.node.node_config(
         NodeConfig {
@@ -179,7 +190,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     // A fresh start keeps an earlier run's files aside; this benchmark's own do not pile up.
     let _ = std::fs::remove_dir_all(&map_dir);
     let runtime = tokio::runtime::Runtime::new()?;
-    let bar = progress::bar(sequence.frames().len(), "drive");
+    let bar = progress::bar(frames.len(), "drive");
     let mut trace = RssTrace::new(map_dir.join(JOURNAL));
     let mut show = progress::hook(&bar);
     let mut hook = |done: usize, total: usize| {
@@ -188,7 +199,10 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
     };
     let report = runtime.block_on(run_loopback(
         config,
-        &sequence,
+        Drive {
+            sequence: &sequence,
+            frames: &frames,
+        },
         rate_of(args.rate)?,
         Duration::from_secs(30),
         &mut hook,
@@ -232,6 +246,7 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
 
     let mut out = serde_json::json!({
         "sequence": sequence.name(),
+        "laps": args.laps,
         "frames": report.frames,
         "size": [args.width, args.height],
         "rate": args.rate,
@@ -251,6 +266,8 @@ pub fn run(args: &BenchDriveArgs) -> Result<()> {
         "rss_max_after_first_minute_mib": later_max.map(mib),
         "rss_growth_after_first_minute": minute.zip(later_max).map(|((_, a), b)| b as f64 / a as f64),
         "rss_each_second_after_first_minute": rss_split,
+        "rss_per_minute": trace.per_minute(),
+        "rss_growth_by_minute": trace.growth_after_first_minute(),
         "rss_growth_outside_compaction": minute
             .zip(rss_split.max_outside_compaction_mib)
             .map(|((_, a), b)| b / mib(a)),

@@ -29,6 +29,7 @@ use crate::msg::latency::BinLatency;
 use crate::pipeline::operating::{Budget, GovernorConfig, OperatingConfig, OperatingTable};
 use crate::service::latency_stats::{LatencyStats, StageSummary};
 use crate::service::loopback::{run_loopback, Received, ReceivedBin};
+use crate::service::replay::Drive;
 use crate::service::NodeConfig;
 
 /// Flags of `bench keep-up`.
@@ -99,7 +100,7 @@ pub fn run(args: &BenchKeepUpArgs) -> Result<()> {
         let bar = progress::bar(sequence.frames().len(), run);
         let report = runtime.block_on(run_loopback(
             config,
-            &sequence,
+            Drive::whole(&sequence),
             rate_of(1.0)?,
             Duration::from_secs(60),
             &mut progress::hook(&bar),

@@ -24,6 +24,7 @@ use crate::fusion::FusionConfig;
 use crate::pipeline::binner::BinnerConfig;
 use crate::service::latency_stats::{publish_span_s, LatencyStats, LatencySummary};
 use crate::service::loopback::run_loopback;
+use crate::service::replay::Drive;
 use crate::service::NodeConfig;
 
 /// Flags of `bench node`.
@@ -137,7 +138,7 @@ pub fn run(args: &BenchNodeArgs) -> Result<()> {
         let bar = progress::bar(sequence.frames().len(), &format!("rate {rate}"));
         let report = runtime.block_on(run_loopback(
             config,
-            &sequence,
+            Drive::whole(&sequence),
             rate_of(rate)?,
             Duration::from_secs(20),
             &mut progress::hook(&bar),

@@ -24,6 +24,7 @@ use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::worker::RenderWith;
 use crate::service::latency_stats::{publish_span_s, LatencyStats, StageSummary};
 use crate::service::loopback::run_loopback;
+use crate::service::replay::Drive;
 use crate::service::{InputLimits, NodeConfig, WorkersConfig};
 
 /// Flags of `bench workers`.
@@ -153,7 +154,7 @@ pub fn run(args: &BenchWorkersArgs) -> Result<()> {
         let bar = progress::bar(sequence.frames().len(), &label);
         let report = runtime.block_on(run_loopback(
             config,
-            &sequence,
+            Drive::whole(&sequence),
             rate_of(1.0)?,
             Duration::from_secs(20),
             &mut progress::hook(&bar),

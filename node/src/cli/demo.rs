@@ -22,6 +22,7 @@ use super::synth::{cached_drive, first_sequence};
 use super::view::{self, ViewFlags};
 use crate::service::latency_stats::LatencyStats;
 use crate::service::loopback::{run_loopback, Received, ReceivedBin};
+use crate::service::replay::Drive;
 use crate::service::{NodeConfig, StartMap};
 
 /// Flags of `demo`.
@@ -123,7 +124,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         let (start_view, view) = view::beside(&args.view, keys).await?;
         let report = run_loopback(
             config,
-            &sequence,
+            Drive::whole(&sequence),
             rate_of(args.rate)?,
             Duration::from_secs(60),
             &mut progress::hook(&bar),

@@ -59,6 +59,35 @@ pub struct RssSplit {
     pub samples: usize,
 }
 
+/// Resident memory over one minute of the trace, MiB.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct MinuteRss {
+    /// Which minute (0: the first).
+    pub minute: usize,
+    /// Samples in it.
+    pub samples: usize,
+    /// The smallest sample.
+    pub min_mib: f64,
+    /// The median sample: the level.
+    pub median_mib: f64,
+    /// The largest sample: the level with a bin's transient on top.
+    pub max_mib: f64,
+}
+
+/// How flat resident memory stayed over the whole minutes from the second on: the largest
+/// per-minute figure over the smallest, for the level (medians) and the peaks (maxima).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct MinuteGrowth {
+    /// Whole minutes counted (the first and a last partial one left out).
+    pub minutes: usize,
+    /// Largest per-minute median over the smallest.
+    pub median: f64,
+    /// Largest per-minute maximum over the smallest.
+    pub max: f64,
+    /// The last whole minute's median over the second minute's.
+    pub median_last_over_second: f64,
+}
+
 fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1 << 20) as f64
 }
@@ -123,6 +152,55 @@ impl RssTrace {
             compacting_samples: later().filter(|s| s.compacting).count(),
             samples: later().count(),
         }
+    }
+
+    /// The samples summarised per minute of the trace, oldest first.
+    pub fn per_minute(&self) -> Vec<MinuteRss> {
+        let mut minutes: Vec<Vec<u64>> = Vec::new();
+        for s in &self.samples {
+            let m = (s.seconds / 60.0) as usize;
+            if minutes.len() <= m {
+                minutes.resize(m + 1, Vec::new());
+            }
+            minutes[m].push(s.bytes);
+        }
+        minutes
+            .into_iter()
+            .enumerate()
+            .filter(|(_, v)| !v.is_empty())
+            .map(|(minute, mut v)| {
+                v.sort_unstable();
+                MinuteRss {
+                    minute,
+                    samples: v.len(),
+                    min_mib: mib(v[0]),
+                    median_mib: mib(v[(v.len() - 1) / 2]),
+                    max_mib: mib(v[v.len() - 1]),
+                }
+            })
+            .collect()
+    }
+
+    /// [`MinuteGrowth`] over the minutes after the first that hold at least half a minute
+    /// of samples; `None` when there are none.
+    pub fn growth_after_first_minute(&self) -> Option<MinuteGrowth> {
+        let whole: Vec<MinuteRss> = self
+            .per_minute()
+            .into_iter()
+            .filter(|m| m.minute >= 1 && m.samples * 2 >= (60.0 / PERIOD.as_secs_f64()) as usize)
+            .collect();
+        let (first, last) = (whole.first()?, whole.last()?);
+        let spread = |f: fn(&MinuteRss) -> f64| {
+            let hi = whole.iter().map(f).fold(f64::MIN, f64::max);
+            let lo = whole.iter().map(f).fold(f64::MAX, f64::min);
+            hi / lo.max(1e-9)
+        };
+        Some(MinuteGrowth {
+            minutes: whole.len(),
+            median: spread(|m| m.median_mib),
+            max: spread(|m| m.max_mib),
+            median_last_over_second: last.median_mib / first.median_mib.max(1e-9),
+        })
     }
 
     /// Writes the samples as CSV: seconds, frame, resident MiB, compacting (0 or 1).
@@ -190,5 +268,56 @@ mod tests {
         assert!(text.lines().nth(2).unwrap().ends_with(",1"));
         assert!(text.lines().last().unwrap().ends_with(",0"));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    fn sample(seconds: f64, mib: u64) -> RssSample {
+        RssSample {
+            seconds,
+            frame: (seconds * 10.0) as usize,
+            bytes: mib << 20,
+            compacting: false,
+        }
+    }
+
+    #[test]
+    fn minutes_summarise_level_and_peaks_and_leave_out_the_first_and_a_partial_last() {
+        let mut trace = RssTrace::new("unused");
+        // Minute 0 climbs; minutes 1 and 2 sit at 100 MiB with a bin's 130 MiB every 10 s
+        // in minute 1 and 110 MiB in minute 2; ten seconds of minute 3 at 500 MiB.
+        for s in 0..60 {
+            trace.samples.push(sample(f64::from(s), 20 + s as u64));
+        }
+        for s in 60..180 {
+            let peak = if s < 120 { 130 } else { 110 };
+            trace
+                .samples
+                .push(sample(f64::from(s), if s % 10 == 0 { peak } else { 100 }));
+        }
+        for s in 180..190 {
+            trace.samples.push(sample(f64::from(s), 500));
+        }
+        let minutes = trace.per_minute();
+        assert_eq!(minutes.len(), 4);
+        assert_eq!((minutes[0].min_mib, minutes[0].max_mib), (20.0, 79.0));
+        assert_eq!(minutes[1].median_mib, 100.0);
+        assert_eq!((minutes[1].max_mib, minutes[2].max_mib), (130.0, 110.0));
+        let g = trace
+            .growth_after_first_minute()
+            .expect("two whole minutes");
+        assert_eq!(g.minutes, 2);
+        assert_eq!(g.median, 1.0);
+        assert_eq!(g.median_last_over_second, 1.0);
+        assert!((g.max - 130.0 / 110.0).abs() < 1e-12);
+        // No whole minute after the first, or nothing resident: no ratio, or a finite one.
+        let mut short = RssTrace::new("unused");
+        short.samples.push(sample(5.0, 10));
+        assert!(short.growth_after_first_minute().is_none());
+        let mut zero = RssTrace::new("unused");
+        for s in 60..120 {
+            zero.samples
+                .push(sample(f64::from(s), u64::from(s % 2 == 0)));
+        }
+        let g = zero.growth_after_first_minute().expect("one whole minute");
+        assert!(g.median.is_finite() && g.max.is_finite());
     }
 }

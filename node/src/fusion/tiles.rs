@@ -222,17 +222,45 @@ impl GlobalMap {
     }
 
     /// The paged-out tiles whose squares meet the ground box `min`-`max` (world x-y, metres),
-    /// in tile order.
+    /// in tile order. It visits the rows of tiles the box spans, each as one range of the
+    /// table, so a query costs the tiles near the box, not every tile the drive has paged
+    /// out; a box spanning more rows than there are tiles on disk visits the table instead.
     pub fn paged_tiles_in(&self, min: DVec2, max: DVec2) -> Vec<(TileKey, PagedTile)> {
         let side = self.config.tile_side();
-        self.paged
-            .iter()
-            .filter(|(t, _)| {
-                let lo = DVec2::new(t.0 as f64, t.1 as f64) * side;
-                let hi = lo + side;
-                lo.cmple(max).all() && hi.cmpge(min).all()
-            })
-            .map(|(t, p)| (*t, *p))
+        let meets = |t: &TileKey| {
+            let lo = DVec2::new(t.0 as f64, t.1 as f64) * side;
+            let hi = lo + side;
+            lo.cmple(max).all() && hi.cmpge(min).all()
+        };
+        // A tile meets the box only if its index lies in `[floor(min / side) - 1,
+        // floor(max / side)]` on each axis (the `- 1`: a tile whose far edge touches `min`).
+        // Casts saturate, and NaN gives 0: the exact test below decides.
+        let first = |v: f64| ((v / side).floor() as i64).saturating_sub(1);
+        let last = |v: f64| (v / side).floor() as i64;
+        let (x0, x1, y0, y1) = (first(min.x), last(max.x), first(min.y), last(max.y));
+        if x0 > x1 || y0 > y1 {
+            return Vec::new();
+        }
+        let pick = |(t, p): (&TileKey, &PagedTile)| meets(t).then_some((*t, *p));
+        let rows = i128::from(x1) - i128::from(x0) + 1;
+        if rows > self.paged.len() as i128 {
+            return self.paged.iter().filter_map(pick).collect();
+        }
+        (x0..=x1)
+            .flat_map(|x| self.paged.range((x, y0)..=(x, y1)))
+            .filter_map(pick)
+            .collect()
+    }
+
+    /// The paged-out tiles within `radius` metres of `point` on the ground
+    /// ([`tile_distance`]), in tile order; found as [`GlobalMap::paged_tiles_in`] finds them.
+    pub fn paged_tiles_near(&self, point: DVec3, radius: f64) -> Vec<TileKey> {
+        let side = self.config.tile_side();
+        let centre = point.truncate();
+        self.paged_tiles_in(centre - radius, centre + radius)
+            .into_iter()
+            .map(|(t, _)| t)
+            .filter(|t| tile_distance(*t, side, point) <= radius)
             .collect()
     }
 
@@ -339,5 +367,86 @@ impl GlobalMap {
             self.gaussians.insert(id, g);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// A map whose table lists `tiles` as paged out (their files are not needed here).
+    fn map_with_paged(tiles: impl IntoIterator<Item = TileKey>) -> GlobalMap {
+        let mut map = GlobalMap::new(FusionConfig::default()).expect("default config");
+        for (i, t) in tiles.into_iter().enumerate() {
+            let paged = PagedTile {
+                version: i as u64,
+                count: 1,
+            };
+            map.paged.insert(t, paged);
+        }
+        map
+    }
+
+    #[test]
+    fn paged_tiles_in_a_box_are_those_the_whole_table_gives() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        // A road of tiles, a block around the origin and a few far away.
+        let tiles = (0..400)
+            .map(|i| (i, i / 3))
+            .chain((-5..5).flat_map(|x| (-5..5).map(move |y| (x, y))))
+            .chain([(i64::MAX, 0), (i64::MIN, i64::MIN), (0, i64::MAX)]);
+        let map = map_with_paged(tiles);
+        let side = map.config().tile_side();
+        let brute = |min: DVec2, max: DVec2| -> Vec<TileKey> {
+            map.paged
+                .keys()
+                .filter(|t| {
+                    let lo = DVec2::new(t.0 as f64, t.1 as f64) * side;
+                    lo.cmple(max).all() && (lo + side).cmpge(min).all()
+                })
+                .copied()
+                .collect()
+        };
+        let keys = |v: Vec<(TileKey, PagedTile)>| v.into_iter().map(|(t, _)| t).collect::<Vec<_>>();
+        for _ in 0..500 {
+            let a = DVec2::new(rng.random_range(-2e3..3e4), rng.random_range(-2e3..1e4));
+            let b = a + DVec2::new(rng.random_range(-100.0..2e3), rng.random_range(-100.0..2e3));
+            assert_eq!(keys(map.paged_tiles_in(a, b)), brute(a, b), "box {a} {b}");
+        }
+        // Edges touching, a point, inverted, unbounded and NaN boxes.
+        let edge = DVec2::splat(side);
+        for (min, max) in [
+            (edge, edge),
+            (DVec2::ZERO, DVec2::ZERO),
+            (edge * 3.0, edge * -3.0),
+            (DVec2::splat(f64::NEG_INFINITY), DVec2::splat(f64::INFINITY)),
+            (DVec2::splat(f64::NAN), DVec2::splat(1e3)),
+            (DVec2::splat(-1e300), DVec2::splat(1e300)),
+        ] {
+            assert_eq!(
+                keys(map.paged_tiles_in(min, max)),
+                brute(min, max),
+                "box {min} {max}"
+            );
+        }
+    }
+
+    #[test]
+    fn paged_tiles_near_a_point_are_those_within_the_radius() {
+        let map = map_with_paged((-20..20).flat_map(|x| (-20..20).map(move |y| (x, y))));
+        let side = map.config().tile_side();
+        let p = DVec3::new(10.0, -30.0, 2.0);
+        for radius in [0.0, 1.0, side, 3.5 * side, 1e9, f64::INFINITY] {
+            let want: Vec<TileKey> = map
+                .paged
+                .keys()
+                .filter(|t| tile_distance(**t, side, p) <= radius)
+                .copied()
+                .collect();
+            assert_eq!(map.paged_tiles_near(p, radius), want, "radius {radius}");
+        }
+        assert!(map.paged_tiles_near(p, f64::NAN).is_empty());
     }
 }

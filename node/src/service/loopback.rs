@@ -9,14 +9,14 @@ use std::time::{Duration, Instant};
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::frame::RgbImage;
-use model::kitti360::Sequence;
+
 use renderer::GaussianSet;
 
 use super::error::ServiceError;
 use super::keys::Keys;
 use super::node::{run_with, NodeConfig};
 use super::outputs::NodeSummary;
-use super::replay::replay;
+use super::replay::{replay_drive, Drive};
 use crate::bag::Rate;
 use crate::msg::gaussians::gaussians_from_cloud;
 use crate::msg::geometry_msgs::PoseStamped;
@@ -85,14 +85,14 @@ pub enum LoopbackError {
     Transport(String),
 }
 
-/// Replays `sequence` at `rate` into a node configured by `config` (its transport is
+/// Replays `drive` at `rate` into a node configured by `config` (its transport is
 /// replaced by a fresh loopback endpoint, keeping its `connect` endpoints), hands every bin and render the listener receives
 /// to `on_bin`, waits until every expected bin is published or nothing has come for `idle`,
 /// then stops the node and reports. `on_ready` gets the node's session once it is up (the
 /// live view subscribes on it).
 pub async fn run_loopback(
     mut config: NodeConfig,
-    sequence: &Sequence,
+    drive: Drive<'_>,
     rate: Rate,
     idle: Duration,
     progress: &mut dyn FnMut(usize, usize),
@@ -111,7 +111,7 @@ pub async fn run_loopback(
         ..TransportConfig::default()
     };
     let keys = config.keys.clone();
-    let poses: Vec<_> = sequence.frames().iter().map(|f| f.left_to_world).collect();
+    let poses: Vec<_> = drive.frames.iter().map(|f| f.left_to_world).collect();
     let bins = BinConfig {
         length_m: config.binner.length_m,
         layout: BinLayout::Consecutive,
@@ -153,7 +153,7 @@ pub async fn run_loopback(
             }
             progress(done, total);
         };
-        let replaying = replay(&player, &keys, sequence, rate, &mut hook);
+        let replaying = replay_drive(&player, &keys, drive, rate, &mut hook);
         tokio::pin!(replaying);
         // Drain the listener while the replay runs, so nothing piles up in zenoh's queues.
         let summary = loop {

@@ -183,17 +183,10 @@ impl MapStore {
         let Some(paging) = self.paging else {
             return Ok(());
         };
-        let side = map.config().tile_side();
         let radius = paging
             .radius_m
             .max(f64::from(map.config().keep.max_range_m));
-        let near: Vec<TileKey> = map
-            .paged_tiles()
-            .keys()
-            .filter(|t| tile_distance(**t, side, origin) <= radius)
-            .copied()
-            .collect();
-        for tile in near {
+        for tile in map.paged_tiles_near(origin, radius) {
             self.page_in(map, tile)?;
         }
         Ok(())

@@ -8,7 +8,7 @@
 
 use std::time::{Duration, Instant};
 
-use model::kitti360::{Kitti360Error, Sequence};
+use model::kitti360::{FramePose, Kitti360Error, Sequence};
 use zenoh::Session;
 
 use super::error::ServiceError;
@@ -38,6 +38,27 @@ pub struct ReplaySummary {
     pub skipped: Vec<UnreadFrame>,
 }
 
+/// What a replay plays: frames of a sequence, each published with its own pose and
+/// timestamp and the images of its frame index. The sequence's own frames, or frames made
+/// from them, such as [`model::kitti360::laps::chain_laps`]'s laps.
+#[derive(Clone, Copy, Debug)]
+pub struct Drive<'a> {
+    /// Where the images and the rig come from.
+    pub sequence: &'a Sequence,
+    /// The frames to play, in order.
+    pub frames: &'a [FramePose],
+}
+
+impl<'a> Drive<'a> {
+    /// Every frame of `sequence`, as recorded.
+    pub fn whole(sequence: &'a Sequence) -> Self {
+        Self {
+            sequence,
+            frames: sequence.frames(),
+        }
+    }
+}
+
 /// Publishes every frame of `sequence` on `session`; `progress(done, total)` after each.
 pub async fn replay(
     session: &Session,
@@ -46,6 +67,18 @@ pub async fn replay(
     rate: Rate,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<ReplaySummary, ServiceError> {
+    replay_drive(session, keys, Drive::whole(sequence), rate, progress).await
+}
+
+/// Publishes the frames of `drive` on `session`; `progress(done, total)` after each.
+pub async fn replay_drive(
+    session: &Session,
+    keys: &Keys,
+    drive: Drive<'_>,
+    rate: Rate,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ReplaySummary, ServiceError> {
+    let Drive { sequence, frames } = drive;
     let inputs: Vec<_> = TOPICS
         .into_iter()
         .filter(|t| t.direction == Direction::Input)
@@ -56,7 +89,6 @@ pub async fn replay(
         async move { outlet.put(topic, payload).await }
     };
     let rig = sequence.rig();
-    let frames = sequence.frames();
     let stamp = |i: usize| frames[i].timestamp_ns.unwrap_or(i as i64 * 100_000_000);
     let start = Instant::now();
     let first_ns = frames.first().map_or(0, |_| stamp(0));
@@ -93,7 +125,7 @@ pub async fn replay(
                 .await?;
                 put(
                     keys::POSE,
-                    pose_from_affine(&frame.left_to_world, header("world")).encode(),
+                    pose_from_affine(&f.left_to_world, header("world")).encode(),
                 )
                 .await?;
                 summary.frames += 1;

@@ -29,6 +29,12 @@ pub struct Randomisation {
     pub hfov_deg: (f64, f64),
     /// Stereo baseline, metres (drawn log-uniformly: phone and OAK-D rigs to wide car rigs).
     pub baseline_m: (f64, f64),
+    /// The nearest the scene's surfaces come to the camera, metres, when that is near enough
+    /// to bound the rig: the baseline is then drawn no wider than the one that puts this
+    /// depth at [`NEAREST_DISPARITY_FRACTION`] of the image width (a 50 cm rig 20 cm from a
+    /// desk would see it over twice the image width apart, matched by nothing). `None`: the
+    /// baseline's range alone.
+    pub nearest_m: Option<f64>,
     /// Probability that the drive's colours (walls, paints, ground) are drawn at random
     /// instead of from the street palette.
     pub colour_probability: f64,
@@ -78,6 +84,7 @@ impl Default for Randomisation {
             fixed_size: None,
             hfov_deg: (45.0, 100.0),
             baseline_m: (0.05, 0.6),
+            nearest_m: None,
             colour_probability: 0.5,
             photo_probability: 0.6,
             photo_period_m: (0.5, 6.0),
@@ -96,6 +103,11 @@ impl Default for Randomisation {
         }
     }
 }
+
+/// The disparity of a scene's nearest surface, as a fraction of the image width, that a
+/// drawn rig stays within ([`Randomisation::nearest_m`]): the third of the width the
+/// matchers search at least.
+pub const NEAREST_DISPARITY_FRACTION: f64 = 1.0 / 3.0;
 
 /// Image sizes of handheld rigs (desks, rooms): widths 320-1408 at 4:3, 16:10, 16:9 and
 /// wide (KITTI-360 and the node's working) aspects, heights multiples of 8.
@@ -120,16 +132,41 @@ pub const HANDHELD_SIZES: &[(u32, u32)] = &[
 impl Randomisation {
     /// The ranges a drive of `kind` draws from: the street's are [`Randomisation::default`];
     /// desks and rooms draw handheld rigs ([`HANDHELD_SIZES`], 55-100 degrees, 5-50 cm
-    /// baselines log-uniformly) and keep the default looks.
+    /// baselines log-uniformly) and keep the default looks. A desk's surfaces come to
+    /// 0.2 m, so its rigs stay within the width that keeps them matchable
+    /// ([`Randomisation::nearest_m`]: 5 cm up to 7-16 cm, by the field of view); a room's,
+    /// at 1 m and more, leave every 5-50 cm rig inside the image.
     pub fn for_scene(kind: SceneKind) -> Self {
+        let handheld = Self {
+            sizes: HANDHELD_SIZES,
+            hfov_deg: (55.0, 100.0),
+            baseline_m: (0.05, 0.5),
+            ..Self::default()
+        };
         match kind {
             SceneKind::Street => Self::default(),
-            SceneKind::Desk | SceneKind::Room => Self {
-                sizes: HANDHELD_SIZES,
-                hfov_deg: (55.0, 100.0),
-                baseline_m: (0.05, 0.5),
-                ..Self::default()
+            SceneKind::Room => handheld,
+            SceneKind::Desk => Self {
+                nearest_m: Some(0.2),
+                ..handheld
             },
+        }
+    }
+
+    /// The baseline range of a rig whose horizontal field of view is `hfov` radians:
+    /// [`Randomisation::baseline_m`], its top lowered to the widest baseline that keeps
+    /// [`Randomisation::nearest_m`] within [`NEAREST_DISPARITY_FRACTION`] of the width (its
+    /// bottom too, when that is narrower still). Disparity over width is `baseline / (2
+    /// depth tan(hfov / 2))`, the same at every image size of one lens.
+    fn baseline_range(&self, hfov: f64) -> (f64, f64) {
+        let (lo, hi) = self.baseline_m;
+        let cap = self
+            .nearest_m
+            .map(|z| NEAREST_DISPARITY_FRACTION * z * 2.0 * (0.5 * hfov).tan())
+            .filter(|c| c.is_finite() && *c > 0.0);
+        match cap {
+            Some(c) if c < hi => (lo.min(c), c),
+            _ => (lo, hi),
         }
     }
 }
@@ -189,7 +226,7 @@ impl Randomisation {
         let size = self.fixed_size.unwrap_or(drawn);
         let hfov = range(rng, self.hfov_deg).to_radians();
         let focal_px = 0.5 * size.0 as f64 / (0.5 * hfov).tan();
-        let baseline_m = log_range(rng, self.baseline_m);
+        let baseline_m = log_range(rng, self.baseline_range(hfov));
         let exposure = log_range(rng, self.exposure);
         let wb = DVec3::new(
             range(rng, (1.0 - self.white_balance, 1.0 + self.white_balance)),
@@ -251,8 +288,14 @@ mod tests {
 
     #[test]
     fn handheld_rigs_span_their_ranges() {
-        let r = Randomisation::for_scene(SceneKind::Desk);
-        assert_eq!(r, Randomisation::for_scene(SceneKind::Room));
+        let r = Randomisation::for_scene(SceneKind::Room);
+        assert_eq!(
+            Randomisation {
+                nearest_m: None,
+                ..Randomisation::for_scene(SceneKind::Desk)
+            },
+            r
+        );
         assert_eq!(
             Randomisation::for_scene(SceneKind::Street),
             Randomisation::default()
@@ -299,6 +342,61 @@ mod tests {
             assert_eq!((a.baseline_m, a.camera), (b.baseline_m, b.camera));
             let hfov = |l: &DriveLook| (0.5 * l.size.0 as f64 / l.focal_px).atan();
             assert!((hfov(&a) - hfov(&b)).abs() < 1e-12, "seed {seed}");
+        }
+    }
+
+    #[test]
+    fn desk_rigs_keep_the_nearest_surface_within_a_third_of_the_width() {
+        let r = Randomisation::for_scene(SceneKind::Desk);
+        let looks: Vec<DriveLook> = (0..400)
+            .map(|s| r.draw(&mut ChaCha8Rng::seed_from_u64(s)))
+            .collect();
+        for l in &looks {
+            let disparity = l.focal_px * l.baseline_m / 0.2;
+            assert!(
+                disparity <= l.size.0 as f64 / 3.0 * (1.0 + 1e-9),
+                "{l:?}: {disparity} px at 0.2 m"
+            );
+            assert!(l.baseline_m >= 0.05 - 1e-12, "{}", l.baseline_m);
+        }
+        // Wide lenses allow wider rigs: the caps run from about 7 cm (55 degrees) to 16 cm.
+        let (lo, hi) = looks.iter().fold((f64::MAX, 0.0f64), |(a, b), l| {
+            (a.min(l.baseline_m), b.max(l.baseline_m))
+        });
+        assert!(
+            (0.05..0.055).contains(&lo) && (0.13..0.16).contains(&hi),
+            "{lo}..{hi}"
+        );
+        // The cap changes only the baseline: the rest of each draw is the room's.
+        let room = Randomisation {
+            nearest_m: None,
+            ..r
+        };
+        for seed in 0..50 {
+            let (a, b) = (
+                r.draw(&mut ChaCha8Rng::seed_from_u64(seed)),
+                room.draw(&mut ChaCha8Rng::seed_from_u64(seed)),
+            );
+            assert_eq!(
+                (a.size, a.focal_px, a.camera),
+                (b.size, b.focal_px, b.camera)
+            );
+            assert!(a.baseline_m <= b.baseline_m);
+        }
+        // A cap under the range's bottom draws that cap; nonsense caps are ignored.
+        let narrow = Randomisation {
+            hfov_deg: (10.0, 10.0),
+            ..r
+        };
+        let l = narrow.draw(&mut ChaCha8Rng::seed_from_u64(1));
+        assert!(l.baseline_m < 0.05 && l.baseline_m > 0.0);
+        for nearest in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let odd = Randomisation {
+                nearest_m: Some(nearest),
+                ..r
+            };
+            let b = odd.draw(&mut ChaCha8Rng::seed_from_u64(2)).baseline_m;
+            assert!(b.is_finite() && (0.05..=0.5).contains(&b), "{nearest}: {b}");
         }
     }
 }

@@ -9,7 +9,6 @@ use std::time::{Duration, Instant};
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::frame::RgbImage;
-
 use renderer::GaussianSet;
 
 use super::error::ServiceError;

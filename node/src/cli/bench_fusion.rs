@@ -9,8 +9,7 @@
 //! ([`crate::fusion::GlobalMap::insert_bin`]), journaled and synced, and far tiles paged to
 //! disk, as `run` does ([`crate::service::map_store::MapStore`]); the figures are reported
 //! per window of bins. Fusing is timed twice: wall time, and the CPU time of the fusing
-//! thread, which leaves out the moments a shared machine gave its core to something else
-//! (the wall times of one run move with the machine's load, the journal's sync in step).
+//! thread, which leaves out the moments a shared machine gave its core to something else.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -1,9 +1,14 @@
 #!/usr/bin/env bash
-# The learned default's settings, each switched off (or changed) alone, on generated
-# validation drives (seeds 2,000,000 and 2,000,001: never trained on, never the held-out
-# evaluation): desks (0.2-1 m), rooms (1-10 m) and streets, beside SGM, the classical floor.
-# Every inference setting of `tiny` is kept, changed or removed on these figures; real pairs
-# are only reported (scripts/real_pairs.sh).
+# The learned default's settings, each switched off (or changed) alone, on two generated
+# validation sets (seeds from 2,000,000: never trained on, never the held-out evaluation),
+# beside SGM, the classical floor:
+# - fixed rigs: desks (0.2-1 m, 10 cm rig, 320x96), rooms (1-10 m, 320x96) and streets
+#   (KITTI-360's rig, 272x72), seeds 2,000,000 and 2,000,001 (out/rig_range/data);
+# - randomised rigs at the node's working size, 544x112: desks, rooms and streets with
+#   5-50 cm baselines (scripts/validation_data.sh) and plain streets at 272x72, the drives
+#   scripts/choose_checkpoint.sh chooses checkpoints on (data/validation_choice).
+# Every inference setting of `tiny` is kept, changed or removed on these figures by the
+# rule of scripts/setting_choices.py; real pairs are only reported (scripts/real_pairs.sh).
 # Writes results/setting_choices/ (README.md, scores.json).
 #
 #   bash scripts/setting_choices.sh [OUT_DIR]   (default results/setting_choices)
@@ -12,7 +17,7 @@
 #   SETTING_PRESET=tiny-3d bash scripts/setting_choices.sh results/setting_choices/tiny-3d
 #
 # Builds the release binary unless STEREOSPLAT_BIN names one; drives and runs go to
-# out/rig_range/.
+# out/rig_range/ and data/validation_choice/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-results/setting_choices}"
@@ -45,6 +50,7 @@ if [ "${SETTING_PRESET:-tiny}" = tiny-3d ]; then
     "default|"
     "SGM|"
     "candidates in metres|rig_disparity_fraction=null"
+    "no sgm_snap|sgm_snap=false"
     "volume branch on near scenes|volume_branch_far_only=false"
     "no volume branch|volume_branch=false"
   )
@@ -76,70 +82,33 @@ for row in "${scenes[@]}"; do
   done
 done
 
-python3 - "$work/choices" "$out" "$preset" "$prefix" "${variants[@]}" <<'PY'
-import json, pathlib, sys
-runs, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
-preset, prefix, variants = sys.argv[3], sys.argv[4], sys.argv[5:]
-rows, scores = [], {}
-for scene in ["desk", "room", "street"]:
-    for variant in variants:
-        name, sets = variant.split("|", 1)
-        d = json.loads((runs / f"{prefix}{scene}-{name.replace(' ', '_')}" / "eval.json").read_text())
-        a = d["summary"]["average"]
-        ms = d["mean_reconstruct_ms"]
-        scores[f"{scene}/{name}"] = {"settings": "--method sgm" if name == "SGM" else sets, "bins": len(d["bins"]), "psnr": a["psnr"],
-                                     "abs_rel": a["abs_rel"], "reconstruct_ms": ms}
-        shown = "`--method sgm`" if name == "SGM" else f"`{sets or '-'}`"
-        rows.append(f"| {scene} | {name} | {shown} | {len(d['bins'])} | {a['psnr']:.2f} | {a['abs_rel']:.3f} | {ms:.0f} |")
-lines = [
-    "# The learned default's settings on generated validation drives" if preset == "tiny"
-    else f"# `{preset}`'s settings on generated validation drives",
-    "",
-    "Made by `bash scripts/setting_choices.sh`: 2 validation drives per scene (seeds",
-    "2,000,000 and 2,000,001; training uses seeds below 1,000,000 and the held-out",
-    f"evaluation 1,000,000 to 1,999,999), the shipped `{preset}` weights, each row the default",
-    "with the settings shown changed (SGM: `--method sgm`, the classical floor). Bin-average",
-    "PSNR of the bin's frames rendered from its map, AbsRel of the rendered depth against",
-    "the generator's LiDAR, mean reconstruction time. Desks: 320x96, 10 cm rig, 0.1 m bins; rooms: 320x96, 0.5 m bins; streets: 272x72,",
-    "KITTI-360's rig, 8 m bins every 5 frames; at most 6 bins per drive.",
-    "",
-    "| scene | variant | settings | bins | PSNR | AbsRel | ms |",
-    "| --- | --- | --- | ---: | ---: | ---: | ---: |",
-    *rows,
-]
-if preset == "tiny":
-    lines += [
-    "",
-    "What each row decides (AbsRel first: the map's geometry is the product):",
-    "",
-    "- `rig_disparity_fraction` 0.233181 (candidates from the rig): desks need it; rooms and",
-    "  streets are the same either way, since on their rigs it gives the metres the weights",
-    "  learned.",
-    "- `sgm_snap` and `sgm_guidance`: each lowers the near scenes' AbsRel (rooms most); the",
-    "  strength is flat here (5 to 20), so the value the weights were trained with stays.",
-    "  The hints' width is the constant `GUIDANCE_WIDTH` (2 candidates): this script with",
-    "  widths 1 and 4 gave AbsRel 0.203 and 0.202 on desks, 0.086 and 0.088 on rooms and",
-    "  0.149 on streets, against 0.203, 0.087 and 0.149 at 2 (its rows in git, commit",
-    "  ca50ad6, when the width was still a setting).",
-    "- `auto_depth_range`: desks need the fitted range. `auto_depth_range_max_far` 50 m: fitting",
-    "  every scene costs the streets PSNR and AbsRel, so streets keep the rig's range.",
-    "- The ms column is wall time on a shared machine, not a benchmark (`stereosplat bench model`).",
-    "- `tiny-3d`'s choices beyond these: [tiny-3d/](tiny-3d/) (`SETTING_PRESET=tiny-3d`).",
-    ]
-elif preset == "tiny-3d":
-    lines += [
-    "",
-    "What each row decides (AbsRel first):",
-    "",
-    "- `rig_disparity_fraction` 0.233181, as `tiny`: with candidates in metres (1-100 m, what",
-    "  its weights were trained with) desks fall outside them; rooms and streets are the same",
-    "  either way.",
-    "- `volume_branch_far_only`: the branch's grid is street-sized; on near scenes it does",
-    "  not lower AbsRel and costs time, so it runs on streets only (where, beside the",
-    "  no-branch row, it is what the preset is for).",
-    "- The ms column is wall time on a shared machine, not a benchmark.",
-    ]
-(out / "README.md").write_text("\n".join(lines) + "\n")
-(out / "scores.json").write_text(json.dumps(scores, indent=2) + "\n")
-print("\n".join(lines))
-PY
+# The randomised rigs: each sequence in its own root (its own rig), scored alone.
+random=data/validation_choice
+VALIDATION_SEQUENCES=2 VALIDATION_SIZE="544 112" STEREOSPLAT_BIN="$bin" \
+  bash scripts/validation_data.sh "$random" >/dev/null
+for seed in 2000300 2000301; do
+  name=$(printf "synth_drive_%07d_sync" "$seed")
+  [ -f "$random/plain_$seed/data_poses/$name/poses.txt" ] ||
+    "$bin" synth --out "$random/plain_$seed" --seed "$seed" --frames 80 --width 272 --height 72 >/dev/null
+done
+# kind, bin length (m), stride: as scripts/choose_checkpoint.sh.
+for row in "desk 0.1 1" "room 0.5 1" "street 8 5" "plain 8 5"; do
+  read -r kind bin_length stride <<<"$row"
+  for variant in "${variants[@]}"; do
+    name="${variant%%|*}"
+    sets=()
+    for kv in ${SETTING_BASE:-} ${variant#*|}; do sets+=(--set "$kv"); done
+    method=(--method stereosplat --preset "$preset" "${sets[@]}")
+    [ "$name" = SGM ] && method=(--method sgm)
+    for root in "$random/${kind}_"*; do
+      dir="$work/randomised/$prefix$kind-${name// /_}/$(basename "$root")"
+      [ -f "$dir/eval.json" ] && continue
+      "$bin" eval --data "$root" "${method[@]}" \
+        --bin-length "$bin_length" --stride "$stride" --max-bins 6 --pictures 0 --no-lpips \
+        --out "$dir" >/dev/null
+    done
+  done
+done
+
+python3 scripts/setting_choices.py --fixed "$work/choices" --randomised "$work/randomised" \
+  --out "$out" --preset "$preset" --prefix "$prefix" -- "${variants[@]}"

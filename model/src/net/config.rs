@@ -445,11 +445,12 @@ impl Config {
     /// the census correlation, so it runs without it and without the depth window. On near
     /// scenes it takes `tiny`'s aids that need no census (the candidates from the rig, the
     /// depth range fitted under 50 m, SGM's hints, `sgm_snap`) and leaves its street-sized
-    /// volume branch out (`volume_branch_far_only`). The rig's candidates and the branch
-    /// left out were each chosen on generated validation drives (`SETTING_PRESET=tiny-3d
-    /// bash scripts/setting_choices.sh`, `results/setting_choices/tiny-3d/`): desks' AbsRel
-    /// 2.01 with candidates in metres, 0.25 from the rig (SGM 0.30), 1.27 with the branch
-    /// on as well; rooms and streets unchanged by either. The script trains in two phases,
+    /// volume branch out (`volume_branch_far_only`). The rig's candidates, `sgm_snap` and
+    /// the branch left out were each chosen on generated validation drives
+    /// (`SETTING_PRESET=tiny-3d bash scripts/setting_choices.sh`,
+    /// `results/setting_choices/tiny-3d/`): on fixed rigs, desks' AbsRel 2.01 with
+    /// candidates in metres, 0.25 from the rig (SGM 0.30), 0.26 without `sgm_snap`, 1.27
+    /// with the branch on as well; the randomised rigs at 544x112 agree. The script trains in two phases,
     /// the second with these near-scene settings, and ships the blend of the two that the
     /// validation drives choose (`interpolate-weights`, `scripts/choose_checkpoint.sh`). The
     /// shipped file is the blend 0.15 x first + 0.85 x second, chosen before that rule with

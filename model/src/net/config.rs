@@ -3,7 +3,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::sgm_surface::SgmSurface;
 use super::volume::VolumeConfig;
 use crate::compute::ComputeDevice;
 
@@ -111,11 +110,6 @@ pub struct Config {
     /// it draws them over their background), inference only.
     #[serde(default)]
     pub sgm_snap: bool,
-    /// With `sgm_guidance`'s hints present (near scenes): what SGM's confident surface of
-    /// the first pair's left view does to the network's Gaussians ([`super::sgm_surface`]).
-    /// `None`: nothing. Inference only.
-    #[serde(default)]
-    pub sgm_surface: Option<SgmSurface>,
     /// One Gaussian per `gaussian_stride` x `gaussian_stride` pixels of each view.
     pub gaussian_stride: usize,
     /// Gaussians below this opacity are not emitted.
@@ -354,7 +348,6 @@ impl Config {
             sgm_guidance: Some(10.0),
             head_channels: 24,
             sgm_snap: true,
-            sgm_surface: None,
             gaussian_stride: 2,
             opacity_floor: 0.02,
             max_gaussians: 200_000,
@@ -495,7 +488,6 @@ impl Config {
     fn without_tiny_extras(self) -> Self {
         Self {
             sgm_snap: false,
-            sgm_surface: None,
             census_matching: false,
             auto_depth_range: false,
             auto_depth_range_max_far: None,

@@ -98,7 +98,6 @@ pub fn fit_scene(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option
             width: map.width as usize,
             height: map.height as usize,
             disparity: map.disparity,
-            confidence: map.confidence,
             fx_baseline: fb,
         },
     })
@@ -157,7 +156,7 @@ fn range_within(near: f32, far: f32, preset: &Config) -> Option<DepthRange> {
 }
 
 /// View `index` of `images` `(V, 3, H, W)` as an [`RgbImage`].
-pub(crate) fn pair_image(images: &Tensor, index: usize) -> Option<RgbImage> {
+fn pair_image(images: &Tensor, index: usize) -> Option<RgbImage> {
     let (_, _, h, w) = images.dims4().ok()?;
     let data = images
         .get(index)

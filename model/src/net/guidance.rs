@@ -29,8 +29,6 @@ pub const GUIDANCE_WIDTH: f32 = 2.0;
 pub struct SgmHints {
     /// Left-view disparity in pixels, row major, NaN where SGM rejected the match.
     pub disparity: Vec<f32>,
-    /// SGM's confidence per pixel in (0, 1] where matched, 0 where rejected.
-    pub confidence: Vec<f32>,
     /// Width of the map (the pair's width).
     pub width: usize,
     /// Rows of the map (the pair's rows).
@@ -234,7 +232,6 @@ mod tests {
     fn flat_map(width: usize, height: usize, d: f32) -> SgmHints {
         SgmHints {
             disparity: vec![d; width * height],
-            confidence: vec![1.0; width * height],
             width,
             height,
             fx_baseline: 100.0,

@@ -23,7 +23,6 @@ pub mod pair_fusion;
 pub mod prune;
 mod reconstructor;
 mod row_correlation;
-pub mod sgm_surface;
 mod stereosplat;
 pub(crate) mod transformer;
 pub mod volume;

@@ -11,10 +11,9 @@ use glam::{Quat, Vec3};
 use renderer::{Camera, GaussianSet};
 
 use super::config::weights_preset;
-use super::depth_range::{pair_image, rig_range, DepthRange};
+use super::depth_range::{rig_range, DepthRange};
 use super::merge::merge_redundant;
 use super::prune::prune_unseen;
-use super::sgm_surface::with_sgm_surface;
 use super::warm_start::{frozen, load_matching, WarmStart};
 use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
@@ -340,19 +339,6 @@ impl LearnedReconstructor {
         };
         let set = match cfg.min_view_weight {
             Some(min_weight) => prune_unseen(&set, cameras, min_weight),
-            None => set,
-        };
-        let surface = cfg
-            .sgm_surface
-            .zip(self.net.hints())
-            .zip(cameras.first())
-            .and_then(|((mode, hints), camera)| {
-                Some((mode, hints, pair_image(images, 0)?, camera))
-            });
-        let set = match surface {
-            Some((mode, hints, left, camera)) => {
-                with_sgm_surface(&set, hints, &left, camera, mode, cfg.max_gaussians)
-            }
             None => set,
         };
         Ok(Reconstruction { set, cost_volume })

@@ -205,12 +205,6 @@ impl StereoSplat {
         net
     }
 
-    /// SGM's matches of the first pair, when [`StereoSplat::fitted_to_scene`] found a near
-    /// scene and the preset takes hints.
-    pub fn hints(&self) -> Option<&SgmHints> {
-        self.guidance.as_deref()
-    }
-
     /// The preset.
     pub fn config(&self) -> &Config {
         &self.cfg

@@ -179,7 +179,6 @@ fn same_network(a: &Config, b: &Config) -> bool {
         merge_tolerance: None,
         min_view_weight: None,
         sgm_snap: false,
-        sgm_surface: None,
         joint_pairs: false,
         view_subsampling: true,
         volume_fusion_margin: None,
@@ -226,11 +225,10 @@ impl Trainer {
         out: &Path,
         resume: bool,
     ) -> Result<Self, TrainError> {
-        // `sgm_snap` and `sgm_surface` are inference settings: training takes the
-        // network's own depth and Gaussians everywhere.
+        // `sgm_snap` is an inference setting: training takes the network's own depth
+        // everywhere.
         let net_cfg = &Config {
             sgm_snap: false,
-            sgm_surface: None,
             ..net_cfg.clone()
         };
         cfg.sample.volume = net_cfg.volume_branch.then(|| net_cfg.volume.clone());

@@ -24,13 +24,8 @@ run="$1" init="$2" out="${3:-$1/choice}" every="${EVERY:-300}" preset="${PRESET:
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 [ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --quiet --bin stereosplat
 data=data/validation_choice
-VALIDATION_SEQUENCES=2 VALIDATION_SIZE="544 112" STEREOSPLAT_BIN="$bin" \
+VALIDATION_SEQUENCES=2 VALIDATION_SIZE="544 112" VALIDATION_PLAIN=2 STEREOSPLAT_BIN="$bin" \
   bash scripts/validation_data.sh "$data" >/dev/null
-for seed in 2000300 2000301; do
-  name=$(printf "synth_drive_%07d_sync" "$seed")
-  [ -f "$data/plain_$seed/data_poses/$name/poses.txt" ] ||
-    "$bin" synth --out "$data/plain_$seed" --seed "$seed" --frames 80 --width 272 --height 72 >/dev/null
-done
 mkdir -p "$out" "$run/choice_runs"
 weights=("start|$init")
 if [ -n "${CANDIDATES:-}" ]; then

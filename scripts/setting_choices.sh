@@ -84,13 +84,8 @@ done
 
 # The randomised rigs: each sequence in its own root (its own rig), scored alone.
 random=data/validation_choice
-VALIDATION_SEQUENCES=2 VALIDATION_SIZE="544 112" STEREOSPLAT_BIN="$bin" \
+VALIDATION_SEQUENCES=2 VALIDATION_SIZE="544 112" VALIDATION_PLAIN=2 STEREOSPLAT_BIN="$bin" \
   bash scripts/validation_data.sh "$random" >/dev/null
-for seed in 2000300 2000301; do
-  name=$(printf "synth_drive_%07d_sync" "$seed")
-  [ -f "$random/plain_$seed/data_poses/$name/poses.txt" ] ||
-    "$bin" synth --out "$random/plain_$seed" --seed "$seed" --frames 80 --width 272 --height 72 >/dev/null
-done
 # kind, bin length (m), stride: as scripts/choose_checkpoint.sh.
 for row in "desk 0.1 1" "room 0.5 1" "street 8 5" "plain 8 5"; do
   read -r kind bin_length stride <<<"$row"

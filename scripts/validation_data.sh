@@ -11,7 +11,9 @@
 # VALIDATION_SEQUENCES (default 4) sets how many sequences per kind, VALIDATION_FRAMES
 # (default 40) their length, VALIDATION_SIZE ("WIDTH HEIGHT", e.g. "544 112": the node's
 # working size) fixes the image size the randomised rigs would draw (their field of view
-# and baseline are still drawn).
+# and baseline are still drawn). VALIDATION_PLAIN (default 0) adds that many plain streets on
+# KITTI-360's rig at 272x72, 80 frames each (seeds from 2,000,300, roots DATA/plain_SEED):
+# the size of the demo and of the held-out streets.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 data="${1:-data/validation}"
@@ -40,5 +42,11 @@ for kind in desk room street; do
       "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
     fi
   done
+done
+for ((k = 0; k < ${VALIDATION_PLAIN:-0}; k++)); do
+  seed=$((base + 300 + k))
+  name=$(printf "synth_drive_%07d_sync" "$seed")
+  [ -f "$data/plain_$seed/data_poses/$name/poses.txt" ] ||
+    "$bin" synth --out "$data/plain_$seed" --seed "$seed" --frames 80 --width 272 --height 72
 done
 echo "validation set under $data"

@@ -73,6 +73,14 @@ pub enum EnhanceError {
     /// Training's checkpoint, log or curve failed.
     #[error(transparent)]
     Train(#[from] crate::train::TrainError),
+    /// The weights to start from lack some of the enhancer's weights (another preset).
+    #[error("{path} lacks the enhancer weights {missing}: is it of another preset?")]
+    InitIncomplete {
+        /// The weights file.
+        path: PathBuf,
+        /// The weights it lacks, comma-separated.
+        missing: String,
+    },
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {

@@ -19,6 +19,7 @@ use super::loss::{losses, LossWeights};
 use super::pairs::PairSet;
 use super::{Config, EnhanceError, Enhancer};
 use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
+use crate::net::load_matching;
 use crate::train::checkpoint::Run;
 use crate::train::{mix, AdamWConfig, TrainError};
 
@@ -152,6 +153,21 @@ impl Trainer {
             pairs: set,
             cfg,
         })
+    }
+
+    /// Starts from the enhancer weights in the safetensors file at `path` instead of the
+    /// seeded initialisation (fine-tuning on new pairs); every tensor must match the
+    /// preset's shapes, and a weight the file lacks is an error, so no layer starts fresh
+    /// unnoticed.
+    pub fn load_weights(&mut self, path: &Path) -> Result<usize, EnhanceError> {
+        let warm = load_matching(&self.run.varmap, path)?;
+        if !warm.fresh.is_empty() {
+            return Err(EnhanceError::InitIncomplete {
+                path: path.to_path_buf(),
+                missing: warm.fresh.join(", "),
+            });
+        }
+        Ok(warm.loaded)
     }
 
     /// Steps already taken.

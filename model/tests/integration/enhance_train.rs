@@ -150,6 +150,22 @@ fn pairs_are_written_as_asked_and_training_resumes_exactly() {
     assert_eq!((curve.width(), curve.height()), (800, 480));
     // Another preset's checkpoint is refused.
     assert!(Trainer::new(&Config::small(), train_config(6), &made, &stopped, true).is_err());
+    // A fine-tune starts from the file it is given, every weight of it, and a file of
+    // another network (StereoSplat's) is refused rather than half loaded.
+    let tuned = temp("init");
+    let mut trainer = Trainer::new(&Config::tiny(), train_config(0), &made, &tuned, false).unwrap();
+    assert!(
+        trainer
+            .load_weights(&exported_weights(&stopped, "tiny"))
+            .unwrap()
+            > 0
+    );
+    trainer.run(&|| false, &mut |_| {}).unwrap();
+    assert_same_weights(
+        &exported_weights(&stopped, "tiny"),
+        &exported_weights(&tuned, "tiny"),
+    );
+    assert!(trainer.load_weights(&default_weights("tiny")).is_err());
 
     let enhancer = load(
         &Config::tiny(),
@@ -168,7 +184,7 @@ fn pairs_are_written_as_asked_and_training_resumes_exactly() {
     assert_eq!(report.pairs, 9);
     assert!(report.raw.psnr.is_finite() && report.enhanced.psnr.is_finite());
     assert!(report.raw.lpips > 0.0 && report.enhanced.lpips > 0.0);
-    for dir in [data, made, straight, stopped, whole] {
+    for dir in [data, made, straight, stopped, whole, tuned] {
         let _ = std::fs::remove_dir_all(dir);
     }
 }

@@ -41,6 +41,10 @@ pub struct EnhancerDataArgs {
     /// StereoSplat preset of every weights file.
     #[arg(long, default_value = "tiny")]
     preset: String,
+    /// Distance between a bin's first and last frames, metres (as `train --bin-length`: 8
+    /// for streets, 0.5 for rooms, 0.1 for desks).
+    #[arg(long, default_value_t = BinConfig::default().length_m)]
+    bin_length: f64,
 }
 
 /// Parses one `--weights` value.
@@ -76,12 +80,21 @@ pub fn run(args: &EnhancerDataArgs) -> Result<()> {
             .map(|s| source(&args.preset, s))
             .collect::<Result<_>>()?,
     };
+    if !(args.bin_length.is_finite() && args.bin_length > 0.0) {
+        bail!(
+            "--bin-length {}: a bin must span a positive distance",
+            args.bin_length
+        );
+    }
     let cfg = DataConfig {
         pairs: args.pairs,
         seed: args.seed,
         max_input_pairs: args.max_pairs.max(1),
         targets: args.targets.max(1),
-        bins: BinConfig::default(),
+        bins: BinConfig {
+            length_m: args.bin_length,
+            ..BinConfig::default()
+        },
     };
     let bar = progress::bar(args.pairs, "pairs");
     let count = make_pairs(

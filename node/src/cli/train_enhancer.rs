@@ -28,6 +28,10 @@ pub struct TrainEnhancerArgs {
     /// Continue from the run directory's checkpoint.
     #[arg(long)]
     resume: bool,
+    /// Start from these enhancer weights instead of a seeded initialisation (fine-tuning on
+    /// new pairs, e.g. the shipped file on renders of another StereoSplat).
+    #[arg(long, conflicts_with = "resume")]
+    init: Option<PathBuf>,
     /// Optimizer steps in all.
     #[arg(long, default_value_t = 3000)]
     steps: u64,
@@ -80,6 +84,12 @@ pub fn run(args: &TrainEnhancerArgs) -> Result<()> {
     };
     let mut trainer = Trainer::new(&net, cfg, &args.pairs, &args.out, args.resume)
         .with_context(|| format!("starting training in {}", args.out.display()))?;
+    if let Some(init) = &args.init {
+        let loaded = trainer
+            .load_weights(init)
+            .with_context(|| format!("loading {}", init.display()))?;
+        eprintln!("{}: {loaded} tensors loaded", init.display());
+    }
     eprintln!(
         "training enhancer {} ({} weights) on {} pairs from step {} to {}",
         args.preset,

@@ -15,8 +15,8 @@
 #             drives choose, about 40 min)
 #             results/stereosplat_tiny/README.md, results/stereosplat_tiny/scales/README.md
 #   tiny-3d   train_tiny.sh -> train_tiny_transfer.sh
-#             -> train_tiny_3d.sh (runs/tiny_3d/cv3d, 1,500 steps, about 41 min; runs/tiny_3d/near,
-#             1,800 steps, about 70 min; the blend of the two chosen on validation drives,
+#             -> train_tiny_3d.sh (runs/tiny_3d/cv3d, 1,500 steps, 41-50 min; runs/tiny_3d/near,
+#             1,800 steps, 40-70 min; the blend of the two chosen on validation drives,
 #             runs/tiny_3d/blends, about 40 min)
 #             results/tiny_3d/README.md
 #   enhancer  train_tiny.sh -> train_tiny_transfer.sh, and train_tiny.sh with unbounded depth

@@ -436,30 +436,19 @@ impl Config {
 
     /// `tiny` with the 3D-volume branch beside the cost volume (the paper's CV + 3D row) and
     /// its own weights (`model/weights/stereosplat_tiny-3d.safetensors`, `bash
-    /// scripts/train_tiny_3d.sh`), for a mapping stack that wants the depth first. On the
-    /// speed/accuracy chart's held-out bins at 272x72 (`stereosplat bench pareto`,
-    /// `results/tiny_3d/`): AbsRel 0.1036 and LPIPS 0.163 against `tiny`'s 0.1180 and 0.169,
-    /// Gaussians where the input pair saw nothing, at 2.2 to 2.9 times `tiny`'s latency. The
-    /// volume's Gaussians that an input view already explains are dropped
+    /// scripts/reproduce_weights.sh tiny-3d`), for a mapping stack that wants the depth
+    /// first. The volume's Gaussians that an input view already explains are dropped
     /// (`volume_fusion_margin` 0.5). Its weights start from `tiny` weights trained without
     /// the census correlation, so it runs without it and without the depth window. On near
     /// scenes it takes `tiny`'s aids that need no census (the candidates from the rig, the
     /// depth range fitted under 50 m, SGM's hints, `sgm_snap`) and leaves its street-sized
-    /// volume branch out (`volume_branch_far_only`). The rig's candidates, `sgm_snap` and
-    /// the branch left out were each chosen on generated validation drives
+    /// volume branch out (`volume_branch_far_only`). Those settings
     /// (`SETTING_PRESET=tiny-3d bash scripts/setting_choices.sh`,
-    /// `results/setting_choices/tiny-3d/`): on fixed rigs, desks' AbsRel 2.01 with
-    /// candidates in metres, 0.25 from the rig (SGM 0.30), 0.26 without `sgm_snap`, 1.27
-    /// with the branch on as well; the randomised rigs at 544x112 agree. The script trains in two phases,
-    /// the second with these near-scene settings, and ships the blend of the two that the
-    /// validation drives choose (`interpolate-weights`, `scripts/choose_checkpoint.sh`). The
-    /// shipped file is the blend 0.15 x first + 0.85 x second, chosen before that rule with
-    /// the held-out streets and real pairs in view (`results/tiny_3d/README.md`): on the
-    /// held-out streets (`stereosplat eval --data data/heldout272 --method stereosplat
-    /// --preset tiny-3d --stride 5`) it beats both phases' PSNR and AbsRel. On real pairs (`bash scripts/real_pairs.sh --preset
-    /// tiny-3d`, reported, never chosen on: `results/tiny_3d/real_pairs_shipped/`) it scores
-    /// Aloe 35.9% bad-3 pixels (SGM 17.6%), Motorcycle 28.1% (SGM 13.0%), the OAK-D rooms
-    /// 0.0271 photometric error on common pixels (SGM 0.0228).
+    /// `results/setting_choices/tiny-3d/`) and the weights' blend of its two training
+    /// phases (`results/tiny_3d/chain/choice/`) were chosen on generated validation drives.
+    /// Reported, never chosen on (`results/tiny_3d/`): on the held-out streets AbsRel 0.124
+    /// against `tiny`'s 0.137 at 22.93 against 22.81 dB, and 19.47 dB where the input pair
+    /// saw nothing; on real pairs Aloe 32.8% bad-3 (SGM 17.6%), Motorcycle 27.7% (SGM 13.0%).
     pub fn tiny_3d() -> Self {
         Self {
             name: "tiny-3d".into(),

@@ -5,16 +5,16 @@
 # (model/weights/stereosplat_tiny.safetensors) at the node's working size, 544x112, of desks,
 # rooms and streets, and the kept step the validation drives choose.
 # - Training drives, none of which StereoSplat trained on: desks (seeds 600-605, randomised
-#   5-50 cm rigs, 40 frames, bins of 0.1 m), rooms (700-705, 40 frames, 0.5 m), streets
+#   5-50 cm rigs, 40 frames, bins of 0.1 m), rooms (700-705, 40 frames, 0.3 m), streets
 #   (800-805 randomised, 80 frames, 8 m) and plain streets on KITTI-360's rig (20-23, 120
 #   frames), each in its own root under DATA/drives; PAIRS_PER_ROOT render -> truth pairs of
 #   each (`enhancer-data`, K ~ U{1..3} input pairs) into one folder, DATA/pairs.
 # - Validation pairs (the choice is made on them): VALIDATION_PAIRS per root of the validation
 #   drives (scripts/validation_data.sh with VALIDATION_SEQUENCES=2 VALIDATION_SIZE="544 112"
 #   VALIDATION_PLAIN=2, seeds 2,000,000 and up), one folder per kind (a batch holds one size).
-# - Held-out pairs (reported, never chosen on): desks, rooms and randomised streets at
-#   544x112 (seeds 1,500,000-1, 1,500,100-1, 1,500,200-1) and the two held-out streets at
-#   272x72 of every other table (`synth-heldout`, seeds 1,000,000-1), one folder per kind.
+# - Held-out pairs (reported, never chosen on): a randomised desk, room and street at
+#   544x112 (`synth-heldout --scene KIND --randomise`, seed 1,000,000 each) and the two
+#   held-out streets at 272x72 of every other table (seeds 1,000,000-1), one folder per kind.
 # - `train-enhancer --init runs/enhancer_tiny/enhancer_tiny.safetensors` in RUN_DIR, STEPS
 #   steps at LR, in segments of KEEP_EVERY steps, each segment's weights kept as
 #   RUN_DIR/kept/step_N.safetensors (step 0: the street enhancer itself).
@@ -26,7 +26,7 @@
 # Resumable: drives, pairs, the checkpoint and the kept steps already written are kept.
 #   bash scripts/train_enhancer_scales.sh [DATA_DIR] [RUN_DIR]
 #   (defaults data/enhancer_scales, runs/enhancer_scales)
-#   PAIRS_PER_ROOT=120 VALIDATION_PAIRS=60 HELDOUT_PAIRS=60 STEPS=1000 KEEP_EVERY=250 LR=3e-4
+#   PAIRS_PER_ROOT=120 VALIDATION_PAIRS=60 HELDOUT_PAIRS=60 STEPS=500 KEEP_EVERY=125 LR=3e-4
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -35,8 +35,8 @@ run="${2:-runs/enhancer_scales}"
 per_root="${PAIRS_PER_ROOT:-120}"
 validation_pairs="${VALIDATION_PAIRS:-60}"
 heldout_pairs="${HELDOUT_PAIRS:-60}"
-steps="${STEPS:-1000}"
-keep_every="${KEEP_EVERY:-250}"
+steps="${STEPS:-500}"
+keep_every="${KEEP_EVERY:-125}"
 lr="${LR:-3e-4}"
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 [ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
@@ -48,10 +48,12 @@ if [ ! -f "$start" ]; then
 fi
 size=(--width 544 --height 112)
 written() { [ -f "$1/data_poses/$2/poses.txt" ]; }
+# Bins as training cuts them, but 0.3 m for rooms: a handheld room path of 40 frames may
+# never lie 0.5 m from any of its frames (seed 700's reaches 0.42 m).
 bin_length() {
   case "$1" in
     desk) echo 0.1 ;;
-    room) echo 0.5 ;;
+    room) echo 0.3 ;;
     *) echo 8 ;;
   esac
 }
@@ -92,15 +94,14 @@ echo "training pairs: $(($(wc -l <"$data/pairs/pairs.csv") - 1))"
 # 2. Validation and held-out pairs, one folder per kind.
 VALIDATION_SEQUENCES=2 VALIDATION_SIZE="544 112" VALIDATION_PLAIN=2 STEREOSPLAT_BIN="$bin" \
   bash scripts/validation_data.sh data/validation_choice >/dev/null
-for row in "desk 1500000 desk" "room 1500100 room" "street 1500200 drive"; do
-  read -r kind first word <<<"$row"
-  for seed in "$first" $((first + 1)); do
-    root="$data/heldout_drives/${kind}_$seed"
-    frames=40
-    [ "$kind" = street ] && frames=80
-    written "$root" "$(printf "synth_%s_%07d_sync" "$word" "$seed")" ||
-      "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
-  done
+for kind in desk room street; do
+  frames=40
+  [ "$kind" = street ] && frames=80
+  word=$kind
+  [ "$kind" = street ] && word=drive
+  written "$data/heldout_drives/$kind" "$(printf "synth_%s_1000000_sync" "$word")" ||
+    "$bin" synth-heldout --out "$data/heldout_drives/$kind" --scene "$kind" --frames "$frames" \
+      --randomise "${size[@]}"
 done
 written "$data/heldout_drives/plain" synth_drive_1000001_sync ||
   "$bin" synth-heldout --out "$data/heldout_drives/plain" --sequences 2 --frames 300 --width 272 --height 72
@@ -113,7 +114,7 @@ for kind in desk room street plain; do
   total=0
   for root in "$data"/heldout_drives/"$kind"*; do
     total=$((total + heldout_pairs))
-    [ "$kind" = plain ] && total=$((2 * heldout_pairs))
+    [ "$kind" = plain ] && total=$((2 * heldout_pairs))  # two sequences in its one root
     pairs "$root" "$data/heldout/$kind" "$total" 2 "$kind"
   done
 done

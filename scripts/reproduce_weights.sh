@@ -22,6 +22,9 @@
 #   enhancer  train_tiny.sh -> train_tiny_transfer.sh, and train_tiny.sh with unbounded depth
 #             logits (runs/tiny_unbounded, 7,000 steps, about 107 min)
 #             -> train_enhancer.sh (data/enhancer, runs/enhancer_tiny, about 70 min)
+#             -> train_enhancer_scales.sh (the street enhancer fine-tuned on the shipped
+#             tiny's renders of desks, rooms and streets at 544x112, and the kept step the
+#             validation pairs choose; data/enhancer_scales, runs/enhancer_scales, about 2 h)
 #             results/enhancer_tiny/README.md
 # Resumable: run the same command again after any interruption. A stage whose run folder's
 # checkpoint has reached its last step is skipped; an unfinished one resumes from its
@@ -80,9 +83,11 @@ case "$target" in
   enhancer)
     stage runs/tiny_unbounded 7000 bash scripts/train_tiny.sh data/train272 runs/tiny_unbounded \
       --set depth_logit_bound=null
-    # Skips the drives and pairs already written and resumes the training.
+    # Each skips the drives and pairs already written and resumes its training.
     bash scripts/train_enhancer.sh data/enhancer runs/enhancer_tiny
-    cp runs/enhancer_tiny/enhancer_tiny.safetensors model/weights/enhancer_tiny.safetensors
-    echo "weights: model/weights/enhancer_tiny.safetensors"
+    bash scripts/train_enhancer_scales.sh data/enhancer_scales runs/enhancer_scales
+    chosen=$(python3 scripts/enhancer_choice.py runs/enhancer_scales/choice)
+    cp "runs/enhancer_scales/kept/$chosen.safetensors" model/weights/enhancer_tiny.safetensors
+    echo "weights: model/weights/enhancer_tiny.safetensors ($chosen)"
     ;;
 esac

@@ -132,21 +132,21 @@ for ((s = keep_every; s <= steps; s += keep_every)); do
 done
 
 # 4. Every kept step on the validation pairs, then the chosen one and step 0 on the held-out.
-mkdir -p "$run/choice" "$run/heldout"
-for w in "$run"/kept/step_*.safetensors; do
-  step=$(basename "$w" .safetensors)
+# score SET STEP: kept step STEP's reports on the pairs of SET (validation, heldout), per kind.
+score() {
+  local set="$1" step="$2" folder="$run/choice" kind out
+  [ "$set" = heldout ] && folder="$run/heldout"
+  mkdir -p "$folder"
   for kind in desk room street plain; do
-    out="$run/choice/${step}_$kind.json"
-    [ -f "$out" ] || "$bin" eval-enhancer --pairs "$data/validation/$kind" --preset tiny \
-      --weights "$w" --out "$out" >/dev/null
-  done
-done
-chosen=$(python3 scripts/enhancer_choice.py "$run/choice")
-for step in step_0 "$chosen"; do
-  for kind in desk room street plain; do
-    out="$run/heldout/${step}_$kind.json"
-    [ -f "$out" ] || "$bin" eval-enhancer --pairs "$data/heldout/$kind" --preset tiny \
+    out="$folder/${step}_$kind.json"
+    [ -f "$out" ] || "$bin" eval-enhancer --pairs "$data/$set/$kind" --preset tiny \
       --weights "$run/kept/$step.safetensors" --out "$out" >/dev/null
   done
+}
+for w in "$run"/kept/step_*.safetensors; do
+  score validation "$(basename "$w" .safetensors)"
 done
+chosen=$(python3 scripts/enhancer_choice.py "$run/choice")
+score heldout step_0
+score heldout "$chosen"
 echo "chosen: $run/kept/$chosen.safetensors ($run/choice/README.md)"

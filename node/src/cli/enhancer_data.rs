@@ -12,6 +12,7 @@ use model::enhance::make_pairs::{make_pairs, DataConfig, Source};
 use model::net::{default_weights, Config};
 
 use super::progress;
+use super::train::bins_of;
 
 /// Flags of `enhancer-data`.
 #[derive(Args, Clone, Debug)]
@@ -80,21 +81,12 @@ pub fn run(args: &EnhancerDataArgs) -> Result<()> {
             .map(|s| source(&args.preset, s))
             .collect::<Result<_>>()?,
     };
-    if !(args.bin_length.is_finite() && args.bin_length > 0.0) {
-        bail!(
-            "--bin-length {}: a bin must span a positive distance",
-            args.bin_length
-        );
-    }
     let cfg = DataConfig {
         pairs: args.pairs,
         seed: args.seed,
         max_input_pairs: args.max_pairs.max(1),
         targets: args.targets.max(1),
-        bins: BinConfig {
-            length_m: args.bin_length,
-            ..BinConfig::default()
-        },
+        bins: bins_of(args.bin_length)?,
     };
     let bar = progress::bar(args.pairs, "pairs");
     let count = make_pairs(

@@ -119,6 +119,17 @@ fn loss_weights(args: &TrainArgs) -> LossWeights {
     }
 }
 
+/// Training bins `length_m` metres long, refused unless that is a positive distance.
+pub(super) fn bins_of(length_m: f64) -> Result<BinConfig> {
+    if !(length_m.is_finite() && length_m > 0.0) {
+        bail!("--bin-length {length_m}: a bin must span a positive distance");
+    }
+    Ok(BinConfig {
+        length_m,
+        ..BinConfig::default()
+    })
+}
+
 /// The data roots the flags name, each with its bin length.
 fn data_roots(args: &TrainArgs) -> Result<Vec<DataRoot>> {
     let lengths = match args.bin_length.as_slice() {
@@ -135,15 +146,9 @@ fn data_roots(args: &TrainArgs) -> Result<Vec<DataRoot>> {
         .iter()
         .zip(lengths)
         .map(|(path, length_m)| {
-            if !(length_m.is_finite() && length_m > 0.0) {
-                bail!("--bin-length {length_m}: a bin must span a positive distance");
-            }
             Ok(DataRoot {
                 path: path.clone(),
-                bins: BinConfig {
-                    length_m,
-                    ..BinConfig::default()
-                },
+                bins: bins_of(length_m)?,
             })
         })
         .collect()

@@ -75,6 +75,25 @@ fn train_writes_checkpoint_log_curve_and_resumes() {
         stderr.contains("3 --bin-length values for 2 --data roots"),
         "{stderr}"
     );
+    // A bin must span a positive, finite distance, for training and for the enhancer's pairs.
+    for (command, length) in [
+        ("train", "-1"),
+        ("enhancer-data", "0"),
+        ("enhancer-data", "NaN"),
+    ] {
+        let refused = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
+            .args([command, "--data"])
+            .args([&data, Path::new("--out"), &out])
+            .arg(format!("--bin-length={length}"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&refused.stderr);
+        assert!(!refused.status.success(), "{command} {length}: {stderr}");
+        assert!(
+            stderr.contains("a bin must span a positive distance"),
+            "{command} {length}: {stderr}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&data);
     let _ = std::fs::remove_dir_all(&out);
 }

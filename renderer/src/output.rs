@@ -41,6 +41,10 @@ pub struct RenderOutput<T = f32> {
     pub alpha: Vec<T>,
     /// Composited confidence, sum of blend weight times confidence (no background).
     pub confidence: Vec<T>,
+    /// Median depth: camera-z of the Gaussian whose blend takes the accumulated opacity to
+    /// one half (0 where it never gets there). One surface's depth, where [`Self::depth`] at
+    /// an edge between two surfaces is a blend of both that lies on neither.
+    pub median_depth: Vec<T>,
 }
 
 /// Below this accumulated alpha the normalised depth is reported as 0 rather than a ratio of
@@ -59,6 +63,7 @@ impl<T: Real> RenderOutput<T> {
             depth_raw: vec![T::zero(); n],
             alpha: vec![T::zero(); n],
             confidence: vec![T::zero(); n],
+            median_depth: vec![T::zero(); n],
         }
     }
 

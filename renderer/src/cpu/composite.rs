@@ -64,6 +64,7 @@ struct PixelResult<T> {
     confidence: T,
     final_t: T,
     n_contrib: u32,
+    median_depth: T,
 }
 
 /// Edge of the square pixel blocks a tile is split into for candidate culling.
@@ -249,6 +250,9 @@ fn composite_block<T: Real>(
                 live &= !(1 << j);
                 continue;
             }
+            if r.final_t > T::c(0.5) && next_t <= T::c(0.5) {
+                r.median_depth = p.depth;
+            }
             let w = alpha * r.final_t;
             for k in 0..3 {
                 r.rgb[k] = r.rgb[k] + w * p.color[k];
@@ -311,6 +315,7 @@ pub fn render<T: Real>(
             };
             out.alpha[i] = alpha;
             out.confidence[i] = r.confidence;
+            out.median_depth[i] = r.median_depth;
             final_t[i] = r.final_t;
             n_contrib[i] = r.n_contrib;
         }

@@ -6,8 +6,8 @@ use super::context::{self, Cached, Context};
 use super::FrameBuffers;
 use crate::output::RenderSettings;
 
-/// Output planes per pixel: rgb, depth, raw depth, alpha, confidence.
-pub(crate) const PLANES: u64 = 7;
+/// Output planes per pixel: rgb, depth, raw depth, alpha, confidence, median depth.
+pub(crate) const PLANES: u64 = 8;
 
 /// The `Params` uniform of `composite.wgsl`.
 #[repr(C)]

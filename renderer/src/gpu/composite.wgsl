@@ -6,7 +6,8 @@
 // once every pixel of the tile is done.
 //
 // Output planes in one buffer of `pixels` entries each: rgb (interleaved, 3 planes' worth),
-// normalised depth, raw depth, alpha, confidence.
+// normalised depth, raw depth, alpha, confidence, median depth (the depth of the splat whose
+// blend takes transmittance to one half; 0 where it never gets there).
 
 struct Params {
     width: u32,
@@ -69,6 +70,7 @@ fn main(
     var rgb = vec3<f32>(0.0);
     var depth_raw = 0.0;
     var confidence = 0.0;
+    var median_depth = 0.0;
 
     for (var b = 0u; b < batches; b++) {
         workgroupBarrier();
@@ -106,6 +108,9 @@ fn main(
                 atomicAdd(&done_count, 1u);
                 break;
             }
+            if t > 0.5 && next_t <= 0.5 {
+                median_depth = weight.z;
+            }
             let w = alpha * t;
             rgb += w * batch_color[j].xyz;
             depth_raw += w * weight.z;
@@ -126,5 +131,6 @@ fn main(
         image[4u * n + p] = depth_raw;
         image[5u * n + p] = alpha;
         image[6u * n + p] = confidence;
+        image[7u * n + p] = median_depth;
     }
 }

@@ -21,7 +21,7 @@ pub struct FrameProfile {
     pub project_ms: f64,
     /// Key emission, sort, tile ranges and compositing.
     pub kernels_ms: f64,
-    /// Copying the five output planes to a mappable buffer and into the output images.
+    /// Copying the output planes to a mappable buffer and into the output images.
     pub readback_ms: f64,
     /// GPU time of each stage from timestamps (empty where the adapter has none): the time
     /// from the previous mark to this one, in order; the gap between the two submissions

@@ -14,7 +14,7 @@ use crate::pair::outputs::{write_all, Summary};
 use crate::pair::photometric::photometric;
 use crate::pair::run::DEFAULT_WORKING_PIXELS;
 use crate::pair::truth::{score, TruthDisparity};
-use crate::pair::{images, reconstruct_pair, PairOptions};
+use crate::pair::{images, reconstruct_pair, DepthRule, PairOptions};
 use anyhow::{Context, Result};
 use clap::Args;
 use model::frame::DepthMap;
@@ -73,6 +73,29 @@ pub struct ReconstructArgs {
     /// (the summary says it failed either way).
     #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
     on_check_fail: OnCheckFailArg,
+    /// The depth a covered pixel gets from the rendering: `median`, the depth of the
+    /// Gaussian that takes the opacity to one half (one surface's depth, also at edges), or
+    /// `expected`, the opacity-weighted mean (at an edge a blend of both surfaces).
+    #[arg(long, value_enum, default_value_t = DepthRuleArg::Median)]
+    depth: DepthRuleArg,
+}
+
+/// [`DepthRule`] on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DepthRuleArg {
+    /// The median depth (the expected one where the opacity stays under one half).
+    Median,
+    /// The opacity-weighted expected depth.
+    Expected,
+}
+
+impl From<DepthRuleArg> for DepthRule {
+    fn from(a: DepthRuleArg) -> Self {
+        match a {
+            DepthRuleArg::Median => DepthRule::Median,
+            DepthRuleArg::Expected => DepthRule::Expected,
+        }
+    }
 }
 
 /// Runs the reconstruction and writes the outputs.
@@ -98,6 +121,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         working_pixels: args.working_pixels,
         max_vertical_px: args.max_vertical_disparity,
         on_check_fail: args.on_check_fail.into(),
+        depth_rule: args.depth.into(),
         ..PairOptions::default()
     };
     let pair = reconstruct_pair(&left, &right, &calib, reconstructor.as_mut(), &options)?;

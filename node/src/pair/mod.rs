@@ -16,7 +16,7 @@ pub mod truth;
 use std::path::PathBuf;
 
 pub use calib::Calibration;
-pub use run::{reconstruct_pair, PairOptions, PairReconstruction};
+pub use run::{reconstruct_pair, DepthRule, PairOptions, PairReconstruction};
 
 /// Why a stereo pair could not be reconstructed or scored.
 #[derive(Debug, thiserror::Error)]

@@ -47,6 +47,16 @@ pub enum DepthRule {
     Expected,
 }
 
+impl DepthRule {
+    /// The rule's name, as `reconstruct --depth` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            DepthRule::Median => "median",
+            DepthRule::Expected => "expected",
+        }
+    }
+}
+
 /// Settings of [`reconstruct_pair`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PairOptions {
@@ -90,6 +100,8 @@ pub struct PairReconstruction {
     pub render: RenderOutput,
     /// Left-camera z-depth at the input size, metres; 0 where there is none.
     pub depth: DepthMap,
+    /// Which rendered depth `depth` holds.
+    pub depth_rule: DepthRule,
     /// Seconds the reconstructor took (with the self-check and any SGM fallback).
     pub reconstruct_s: f64,
     /// The self-check of the reconstruction and what came of it.
@@ -187,6 +199,7 @@ pub fn reconstruct_pair(
         vertical_input_px,
         render,
         depth,
+        depth_rule: options.depth_rule,
         reconstruct_s,
         check,
         depth_range_m,

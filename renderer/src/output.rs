@@ -12,6 +12,9 @@ pub struct RenderSettings {
     pub near: f32,
     /// Gaussians whose centre is farther than this (camera z, metres) are culled.
     pub far: f32,
+    /// The accumulated opacity at which [`RenderOutput::surface_depth`] takes its depth;
+    /// 0.5 (the default) makes it the median depth.
+    pub surface_opacity: f32,
 }
 
 impl Default for RenderSettings {
@@ -20,6 +23,7 @@ impl Default for RenderSettings {
             background: [0.0; 3],
             near: 0.01,
             far: 1.0e10,
+            surface_opacity: 0.5,
         }
     }
 }
@@ -41,10 +45,13 @@ pub struct RenderOutput<T = f32> {
     pub alpha: Vec<T>,
     /// Composited confidence, sum of blend weight times confidence (no background).
     pub confidence: Vec<T>,
-    /// Median depth: camera-z of the Gaussian whose blend takes the accumulated opacity to
-    /// one half (0 where it never gets there). One surface's depth, where [`Self::depth`] at
-    /// an edge between two surfaces is a blend of both that lies on neither.
-    pub median_depth: Vec<T>,
+    /// Surface depth: camera-z of the Gaussian whose blend takes the accumulated opacity to
+    /// [`RenderSettings::surface_opacity`], or to one half where the pixel never gets
+    /// there; 0 where it stays under one half. One surface's depth, where [`Self::depth`]
+    /// at an edge between two surfaces is a blend of both that lies on neither; a higher
+    /// opacity passes over the faint fringe a nearer surface's Gaussians spread over a
+    /// farther one.
+    pub surface_depth: Vec<T>,
 }
 
 /// Below this accumulated alpha the normalised depth is reported as 0 rather than a ratio of
@@ -63,7 +70,7 @@ impl<T: Real> RenderOutput<T> {
             depth_raw: vec![T::zero(); n],
             alpha: vec![T::zero(); n],
             confidence: vec![T::zero(); n],
-            median_depth: vec![T::zero(); n],
+            surface_depth: vec![T::zero(); n],
         }
     }
 

@@ -12,7 +12,7 @@ use super::stream::OnCheckFailArg;
 use crate::pair::calib::CalibrationInput;
 use crate::pair::outputs::{write_all, Summary};
 use crate::pair::photometric::photometric;
-use crate::pair::run::DEFAULT_WORKING_PIXELS;
+use crate::pair::run::{DEFAULT_WORKING_PIXELS, SURFACE_OPACITY};
 use crate::pair::truth::{score, TruthDisparity};
 use crate::pair::{images, reconstruct_pair, DepthRule, PairOptions};
 use anyhow::{Context, Result};
@@ -73,18 +73,24 @@ pub struct ReconstructArgs {
     /// (the summary says it failed either way).
     #[arg(long, value_enum, default_value_t = OnCheckFailArg::Sgm)]
     on_check_fail: OnCheckFailArg,
-    /// The depth a covered pixel gets from the rendering: `median`, the depth of the
-    /// Gaussian that takes the opacity to one half (one surface's depth, also at edges), or
-    /// `expected`, the opacity-weighted mean (at an edge a blend of both surfaces).
-    #[arg(long, value_enum, default_value_t = DepthRuleArg::Median)]
+    /// The depth a covered pixel gets from the rendering: `surface`, the depth of the
+    /// Gaussian that takes the opacity to --surface-opacity (one surface's depth, also at
+    /// edges), or `expected`, the opacity-weighted mean (at an edge a blend of both
+    /// surfaces).
+    #[arg(long, value_enum, default_value_t = DepthRuleArg::Surface)]
     depth: DepthRuleArg,
+    /// With --depth surface: the opacity at which a pixel's depth is taken (0.5: the median
+    /// depth; a pixel whose opacity stays below it takes the median). Higher passes over the
+    /// faint fringe a nearer surface's Gaussians spread over a farther one.
+    #[arg(long, default_value_t = SURFACE_OPACITY)]
+    surface_opacity: f32,
 }
 
 /// [`DepthRule`] on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum DepthRuleArg {
-    /// The median depth (the expected one where the opacity stays under one half).
-    Median,
+    /// The surface depth at --surface-opacity.
+    Surface,
     /// The opacity-weighted expected depth.
     Expected,
 }
@@ -92,7 +98,7 @@ pub enum DepthRuleArg {
 impl From<DepthRuleArg> for DepthRule {
     fn from(a: DepthRuleArg) -> Self {
         match a {
-            DepthRuleArg::Median => DepthRule::Median,
+            DepthRuleArg::Surface => DepthRule::Surface,
             DepthRuleArg::Expected => DepthRule::Expected,
         }
     }
@@ -122,6 +128,7 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         max_vertical_px: args.max_vertical_disparity,
         on_check_fail: args.on_check_fail.into(),
         depth_rule: args.depth.into(),
+        surface_opacity: args.surface_opacity,
         ..PairOptions::default()
     };
     let pair = reconstruct_pair(&left, &right, &calib, reconstructor.as_mut(), &options)?;

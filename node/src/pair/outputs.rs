@@ -61,8 +61,10 @@ pub struct Summary {
     /// The depth range (near, far, metres) the learned model fitted to the pair with
     /// `auto_depth_range`; null when it used its preset's.
     pub depth_range_m: Option<[f32; 2]>,
-    /// Which rendered depth the depth files hold (`median` or `expected`, `--depth`).
+    /// Which rendered depth the depth files hold (`surface` or `expected`, `--depth`) ...
     pub depth_rule: &'static str,
+    /// ... and with `surface`, at which opacity (`--surface-opacity`).
+    pub surface_opacity: Option<f32>,
     /// Percent of left pixels with depth.
     pub depth_density: f64,
     /// Depth percentiles 5, 50, 95 over pixels with depth, metres.
@@ -146,6 +148,7 @@ impl Summary {
             reconstruct_s: pair.reconstruct_s,
             depth_range_m: pair.depth_range_m.map(|(near, far)| [near, far]),
             depth_rule: pair.depth_rule.name(),
+            surface_opacity: pair.surface_opacity,
             depth_density: 100.0 * valid.len() as f64 / pair.depth.data.len().max(1) as f64,
             depth_percentiles_m: (!valid.is_empty()).then(|| [at(0.05), at(0.5), at(0.95)]),
             photometric,

@@ -189,7 +189,7 @@ fn a_generated_pair_gives_the_files_and_its_depth() {
         assert_finite(&s, method);
         assert_eq!(s["check"]["verdict"], "pass", "{method}: {}", s["check"]);
         assert_eq!(s["check"]["action"], "none");
-        assert_eq!(s["depth_rule"], "median", "the default depth rule");
+        assert_eq!(s["depth_rule"], "surface", "the default depth rule");
         assert!(s["gaussians"].as_u64().unwrap() > 1000);
         let ply = renderer::ply::load_ply(out.join("gaussians.ply")).unwrap();
         assert_eq!(ply.len() as u64, s["gaussians"].as_u64().unwrap());

@@ -64,7 +64,8 @@ struct PixelResult<T> {
     confidence: T,
     final_t: T,
     n_contrib: u32,
-    median_depth: T,
+    surface_depth: T,
+    half_depth: T,
 }
 
 /// Edge of the square pixel blocks a tile is split into for candidate culling.
@@ -199,10 +200,14 @@ fn alpha_box<T: Real>(p: &Projected<T>) -> [T; 4] {
 /// candidate's `min_power` go on to the per-pixel rules, which are exactly those of a pixel
 /// walking the whole list: skip, blend, or stop before transmittance drops under
 /// [`MIN_TRANSMITTANCE`].
+///
+/// `level` is the transmittance at which a pixel's surface depth is taken
+/// (`1 - RenderSettings::surface_opacity`).
 fn composite_block<T: Real>(
     splats: &TileSplats<T>,
     candidates: &[u32],
     rect: [u32; 4],
+    level: T,
 ) -> TileResults<T> {
     const N: usize = (BLOCK * BLOCK) as usize;
     let [x0, x1, y0, y1] = rect;
@@ -251,7 +256,10 @@ fn composite_block<T: Real>(
                 continue;
             }
             if r.final_t > T::c(0.5) && next_t <= T::c(0.5) {
-                r.median_depth = p.depth;
+                r.half_depth = p.depth;
+            }
+            if r.final_t > level && next_t <= level {
+                r.surface_depth = p.depth;
             }
             let w = alpha * r.final_t;
             for k in 0..3 {
@@ -280,13 +288,14 @@ pub fn render<T: Real>(
         .collect();
     let bins = bin(&projected, cam.width, cam.height);
     let (w, h) = (cam.width, cam.height);
+    let level = T::one() - T::c(settings.surface_opacity as f64);
     let per_tile: Vec<TileResults<T>> = (0..bins.tile_count())
         .into_par_iter()
         .map(|t| {
             let splats = TileSplats::new(&bins, &projected, t);
             let mut results = Vec::with_capacity((TILE_SIZE * TILE_SIZE) as usize);
             for (rect, cands) in splats.blocks(t, bins.grid[0], w, h) {
-                results.extend(composite_block(&splats, &cands, rect));
+                results.extend(composite_block(&splats, &cands, rect, level));
             }
             results
         })
@@ -315,7 +324,10 @@ pub fn render<T: Real>(
             };
             out.alpha[i] = alpha;
             out.confidence[i] = r.confidence;
-            out.median_depth[i] = r.median_depth;
+            out.surface_depth[i] = match r.surface_depth > T::zero() {
+                true => r.surface_depth,
+                false => r.half_depth,
+            };
             final_t[i] = r.final_t;
             n_contrib[i] = r.n_contrib;
         }

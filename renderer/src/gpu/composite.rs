@@ -6,7 +6,7 @@ use super::context::{self, Cached, Context};
 use super::FrameBuffers;
 use crate::output::RenderSettings;
 
-/// Output planes per pixel: rgb, depth, raw depth, alpha, confidence, median depth.
+/// Output planes per pixel: rgb, depth, raw depth, alpha, confidence, surface depth.
 pub(crate) const PLANES: u64 = 8;
 
 /// The `Params` uniform of `composite.wgsl`.
@@ -18,6 +18,8 @@ struct Params {
     grid_x: u32,
     pixels: u32,
     background: [f32; 4],
+    /// x: the transmittance at which the surface depth is taken; y, z, w: padding.
+    surface: [f32; 4],
 }
 
 /// The compositing pipeline.
@@ -65,6 +67,7 @@ impl Composite {
             grid_x: grid[0],
             pixels: size[0] * size[1],
             background: [r, g, b, 0.0],
+            surface: [1.0 - settings.surface_opacity, 0.0, 0.0, 0.0],
         };
         ctx.queue
             .write_buffer(&self.kernel.uniform, 0, bytemuck::bytes_of(&params));

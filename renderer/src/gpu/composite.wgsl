@@ -6,8 +6,8 @@
 // once every pixel of the tile is done.
 //
 // Output planes in one buffer of `pixels` entries each: rgb (interleaved, 3 planes' worth),
-// normalised depth, raw depth, alpha, confidence, median depth (the depth of the splat whose
-// blend takes transmittance to one half; 0 where it never gets there).
+// normalised depth, raw depth, alpha, confidence, surface depth (the depth of the splat whose
+// blend takes transmittance to `surface.x`, else of the one that takes it to one half, else 0).
 
 struct Params {
     width: u32,
@@ -15,6 +15,8 @@ struct Params {
     grid_x: u32,
     pixels: u32,
     background: vec4<f32>,
+    // x: the transmittance at which the surface depth is taken (1 - surface opacity).
+    surface: vec4<f32>,
 }
 
 struct Splat {
@@ -70,7 +72,8 @@ fn main(
     var rgb = vec3<f32>(0.0);
     var depth_raw = 0.0;
     var confidence = 0.0;
-    var median_depth = 0.0;
+    var surface_depth = 0.0;
+    var half_depth = 0.0;
 
     for (var b = 0u; b < batches; b++) {
         workgroupBarrier();
@@ -109,7 +112,10 @@ fn main(
                 break;
             }
             if t > 0.5 && next_t <= 0.5 {
-                median_depth = weight.z;
+                half_depth = weight.z;
+            }
+            if t > params.surface.x && next_t <= params.surface.x {
+                surface_depth = weight.z;
             }
             let w = alpha * t;
             rgb += w * batch_color[j].xyz;
@@ -131,6 +137,6 @@ fn main(
         image[4u * n + p] = depth_raw;
         image[5u * n + p] = alpha;
         image[6u * n + p] = confidence;
-        image[7u * n + p] = median_depth;
+        image[7u * n + p] = select(half_depth, surface_depth, surface_depth > 0.0);
     }
 }

@@ -259,7 +259,7 @@ impl GpuRasterizer {
                     &mut out.depth_raw,
                     &mut out.alpha,
                     &mut out.confidence,
-                    &mut out.median_depth,
+                    &mut out.surface_depth,
                 ]
                 .into_iter()
                 .zip(rest.chunks_exact(pixels))

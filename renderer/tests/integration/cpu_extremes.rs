@@ -56,7 +56,7 @@ fn render_checked(set: &GaussianSet, cam: &Camera) -> (RenderOutput, f32) {
         ("depth_raw", &o.depth_raw),
         ("alpha", &o.alpha),
         ("confidence", &o.confidence),
-        ("median_depth", &o.median_depth),
+        ("surface_depth", &o.surface_depth),
     ] {
         assert!(
             v.iter().all(|x| x.is_finite()),

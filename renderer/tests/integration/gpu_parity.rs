@@ -4,9 +4,9 @@
 //! Tolerance: both rasterizers composite the same Gaussians in the same order with the same
 //! rules, so the images differ only by float rounding (GPU `exp`, division and fused
 //! multiply-adds). Per pixel and channel: rgb, alpha and confidence within 2e-3 absolute;
-//! depth, raw depth and median depth within 2e-3 relative to max(1 m, CPU value). A pixel
+//! depth, raw depth and surface depth within 2e-3 relative to max(1 m, CPU value). A pixel
 //! whose float comparison at the 1/255 alpha, 1e-4 transmittance or one-half transmittance
-//! (median depth) threshold flips may exceed that: such pixels are counted and must stay under 0.1% of the image. The measured numbers are
+//! (surface depth) threshold flips may exceed that: such pixels are counted and must stay under 0.1% of the image. The measured numbers are
 //! printed (`cargo test --release -- --nocapture`).
 
 use glam::{Quat, Vec3};
@@ -62,7 +62,7 @@ fn compare(gpu: &RenderOutput, cpu: &RenderOutput) -> Comparison {
             abs(gpu.confidence[p], cpu.confidence[p]),
             rel(gpu.depth[p], cpu.depth[p]),
             rel(gpu.depth_raw[p], cpu.depth_raw[p]),
-            rel(gpu.median_depth[p], cpu.median_depth[p]),
+            rel(gpu.surface_depth[p], cpu.surface_depth[p]),
         ];
         if errs.iter().any(|&e| e.is_nan() || e > ABS_TOL) {
             outliers += 1;
@@ -81,7 +81,7 @@ fn check(gpu: &mut GpuRasterizer, name: &str, set: &GaussianSet, cam: &Camera) -
     let reference = cpu::render(&set.view().unwrap(), &cam.params(), &settings).output;
     let c = compare(&out, &reference);
     println!(
-        "{name}: {} Gaussians, {}x{}: max err rgb {:.2e} alpha {:.2e} confidence {:.2e} depth(rel) {:.2e} depth_raw(rel) {:.2e} median_depth(rel) {:.2e}, {} outlier pixels",
+        "{name}: {} Gaussians, {}x{}: max err rgb {:.2e} alpha {:.2e} confidence {:.2e} depth(rel) {:.2e} depth_raw(rel) {:.2e} surface_depth(rel) {:.2e}, {} outlier pixels",
         set.len(),
         out.width,
         out.height,

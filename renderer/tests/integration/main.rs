@@ -7,6 +7,6 @@
 mod cpu_extremes;
 mod cpu_gradients;
 mod gpu_parity;
-mod median_depth;
 mod picture;
 mod ply;
+mod surface_depth;

@@ -196,8 +196,8 @@ pub fn reconstruct_pair(
     };
     let mut render = cpu::render(&view, &camera.params::<f32>(), &settings).output;
     let mut depth = DepthMap::empty(size.0, size.1);
+    let surface = options.depth_rule == DepthRule::Surface;
     for (i, out) in depth.data.iter_mut().enumerate() {
-        let surface = options.depth_rule == DepthRule::Surface;
         let d = match surface && render.surface_depth[i] > 0.0 {
             true => render.surface_depth[i],
             false => render.depth[i],
@@ -216,8 +216,7 @@ pub fn reconstruct_pair(
         render,
         depth,
         depth_rule: options.depth_rule,
-        surface_opacity: (options.depth_rule == DepthRule::Surface)
-            .then_some(options.surface_opacity),
+        surface_opacity: surface.then_some(options.surface_opacity),
         reconstruct_s,
         check,
         depth_range_m,

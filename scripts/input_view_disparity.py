@@ -81,7 +81,8 @@ def main() -> int:
     command = ("python3 scripts/input_view_disparity.py --bin target/release/stereosplat "
                f"--data DATA --out OUT --frames {' '.join(map(str, args.frames))} "
                f"--methods {' '.join(args.methods)}"
-               + "".join(f" --variant {v}" for v in args.variant))
+               + "".join(f" --variant {v}" for v in args.variant)
+               + (f" --note \"{args.note}\"" if args.note != ap.get_default("note") else ""))
     for spec in args.variant:
         label, rest = spec.split("=", 1)
         base, extra = rest.split(":", 1)

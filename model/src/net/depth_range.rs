@@ -10,6 +10,7 @@ use renderer::Camera;
 
 use super::config::RIG_DEPTH_LIMITS;
 use super::guidance::SgmHints;
+use super::hint_fill::fill_rows;
 use super::Config;
 use crate::baseline::{rectified_baseline, SgmConfig, SgmReconstructor};
 use crate::frame::RgbImage;
@@ -94,11 +95,17 @@ pub fn fit_scene(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option
         range: (!gated)
             .then(|| range_within(fb / high, far, preset))
             .flatten(),
-        hints: SgmHints {
-            width: map.width as usize,
-            height: map.height as usize,
-            disparity: map.disparity,
-            fx_baseline: fb,
+        hints: {
+            let hints = SgmHints {
+                width: map.width as usize,
+                height: map.height as usize,
+                disparity: map.disparity,
+                fx_baseline: fb,
+            };
+            match preset.sgm_fill {
+                true => fill_rows(hints),
+                false => hints,
+            }
         },
     })
 }

@@ -18,6 +18,7 @@ mod encoders;
 mod gaussian_head;
 mod geometry;
 pub mod guidance;
+pub mod hint_fill;
 pub mod merge;
 pub mod pair_fusion;
 pub mod prune;

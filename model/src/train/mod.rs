@@ -168,7 +168,8 @@ struct State {
 
 /// Whether two presets build the same network and train it alike: the settings of inference
 /// alone (opacity floor, budget, pair fusion, joint pairs, merging, pruning, SGM's snap,
-/// the progressive pass) do not count, nor the schedule-like view subsampling and pseudo-view mixing (a run
+/// the progressive pass) do not count, nor the fill of SGM's hints (it changes what the
+/// hints hold, not the network), nor the schedule-like view subsampling and pseudo-view mixing (a run
 /// may change them when it resumes), nor the device it runs on, nor the volume branch's sizes while the branch is off (checkpoints from before the branch
 /// existed read them as `tiny`'s).
 fn same_network(a: &Config, b: &Config) -> bool {
@@ -179,6 +180,7 @@ fn same_network(a: &Config, b: &Config) -> bool {
         merge_tolerance: None,
         min_view_weight: None,
         sgm_snap: false,
+        sgm_fill: false,
         joint_pairs: false,
         view_subsampling: true,
         volume_fusion_margin: None,

@@ -1,8 +1,9 @@
 //! SGM's hints (`sgm_guidance`) with the shipped `tiny` weights on a near textured plane:
 //! they pull the first pair towards the plane and leave a later pair exactly as the network
 //! alone predicts it (the hints were matched on the first pair only); with `sgm_snap` the
-//! first pair's Gaussians SGM matched sit at SGM's depth. `tiny-3d` on the same plane runs
-//! without its street-sized volume branch (`volume_branch_far_only`).
+//! first pair's Gaussians SGM matched sit at SGM's depth, and with `sgm_fill` so do those of a
+//! textureless band SGM cannot match. `tiny-3d` on the same plane runs without its
+//! street-sized volume branch (`volume_branch_far_only`).
 
 use candle_core::{Device, Tensor};
 use model::net::{default_weights, Config, LearnedReconstructor, Prediction};
@@ -159,6 +160,93 @@ fn snapped_gaussians_take_sgms_depth_on_the_first_pair_only_and_stay_finite_far_
         assert_eq!(snapped_depths[2], alone[2]);
         assert_eq!(snapped_depths[3], alone[3]);
     }
+}
+
+/// The plane pair with the plane's left-image columns `BAND` one flat grey and the right
+/// image's columns that show them an unrelated texture: nothing there for SGM to match,
+/// and nothing that tells the network the plane goes on.
+fn banded_plane_pair() -> Tensor {
+    let pair = plane_pair();
+    let noise: Vec<f32> = (0..3 * HEIGHT * BAND.len())
+        .map(|p| (((p * 40503 + 7) >> 3) % 97) as f32 / 97.0)
+        .collect();
+    let flat = Tensor::cat(
+        &[
+            Tensor::full(0.5f32, (1, 3, HEIGHT, BAND.len()), &Device::Cpu).unwrap(),
+            Tensor::from_vec(noise, (1, 3, HEIGHT, BAND.len()), &Device::Cpu).unwrap(),
+        ],
+        0,
+    )
+    .unwrap();
+    let columns = |t: &Tensor, from: usize, to: usize| t.narrow(3, from, to - from).unwrap();
+    let (a, b) = (BAND.start, BAND.end);
+    // The right image shows left column x at x - 8.
+    let left = Tensor::cat(
+        &[
+            &columns(&pair.get(0).unwrap().unsqueeze(0).unwrap(), 0, a),
+            &flat.get(0).unwrap().unsqueeze(0).unwrap(),
+            &columns(&pair.get(0).unwrap().unsqueeze(0).unwrap(), b, WIDTH),
+        ],
+        3,
+    )
+    .unwrap();
+    let right = Tensor::cat(
+        &[
+            &columns(&pair.get(1).unwrap().unsqueeze(0).unwrap(), 0, a - 8),
+            &flat.get(1).unwrap().unsqueeze(0).unwrap(),
+            &columns(&pair.get(1).unwrap().unsqueeze(0).unwrap(), b - 8, WIDTH),
+        ],
+        3,
+    )
+    .unwrap();
+    Tensor::cat(&[left, right], 0).unwrap()
+}
+
+/// Image columns of the banded pair's flat band.
+const BAND: std::ops::Range<usize> = 48..80;
+
+/// Share of the band's cells of `depth` (the first view's Gaussians, stride 2) within 3% of
+/// the plane.
+fn band_on_plane(depth: &[f32]) -> f32 {
+    let (w, h) = (WIDTH / 2, HEIGHT / 2);
+    let cells: Vec<f32> = (0..h)
+        .flat_map(|y| (BAND.start / 2..BAND.end / 2).map(move |x| depth[y * w + x]))
+        .collect();
+    cells
+        .iter()
+        .filter(|d| (*d - PLANE_M).abs() < 0.03 * PLANE_M)
+        .count() as f32
+        / cells.len() as f32
+}
+
+#[test]
+fn filled_hints_put_a_textureless_band_on_the_plane_around_it() {
+    let images = banded_plane_pair();
+    let cameras = rig();
+    let band = |settings: &[&str]| {
+        let cfg = Config::tiny().with_settings(settings).unwrap();
+        let shipped = LearnedReconstructor::load(&cfg, &default_weights("tiny")).unwrap();
+        let (fitted, _) = shipped
+            .net()
+            .fitted_to_scene(&images, &cameras)
+            .expect("the textured rest of the plane is matched");
+        let prediction = LearnedReconstructor::from_net(fitted, 0)
+            .cost_volume_prediction(&images, &cameras)
+            .unwrap();
+        let first = &depths(&prediction)[0];
+        assert!(
+            first.iter().all(|d| d.is_finite() && *d > 0.0),
+            "{settings:?}"
+        );
+        band_on_plane(first)
+    };
+    assert!(Config::tiny().sgm_fill);
+    let (filled, unfilled) = (band(&[]), band(&["sgm_fill=false"]));
+    eprintln!("band cells on the plane: {filled:.3} filled, {unfilled:.3} without the fill");
+    assert!(
+        filled > 0.9 && filled > unfilled,
+        "{filled} against {unfilled}"
+    );
 }
 
 #[test]

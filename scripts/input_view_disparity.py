@@ -14,7 +14,8 @@ the generated drives rank the methods as the real pairs do, and `reconstruct`'s 
 
     python3 scripts/input_view_disparity.py --bin target/release/stereosplat \
         --data data/validation_choice --out results/input_view [--frames 0 10 20]
-        [--methods sgm tiny] [--variant LABEL=BASE:ARG,ARG ...] [--note TEXT]
+        [--methods sgm tiny] [--set KEY=VALUE ...] [--variant LABEL=BASE:ARG,ARG ...]
+        [--note TEXT]
 
 Writes OUT/scores.json and OUT/README.md; each run's outputs (PLY, depth, error maps) go
 under --work (default out/input_view_runs).
@@ -75,14 +76,21 @@ def main() -> int:
     ap.add_argument("--variant", action="append", default=[], metavar="LABEL=BASE:ARG,ARG",
                     help="another row: a method above with more reconstruct arguments, e.g. "
                     "old-3d=tiny-3d:--weights,old.safetensors")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a preset setting every learned row runs with (`reconstruct --set`), "
+                    "e.g. sgm_fill=false for the settings a table was made with")
     ap.add_argument("--note", default="Nothing is chosen on it.",
                     help="what the table is for, written into the README")
     args = ap.parse_args()
     command = ("python3 scripts/input_view_disparity.py --bin target/release/stereosplat "
                f"--data DATA --out OUT --frames {' '.join(map(str, args.frames))} "
                f"--methods {' '.join(args.methods)}"
+               + "".join(f" --set {kv}" for kv in args.set)
                + "".join(f" --variant {v}" for v in args.variant)
                + (f" --note \"{args.note}\"" if args.note != ap.get_default("note") else ""))
+    for label, method in METHODS.items():
+        if "stereosplat" in method:
+            METHODS[label] = method + [a for kv in args.set for a in ("--set", kv)]
     for spec in args.variant:
         label, rest = spec.split("=", 1)
         base, extra = rest.split(":", 1)

@@ -37,6 +37,7 @@ variants=(
   "SGM|"
   "candidates in metres|rig_disparity_fraction=null"
   "no sgm_snap|sgm_snap=false"
+  "no sgm_fill|sgm_fill=false"
   "no sgm_guidance|sgm_guidance=null sgm_snap=false"
   "sgm_guidance 5|sgm_guidance=5"
   "sgm_guidance 20|sgm_guidance=20"
@@ -51,6 +52,7 @@ if [ "${SETTING_PRESET:-tiny}" = tiny-3d ]; then
     "SGM|"
     "candidates in metres|rig_disparity_fraction=null"
     "no sgm_snap|sgm_snap=false"
+    "no sgm_fill|sgm_fill=false"
     "volume branch on near scenes|volume_branch_far_only=false"
     "no volume branch|volume_branch=false"
   )
@@ -105,5 +107,15 @@ for row in "desk 0.1 1" "room 0.5 1" "street 8 5" "plain 8 5"; do
   done
 done
 
+# The README names the command with the environment that changed what ran.
+command="bash scripts/setting_choices.sh $out"
+[ "$preset" = tiny ] || command="SETTING_PRESET=$preset $command"
+[ -z "${SETTING_BASE:-}" ] || command="SETTING_BASE=\"$SETTING_BASE\" $command"
+own=()
+if [ -n "${SETTING_VARIANTS:-}" ]; then
+  command="SETTING_VARIANTS=\$'${SETTING_VARIANTS//$'\n'/\\n}' $command"
+  own=(--no-notes)
+fi
 python3 scripts/setting_choices.py --fixed "$work/choices" --randomised "$work/randomised" \
-  --out "$out" --preset "$preset" --prefix "$prefix" -- "${variants[@]}"
+  --out "$out" --preset "$preset" --prefix "$prefix" --command "$command" "${own[@]}" \
+  -- "${variants[@]}"

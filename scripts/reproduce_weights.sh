@@ -18,7 +18,10 @@
 #             -> train_tiny_3d.sh (runs/tiny_3d/cv3d, 1,500 steps, 41-50 min; runs/tiny_3d/near,
 #             1,800 steps, 40-70 min; the blend of the two chosen on validation drives,
 #             runs/tiny_3d/blends, about 40 min)
-#             results/tiny_3d/README.md
+#             -> train_tiny_3d_scales.sh (runs/tiny_3d/scales, 1,200 steps on desks, rooms and
+#             streets at 544x112 and plain streets at 272x72, about 50 min)
+#             -> choose_checkpoint.sh (the kept step the validation drives choose)
+#             results/tiny_3d/README.md, results/tiny_3d/scales/README.md
 #   enhancer  train_tiny.sh -> train_tiny_transfer.sh, and train_tiny.sh with unbounded depth
 #             logits (runs/tiny_unbounded, 7,000 steps, about 107 min)
 #             -> train_enhancer.sh (data/enhancer, runs/enhancer_tiny, about 70 min)
@@ -63,6 +66,20 @@ stage() {
   fi
 }
 
+# ship RUN_DIR INIT DEST: chooses RUN_DIR's kept step on the validation drives
+# (scripts/choose_checkpoint.sh, PRESET passes on) and copies it, or INIT if the start
+# wins, to DEST.
+ship() {
+  local run="$1" init="$2" dest="$3" chosen from
+  bash scripts/choose_checkpoint.sh "$run" "$init"
+  chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
+    "$run/choice/scores.json")
+  from="$run/kept/step_$chosen.safetensors"
+  [ "$chosen" != start ] || from="$init"
+  cp "$from" "$dest"
+  echo "weights: $dest ($chosen)"
+}
+
 stage runs/tiny 7000 bash scripts/train_tiny.sh data/train272 runs/tiny
 stage runs/tiny_transfer 6000 bash scripts/train_tiny_transfer.sh data/transfer runs/tiny_transfer 6000
 case "$target" in
@@ -70,15 +87,15 @@ case "$target" in
     stage runs/tiny_census/cv_census05 1500 bash scripts/train_tiny_census.sh
     stage runs/tiny_guided 2400 env SHIP=0 bash scripts/train_tiny_guided.sh runs/tiny_guided 2400
     stage runs/tiny_scales 3000 bash scripts/train_tiny_scales.sh runs/tiny_scales 3000
-    bash scripts/choose_checkpoint.sh runs/tiny_scales runs/tiny_guided/stereosplat_tiny.safetensors
-    chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
-      runs/tiny_scales/choice/scores.json)
-    cp "runs/tiny_scales/kept/step_$chosen.safetensors" model/weights/stereosplat_tiny.safetensors
-    echo "weights: model/weights/stereosplat_tiny.safetensors (step $chosen)"
+    ship runs/tiny_scales runs/tiny_guided/stereosplat_tiny.safetensors \
+      model/weights/stereosplat_tiny.safetensors
     ;;
   tiny-3d)
-    # Skips its finished phases itself and writes model/weights/ as its last step.
+    # Skips its finished phases itself; writes runs/tiny_3d/blends/chosen.safetensors.
     bash scripts/train_tiny_3d.sh
+    stage runs/tiny_3d/scales 1200 bash scripts/train_tiny_3d_scales.sh runs/tiny_3d/scales 1200
+    PRESET=tiny-3d ship runs/tiny_3d/scales runs/tiny_3d/blends/chosen.safetensors \
+      model/weights/stereosplat_tiny-3d.safetensors
     ;;
   enhancer)
     stage runs/tiny_unbounded 7000 bash scripts/train_tiny.sh data/train272 runs/tiny_unbounded \

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The `tiny-3d` preset's weights (model/weights/stereosplat_tiny-3d.safetensors;
-# results/tiny_3d/README.md), from the transfer stage of the `tiny` chain
+# The `tiny-3d` preset's two-phase chain (results/tiny_3d/README.md), the start of its stage
+# at every scale, from the transfer stage of the `tiny` chain
 # (runs/tiny_transfer/stereosplat_tiny.safetensors: scripts/train_tiny.sh, then
 # scripts/train_tiny_transfer.sh), in three steps:
 # 1. The first phase, runs/tiny_3d/cv3d: exactly the ablation's CV + 3D row
@@ -13,11 +13,13 @@
 #    mix are fitted, hinted and run without the volume branch as real rooms are at inference
 #    (the first phase's cost-volume Gaussians, trained beside the branch, left a quarter of a
 #    room uncovered). About 70 min on a 2-core machine shared with other work.
-# 3. The shipped file: a point on the straight line from the first phase's weights to the
-#    second's, tensor by tensor (`stereosplat interpolate-weights`, t = 0.25, 0.5, 0.75,
-#    0.85 and 0.9, and the two ends), chosen on generated validation drives by the rule of
+# 3. The chain's file, runs/tiny_3d/blends/chosen.safetensors (which
+#    scripts/train_tiny_3d_scales.sh trains on every scale for the shipped file): a point
+#    on the straight line from the first phase's weights to the second's, tensor by tensor
+#    (`stereosplat interpolate-weights`, t = 0.25, 0.5, 0.75, 0.85 and 0.9, and the two
+#    ends), chosen on generated validation drives by the rule of
 #    scripts/choose_checkpoint.sh with the preset's settings (never on real pairs or the
-#    held-out drives; runs/tiny_3d/blends/choice/README.md), written to model/weights/.
+#    held-out drives; runs/tiny_3d/blends/choice/README.md).
 # Resumable: run it again after any interruption; a finished phase is skipped.
 #   bash scripts/train_tiny_3d.sh
 # STEREOSPLAT_BIN: a built binary to use as is (no cargo build).
@@ -58,6 +60,6 @@ PRESET=tiny-3d CANDIDATES="${candidates[*]}" bash scripts/choose_checkpoint.sh "
 chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
   "$blends/choice/scores.json")
 for c in "start|$first/stereosplat_tiny.safetensors" "${candidates[@]}"; do
-  if [ "${c%%|*}" = "$chosen" ]; then cp "${c#*|}" model/weights/stereosplat_tiny-3d.safetensors; fi
+  if [ "${c%%|*}" = "$chosen" ]; then cp "${c#*|}" "$blends/chosen.safetensors"; fi
 done
-echo "weights: model/weights/stereosplat_tiny-3d.safetensors ($chosen; start: the first phase, t1: the near phase)"
+echo "weights: $blends/chosen.safetensors ($chosen; start: the first phase, t1: the near phase)"

@@ -62,12 +62,22 @@ fn depths(prediction: &Prediction) -> Vec<Vec<f32>> {
         .collect()
 }
 
-/// Mean |depth - plane| over the middle half of the columns (the borders see no match).
+/// The middle half of the Gaussians' grid columns (the borders see no match).
+fn middle() -> std::ops::Range<usize> {
+    WIDTH / 8..3 * WIDTH / 8
+}
+
+/// The cells of `depth` (a view's Gaussians, stride 2) in the grid columns `columns`.
+fn cells_in(depth: &[f32], columns: std::ops::Range<usize>) -> Vec<f32> {
+    let w = WIDTH / 2;
+    (0..HEIGHT / 2)
+        .flat_map(|y| columns.clone().map(move |x| depth[y * w + x]))
+        .collect()
+}
+
+/// Mean |depth - plane| over the middle half of the columns.
 fn plane_error(depth: &[f32]) -> f32 {
-    let (w, h) = (WIDTH / 2, HEIGHT / 2);
-    let cells: Vec<f32> = (0..h)
-        .flat_map(|y| (w / 4..3 * w / 4).map(move |x| depth[y * w + x]))
-        .collect();
+    let cells = cells_in(depth, middle());
     cells.iter().map(|d| (d - PLANE_M).abs()).sum::<f32>() / cells.len() as f32
 }
 
@@ -108,10 +118,12 @@ fn hints_guide_the_first_pair_towards_the_plane_and_no_later_pair() {
 
 /// Share of `depth`'s middle-half cells within 3% of the plane (a quarter pixel of disparity).
 fn on_plane(depth: &[f32]) -> f32 {
-    let (w, h) = (WIDTH / 2, HEIGHT / 2);
-    let cells: Vec<f32> = (0..h)
-        .flat_map(|y| (w / 4..3 * w / 4).map(move |x| depth[y * w + x]))
-        .collect();
+    on_plane_in(depth, middle())
+}
+
+/// Share of the cells of `depth` in the grid columns `columns` within 3% of the plane.
+fn on_plane_in(depth: &[f32], columns: std::ops::Range<usize>) -> f32 {
+    let cells = cells_in(depth, columns);
     cells
         .iter()
         .filter(|d| (*d - PLANE_M).abs() < 0.03 * PLANE_M)
@@ -205,20 +217,6 @@ fn banded_plane_pair() -> Tensor {
 /// Image columns of the banded pair's flat band.
 const BAND: std::ops::Range<usize> = 48..80;
 
-/// Share of the band's cells of `depth` (the first view's Gaussians, stride 2) within 3% of
-/// the plane.
-fn band_on_plane(depth: &[f32]) -> f32 {
-    let (w, h) = (WIDTH / 2, HEIGHT / 2);
-    let cells: Vec<f32> = (0..h)
-        .flat_map(|y| (BAND.start / 2..BAND.end / 2).map(move |x| depth[y * w + x]))
-        .collect();
-    cells
-        .iter()
-        .filter(|d| (*d - PLANE_M).abs() < 0.03 * PLANE_M)
-        .count() as f32
-        / cells.len() as f32
-}
-
 #[test]
 fn filled_hints_put_a_textureless_band_on_the_plane_around_it() {
     let images = banded_plane_pair();
@@ -238,7 +236,7 @@ fn filled_hints_put_a_textureless_band_on_the_plane_around_it() {
             first.iter().all(|d| d.is_finite() && *d > 0.0),
             "{settings:?}"
         );
-        band_on_plane(first)
+        on_plane_in(first, BAND.start / 2..BAND.end / 2)
     };
     assert!(Config::tiny().sgm_fill);
     let (filled, unfilled) = (band(&[]), band(&["sgm_fill=false"]));

@@ -18,8 +18,8 @@
 #             -> train_tiny_3d.sh (runs/tiny_3d/cv3d, 1,500 steps, 41-50 min; runs/tiny_3d/near,
 #             1,800 steps, 40-70 min; the blend of the two chosen on validation drives,
 #             runs/tiny_3d/blends, about 40 min)
-#             -> train_tiny_3d_scales.sh (runs/tiny_3d/scales, 1,200 steps on desks, rooms and
-#             streets at 544x112 and plain streets at 272x72, about 50 min)
+#             -> train_tiny_3d_scales.sh (runs/tiny_3d/scales, 1,500 steps on desks, rooms and
+#             streets at 544x112 and plain streets at 272x72, about 100 min)
 #             -> choose_checkpoint.sh (the kept step the validation drives choose)
 #             results/tiny_3d/README.md, results/tiny_3d/scales/README.md
 #   enhancer  train_tiny.sh -> train_tiny_transfer.sh, and train_tiny.sh with unbounded depth
@@ -93,7 +93,7 @@ case "$target" in
   tiny-3d)
     # Skips its finished phases itself; writes runs/tiny_3d/blends/chosen.safetensors.
     bash scripts/train_tiny_3d.sh
-    stage runs/tiny_3d/scales 1200 bash scripts/train_tiny_3d_scales.sh runs/tiny_3d/scales 1200
+    stage runs/tiny_3d/scales 1500 bash scripts/train_tiny_3d_scales.sh runs/tiny_3d/scales 1500
     PRESET=tiny-3d ship runs/tiny_3d/scales runs/tiny_3d/blends/chosen.safetensors \
       model/weights/stereosplat_tiny-3d.safetensors
     ;;

@@ -8,11 +8,11 @@
 # 600 and 1e-4 after, the `tiny-3d` settings on every sample (its street-sized volume branch
 # runs on far scenes only, as at inference). Every 100th step's weights are kept under
 # RUN_DIR/kept/; then choose one on the validation drives:
-#   bash scripts/train_tiny_3d_scales.sh [RUN_DIR] [STEPS]   (default runs/tiny_3d/scales, 1,200)
+#   bash scripts/train_tiny_3d_scales.sh [RUN_DIR] [STEPS]   (default runs/tiny_3d/scales, 1,500)
 #   PRESET=tiny-3d bash scripts/choose_checkpoint.sh RUN_DIR INIT
 # Resumable: run it again after any interruption. INIT, LR, LR3 and STEREOSPLAT_BIN pass on.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PRESET=tiny-3d PLAIN_FROM=0 MORE_FROM=0 SLOW_FROM=600
 export INIT="${INIT:-runs/tiny_3d/blends/chosen.safetensors}" LR="${LR:-2e-4}"
-exec bash scripts/train_tiny_scales.sh "${1:-runs/tiny_3d/scales}" "${2:-1200}"
+exec bash scripts/train_tiny_scales.sh "${1:-runs/tiny_3d/scales}" "${2:-1500}"

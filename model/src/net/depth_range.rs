@@ -10,7 +10,6 @@ use renderer::Camera;
 
 use super::config::RIG_DEPTH_LIMITS;
 use super::guidance::SgmHints;
-use super::hint_fill::fill_rows;
 use super::Config;
 use crate::baseline::{rectified_baseline, SgmConfig, SgmReconstructor};
 use crate::frame::RgbImage;
@@ -95,17 +94,11 @@ pub fn fit_scene(images: &Tensor, cameras: &[Camera], preset: &Config) -> Option
         range: (!gated)
             .then(|| range_within(fb / high, far, preset))
             .flatten(),
-        hints: {
-            let hints = SgmHints {
-                width: map.width as usize,
-                height: map.height as usize,
-                disparity: map.disparity,
-                fx_baseline: fb,
-            };
-            match preset.sgm_fill {
-                true => fill_rows(hints),
-                false => hints,
-            }
+        hints: SgmHints {
+            width: map.width as usize,
+            height: map.height as usize,
+            disparity: map.disparity,
+            fx_baseline: fb,
         },
     })
 }

@@ -5,7 +5,7 @@
 //! textbook fill of a left-right check's rejections: at a half-occlusion the hidden surface
 //! is the farther one, and inside a weakly textured surface both sides lie on it. On the
 //! generated validation drives the network alone got most such pixels of a desk wrong where
-//! the fill gets them right (`results/setting_choices/`, `results/input_view/`).
+//! the fill gets them right (`results/setting_choices/sgm_fill/`).
 
 use super::guidance::SgmHints;
 

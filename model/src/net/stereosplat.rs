@@ -19,6 +19,7 @@ use super::depth_range::{fit_scene, rig_range, DepthRange};
 use super::encoders::{Backbone, GeometryEncoder};
 use super::gaussian_head::{GaussianHead, HeadInputs};
 use super::guidance::{hint_volume, snap_targets, GuidanceStrength, SgmHints, GUIDANCE_WIDTH};
+use super::hint_fill::fill_rows;
 use super::transformer::MultiViewTransformer;
 use super::volume::{BranchInputs, GaussiansPerBranch, VolumeBranch, VolumeOutput};
 use super::Config;
@@ -189,7 +190,11 @@ impl StereoSplat {
             None => self.clone(),
         };
         if cfg.sgm_guidance.is_some() && near_scene {
-            net.guidance = Some(Arc::new(fit.hints));
+            let hints = match cfg.sgm_fill {
+                true => fill_rows(fit.hints),
+                false => fit.hints,
+            };
+            net.guidance = Some(Arc::new(hints));
         }
         if cfg.volume_branch_far_only && near_scene {
             net.volume = None;

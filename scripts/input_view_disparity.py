@@ -8,7 +8,9 @@ validation sequences (their left and right images, the rig from the root's calib
 each method (the learned ones' own output, flagged where the self-check fails, as the real
 pairs score it) and scores them against the generator's exact depth turned into disparity
 (fx * baseline / z): bad-1 and bad-3 with uncovered pixels counted wrong, bad-3 on covered
-pixels, coverage, EPE. Validation seeds only (scripts/validation_data.sh): it says whether
+pixels, coverage, EPE; and the OAK-D pairs' metric, photometric consistency (`reconstruct`'s
+right image warped into the left by the depth) on the pixels both a method and SGM score,
+with the share of frames where the method is no worse than SGM. Validation seeds only (scripts/validation_data.sh): it says whether
 the generated drives rank the methods as the real pairs do, and `reconstruct`'s depth rule
 (`--depth`) is chosen on it (results/input_view/).
 
@@ -62,6 +64,40 @@ def scores(depth: np.ndarray, truth: np.ndarray, fx_baseline: float) -> dict:
         "epe": float(error[has].mean()) if has.any() else None,
         "density": 100.0 * has.sum() / n,
     }
+
+
+def photometric_errors(run: pathlib.Path) -> np.ndarray:
+    """A run's per-pixel photometric error (`photometric_error16.png`), NaN where unscored."""
+    raw = np.asarray(Image.open(run / "photometric_error16.png"), dtype=np.float64)
+    return np.where(raw > 0, (raw - 1) / 65534.0, np.nan)
+
+
+def warp_errors(left: np.ndarray, right: np.ndarray, disparity: np.ndarray) -> np.ndarray:
+    """The photometric error of a disparity map as `reconstruct` scores a depth (the right
+    image sampled at x - d, linear in x, |difference| averaged over the channels), NaN
+    where there is no disparity or the match leaves the image."""
+    h, w, _ = left.shape
+    x = np.arange(w)[None, :] - disparity
+    valid = (disparity > 0) & (x >= 0) & (x <= w - 1)
+    x = np.clip(x, 0, w - 1)
+    x0 = np.floor(x).astype(int)
+    x1 = np.minimum(x0 + 1, w - 1)
+    f = (x - x0)[..., None]
+    rows = np.arange(h)[:, None]
+    warped = right[rows, x0] * (1 - f) + right[rows, x1] * f
+    return np.where(valid, np.abs(left - warped).mean(axis=-1), np.nan)
+
+
+def photometric_vs_sgm(run: pathlib.Path, label: str, exact: np.ndarray) -> dict:
+    """`label`'s, SGM's and the exact depth's (`exact`, per-pixel errors) mean photometric
+    error on the pixels both the method and SGM score (the real pairs' OAK-D score,
+    `scripts/real_pairs.py`)."""
+    mine, sgm = photometric_errors(run / label), photometric_errors(run / "sgm")
+    common = np.isfinite(mine) & np.isfinite(sgm) & np.isfinite(exact)
+    if not common.any():
+        return {"common": 0.0, "method": None, "sgm": None, "exact": None}
+    return {"common": float(common.mean()), "method": float(mine[common].mean()),
+            "sgm": float(sgm[common].mean()), "exact": float(exact[common].mean())}
 
 
 def main() -> int:
@@ -129,6 +165,11 @@ def main() -> int:
                 subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
                 summary = json.loads((out / "summary.json").read_text())
                 row[label] = summary["truth"]
+            if "sgm" in args.methods:
+                rgb = lambda path: np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255
+                exact = warp_errors(rgb(left), rgb(right), disparity)
+                row["photometric"] = {m: photometric_vs_sgm(run, m, exact)
+                                      for m in args.methods if m != "sgm"}
             if "sgm" in args.methods and "tiny" in args.methods:
                 # SGM where it has a depth, `tiny` elsewhere: what a hybrid that keeps the
                 # classical result where it is confident could reach at the input view.
@@ -173,6 +214,28 @@ def main() -> int:
         mean = lambda key: float(np.mean([np.mean([s[key] for s in k]) for k in kinds]))
         lines.append(f"| {m} | {mean('bad3'):.2f} | {mean('bad3_predicted'):.2f} | "
                      f"{mean('density'):.1f} |")
+    photometric = [m for m in args.methods if m != "sgm" and rows and "photometric" in rows[0]]
+    if photometric:
+        lines += ["", "Photometric consistency against SGM on the pixels both score (mean "
+                  "|left - right warped by the depth|, [0, 1], per kind the mean over frames; "
+                  "no worse: frames where the method's error is at most SGM's; exact: the "
+                  "generator's exact depth scored the same way on the same pixels, the score a "
+                  "perfect geometry gets):", "",
+                  "| method | kind | frames | common % | method | SGM | exact | no worse | exact no worse |",
+                  "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+        for m in photometric:
+            for kind in ("desk", "room", "street", "all"):
+                sel = [r["photometric"][m] for r in rows if kind in ("all", r["kind"])]
+                sel = [p for p in sel if p["method"] is not None]
+                if not sel:
+                    continue
+                wins = sum(p["method"] <= p["sgm"] for p in sel)
+                exact_wins = sum(p["exact"] <= p["sgm"] for p in sel)
+                mean = lambda key: np.mean([p[key] for p in sel])
+                lines.append(
+                    f"| {m} | {kind} | {len(sel)} | {100 * mean('common'):.1f} | "
+                    f"{mean('method'):.4f} | {mean('sgm'):.4f} | {mean('exact'):.4f} | "
+                    f"{wins} of {len(sel)} | {exact_wins} of {len(sel)} |")
     (args.out / "README.md").write_text("\n".join(lines) + "\n")
     return 0
 

@@ -7,7 +7,9 @@
 # three kinds equally often, each cut with its own bin length; and the same 4 plain streets
 # at 272x72, 300 frames, under DATA/plain272 (the demo's size, which the second phase of
 # scripts/train_tiny_scales.sh keeps in the mix), with 4 more (seeds 4-7) under
-# DATA/plain272b for its third phase. Randomised sequences keep
+# DATA/plain272b for its third phase, and 4 more (seeds 8-11) under DATA/plain272c, which
+# scripts/train_tiny_3d_scales.sh adds so plain streets are half its draws. Randomised
+# sequences keep
 # their drawn field of view and baseline at the fixed size. Sequences already written are
 # kept, so an interrupted run goes on.
 #   bash scripts/scales_data.sh [DATA_DIR]   (default data/scales)
@@ -26,10 +28,11 @@ for seed in 0 1 2 3; do
   written "$data/street/plain" "$name" ||
     "$bin" synth --out "$data/street/plain" --seed "$seed" --frames 120 "${size[@]}"
 done
-for seed in 0 1 2 3 4 5 6 7; do
+for seed in 0 1 2 3 4 5 6 7 8 9 10 11; do
   name=$(printf "synth_drive_%07d_sync" "$seed")
   root="$data/plain272"
   ((seed < 4)) || root="$data/plain272b"
+  ((seed < 8)) || root="$data/plain272c"
   written "$root" "$name" ||
     "$bin" synth --out "$root" --seed "$seed" --frames 300 --width 272 --height 72
 done

@@ -14,7 +14,9 @@
 # at a third of the rate (LR3, default 1e-4) with 4 more plain streets as a fifth kind
 # (plain streets drawn 2 times in 5), since the second phase still left them short of the
 # start on the validation drives. PLAIN_FROM (1,500), MORE_FROM (2,100) and SLOW_FROM
-# (2,100) move those phase ends: scripts/train_tiny_3d_scales.sh sets them for `tiny-3d`.
+# (2,100) move those phase ends, and MOST_FROM (default: never) adds 4 plain streets more
+# as a sixth kind (plain streets then drawn 3 times in 6): scripts/train_tiny_3d_scales.sh
+# sets them for `tiny-3d`.
 # The weights of every 100th step are kept under RUN_DIR/kept/ so one is chosen on the
 # validation drives: bash scripts/choose_checkpoint.sh RUN_DIR INIT.
 # Resumable: run it again after any interruption (a copy of the checkpoint of the `tiny`
@@ -26,6 +28,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 run="${1:-runs/tiny_scales}" steps="${2:-3000}" preset="${PRESET:-tiny}"
 plain_from="${PLAIN_FROM:-1500}" more_from="${MORE_FROM:-2100}" slow_from="${SLOW_FROM:-2100}"
+most_from="${MOST_FROM:-$steps}"
 init="${INIT:-runs/tiny_guided/stereosplat_tiny.safetensors}"
 if [ ! -f "$run/checkpoint/state.json" ] && [ ! -f "$init" ]; then
   echo "missing $init: run bash scripts/train_tiny_guided.sh first, or set INIT" >&2
@@ -38,6 +41,7 @@ kinds=(--data data/scales/desk --data data/scales/room --data data/scales/street
   --bin-length 0.1 --bin-length 0.5 --bin-length 8)
 plain=(--data data/scales/plain272 --bin-length 8)
 more=(--data data/scales/plain272b --bin-length 8)
+most=(--data data/scales/plain272c --bin-length 8)
 flags=(--preset "$preset" --out "$run" --warmup 100 --seed 0
   --checkpoint-every 100 --depth-loss relative --rendered-depth-weight 0.5
   --estimated-depth-weight 0.5 --matching-weight 0.5 --set view_subsampling=false
@@ -50,6 +54,7 @@ for ((to = 100; to <= steps; to += 100)); do
   lr="${LR:-3e-4}"
   ((to > plain_from)) && data+=("${plain[@]}")
   ((to > more_from)) && data+=("${more[@]}")
+  ((to > most_from)) && data+=("${most[@]}")
   ((to > slow_from)) && lr="${LR3:-1e-4}"
   if [ -f "$run/checkpoint/state.json" ]; then
     "$bin" train "${data[@]}" "${flags[@]}" --lr "$lr" --resume --steps "$to"

@@ -11,7 +11,7 @@
 # sequence's AbsRel over the start's on it, averaged), among checkpoints whose PSNR on
 # both street kinds is within 0.3 dB of the start's and whose plain-street AbsRel is at
 # most the start's + 0.005 (the streets may not pay for the near scenes).
-# Writes OUT_DIR/README.md and scores.json.
+# Writes OUT_DIR/README.md and scores.json (`chosen`, its `file`, every score).
 #   bash scripts/choose_checkpoint.sh RUN_DIR INIT_WEIGHTS [OUT_DIR]
 # PRESET (default tiny) scores another preset's settings; CANDIDATES ("NAME|FILE ...")
 # scores those files instead of the run's kept checkpoints (the starting weights are always
@@ -66,6 +66,7 @@ def score(kind, name):
     mean = lambda k: sum(a[k] * a["count"] for a in seqs) / count
     return {"frames": count, "psnr": mean("psnr"), "abs_rel": mean("abs_rel")}
 names = [w.split("|", 1)[0] for w in weights]
+files = dict(w.split("|", 1) for w in weights)
 scores = {n: {k: score(k, n) for k in kinds + ["plain"]} for n in names}
 start = scores["start"]
 def rel(n):
@@ -103,6 +104,6 @@ lines = [
 ]
 out.mkdir(parents=True, exist_ok=True)
 (out / "README.md").write_text("\n".join(lines) + "\n")
-(out / "scores.json").write_text(json.dumps({"chosen": chosen, "scores": scores}, indent=2) + "\n")
+(out / "scores.json").write_text(json.dumps({"chosen": chosen, "file": files[chosen], "scores": scores}, indent=2) + "\n")
 print("\n".join(lines))
 PY

@@ -18,8 +18,8 @@
 #             -> train_tiny_3d.sh (runs/tiny_3d/cv3d, 1,500 steps, 41-50 min; runs/tiny_3d/near,
 #             1,800 steps, 40-70 min; the blend of the two chosen on validation drives,
 #             runs/tiny_3d/blends, about 40 min)
-#             -> train_tiny_3d_scales.sh (runs/tiny_3d/scales, 1,500 steps on desks, rooms and
-#             streets at 544x112 and plain streets at 272x72, about 100 min)
+#             -> train_tiny_3d_scales.sh (runs/tiny_3d/scales, 2,400 steps on desks, rooms and
+#             streets at 544x112 and plain streets at 272x72, about 2.5 h)
 #             -> choose_checkpoint.sh (the kept step the validation drives choose)
 #             results/tiny_3d/README.md, results/tiny_3d/scales/README.md
 #   enhancer  train_tiny.sh -> train_tiny_transfer.sh, and train_tiny.sh with unbounded depth
@@ -70,14 +70,12 @@ stage() {
 # (scripts/choose_checkpoint.sh, PRESET passes on) and copies it, or INIT if the start
 # wins, to DEST.
 ship() {
-  local run="$1" init="$2" dest="$3" chosen from
+  local run="$1" init="$2" dest="$3" from
   bash scripts/choose_checkpoint.sh "$run" "$init"
-  chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
+  from=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["file"])' \
     "$run/choice/scores.json")
-  from="$run/kept/step_$chosen.safetensors"
-  [ "$chosen" != start ] || from="$init"
   cp "$from" "$dest"
-  echo "weights: $dest ($chosen)"
+  echo "weights: $dest ($from)"
 }
 
 stage runs/tiny 7000 bash scripts/train_tiny.sh data/train272 runs/tiny
@@ -93,7 +91,7 @@ case "$target" in
   tiny-3d)
     # Skips its finished phases itself; writes runs/tiny_3d/blends/chosen.safetensors.
     bash scripts/train_tiny_3d.sh
-    stage runs/tiny_3d/scales 1500 bash scripts/train_tiny_3d_scales.sh runs/tiny_3d/scales 1500
+    stage runs/tiny_3d/scales 2400 bash scripts/train_tiny_3d_scales.sh runs/tiny_3d/scales 2400
     PRESET=tiny-3d ship runs/tiny_3d/scales runs/tiny_3d/blends/chosen.safetensors \
       model/weights/stereosplat_tiny-3d.safetensors
     ;;

@@ -448,16 +448,18 @@ impl Config {
     /// scripts/reproduce_weights.sh tiny-3d`), for a mapping stack that wants the depth
     /// first. The volume's Gaussians that an input view already explains are dropped
     /// (`volume_fusion_margin` 0.5). Its weights start from `tiny` weights trained without
-    /// the census correlation, so it runs without it and without the depth window. On near
+    /// the census correlation, so it runs without it. On near
     /// scenes it takes `tiny`'s aids that need no census (the candidates from the rig, the
     /// depth range fitted under 50 m, SGM's filled hints, `sgm_snap`) and leaves its street-sized
     /// volume branch out (`volume_branch_far_only`). Those settings
     /// (`SETTING_PRESET=tiny-3d bash scripts/setting_choices.sh`,
-    /// `results/setting_choices/tiny-3d/`) and the weights' blend of its two training
-    /// phases (`results/tiny_3d/chain/choice/`) were chosen on generated validation drives.
-    /// Reported, never chosen on (`results/tiny_3d/`): on the held-out streets AbsRel 0.124
-    /// against `tiny`'s 0.137 at 22.93 against 22.81 dB, and 19.47 dB where the input pair
-    /// saw nothing; on real pairs Aloe 15.3% bad-3 (SGM 17.0%), Motorcycle 20.7% (SGM 12.8%).
+    /// `results/setting_choices/tiny-3d/`), the weights' blend of its two training phases
+    /// (`results/tiny_3d/chain/choice/`) and the step of its last stage, on desks, rooms and
+    /// streets at 544x112 (`results/tiny_3d/scales/`), were chosen on generated validation
+    /// drives. Reported, never chosen on (`results/tiny_3d/`): on the held-out streets AbsRel
+    /// 0.126 against `tiny`'s 0.137 at 22.88 against 22.81 dB, and 19.10 against 18.73 dB
+    /// where the input pair saw nothing; on real pairs Aloe 13.4% bad-3 (SGM 17.0%),
+    /// Motorcycle 10.0% (SGM 12.8%).
     pub fn tiny_3d() -> Self {
         Self {
             name: "tiny-3d".into(),

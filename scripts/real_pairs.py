@@ -14,7 +14,7 @@ import numpy as np
 from PIL import Image
 
 from disparity_errors import breakdown
-from input_view_disparity import warp_errors
+from input_view_disparity import photometric_errors, warp_errors
 
 METHODS = ("sgm", "stereosplat")
 TRUTH_PAIRS = ("aloe", "motorcycle")
@@ -25,12 +25,6 @@ TRUTH_FILES = {"aloe": ("aloe/aloeGT.png", 1.0), "motorcycle": ("motorcycle/moto
 PAIR_IMAGES = {"aloe": ("aloe/aloeL.jpg", "aloe/aloeR.jpg"),
                "motorcycle": ("motorcycle/motorcycle_left.png", "motorcycle/motorcycle_right.png")}
 PICTURE_HEIGHT = 180
-
-
-def load_errors(run: pathlib.Path) -> np.ndarray:
-    """Per-pixel photometric error, NaN where the run scored nothing."""
-    raw = np.asarray(Image.open(run / "photometric_error16.png"), dtype=np.float64)
-    return np.where(raw > 0, (raw - 1) / 65534.0, np.nan)
 
 
 def region_errors(args, pair: str, scores: dict) -> dict:
@@ -52,7 +46,7 @@ def truth_photometric(args, pair: str) -> dict:
     truth = np.asarray(Image.open(args.data / name), dtype=np.float64) * scale
     rgb = lambda f: np.asarray(Image.open(args.data / f).convert("RGB"), dtype=np.float64) / 255
     left, right = PAIR_IMAGES[pair]
-    errors = {m: load_errors(args.runs / pair / m) for m in METHODS}
+    errors = {m: photometric_errors(args.runs / pair / m) for m in METHODS}
     errors["truth"] = warp_errors(rgb(left), rgb(right), truth)
     common = np.all([np.isfinite(e) for e in errors.values()], axis=0)
     out = {m: float(e[common].mean()) for m, e in errors.items()}
@@ -63,7 +57,7 @@ def truth_photometric(args, pair: str) -> dict:
 def pair_scores(pair_dir: pathlib.Path) -> dict:
     """Each method's summary plus its photometric error on the pixels all methods score."""
     summaries = {m: json.loads((pair_dir / m / "summary.json").read_text()) for m in METHODS}
-    errors = {m: load_errors(pair_dir / m) for m in METHODS}
+    errors = {m: photometric_errors(pair_dir / m) for m in METHODS}
     common = np.all([np.isfinite(e) for e in errors.values()], axis=0)
     out = {"common_fraction": float(common.mean())}
     for m in METHODS:

@@ -66,6 +66,11 @@ def scores(depth: np.ndarray, truth: np.ndarray, fx_baseline: float) -> dict:
     }
 
 
+def rgb(path: pathlib.Path) -> np.ndarray:
+    """An image file as height x width x 3 floats in [0, 1], as `reconstruct` reads it."""
+    return np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255
+
+
 def photometric_errors(run: pathlib.Path) -> np.ndarray:
     """A run's per-pixel photometric error (`photometric_error16.png`), NaN where unscored."""
     raw = np.asarray(Image.open(run / "photometric_error16.png"), dtype=np.float64)
@@ -166,7 +171,6 @@ def main() -> int:
                 summary = json.loads((out / "summary.json").read_text())
                 row[label] = summary["truth"]
             if "sgm" in args.methods:
-                rgb = lambda path: np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255
                 exact = warp_errors(rgb(left), rgb(right), disparity)
                 row["photometric"] = {m: photometric_vs_sgm(run, m, exact)
                                       for m in args.methods if m != "sgm"}

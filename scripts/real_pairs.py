@@ -14,7 +14,7 @@ import numpy as np
 from PIL import Image
 
 from disparity_errors import breakdown
-from input_view_disparity import photometric_errors, warp_errors
+from input_view_disparity import photometric_errors, rgb, warp_errors
 
 METHODS = ("sgm", "stereosplat")
 TRUTH_PAIRS = ("aloe", "motorcycle")
@@ -27,10 +27,15 @@ PAIR_IMAGES = {"aloe": ("aloe/aloeL.jpg", "aloe/aloeR.jpg"),
 PICTURE_HEIGHT = 180
 
 
+def truth_disparity(args, pair: str) -> np.ndarray:
+    """A ground-truth pair's disparity in pixels (0 = unknown)."""
+    name, scale = TRUTH_FILES[pair]
+    return np.asarray(Image.open(args.data / name), dtype=np.float64) * scale
+
+
 def region_errors(args, pair: str, scores: dict) -> dict:
     """Each method's bad-3 by region (half-occluded, distance to truth edges) on `pair`."""
-    name, scale = TRUTH_FILES[pair]
-    truth = np.asarray(Image.open(args.data / name), dtype=np.float64) * scale
+    truth = truth_disparity(args, pair)
     out = {}
     for m in METHODS:
         s = scores[m]
@@ -42,12 +47,10 @@ def truth_photometric(args, pair: str) -> dict:
     """The OAK-D pairs' score on a ground-truth pair, for each method and for the truth's
     own disparity, on the pixels every method scores and the truth covers: how a perfect
     geometry fares against SGM on the photometric score."""
-    name, scale = TRUTH_FILES[pair]
-    truth = np.asarray(Image.open(args.data / name), dtype=np.float64) * scale
-    rgb = lambda f: np.asarray(Image.open(args.data / f).convert("RGB"), dtype=np.float64) / 255
     left, right = PAIR_IMAGES[pair]
     errors = {m: photometric_errors(args.runs / pair / m) for m in METHODS}
-    errors["truth"] = warp_errors(rgb(left), rgb(right), truth)
+    errors["truth"] = warp_errors(rgb(args.data / left), rgb(args.data / right),
+                                  truth_disparity(args, pair))
     common = np.all([np.isfinite(e) for e in errors.values()], axis=0)
     out = {m: float(e[common].mean()) for m, e in errors.items()}
     out["common_fraction"] = float(common.mean())

@@ -57,9 +57,7 @@ for t in 0.25 0.5 0.75 0.85 0.9; do
 done
 PRESET=tiny-3d CANDIDATES="${candidates[*]}" bash scripts/choose_checkpoint.sh "$blends" \
   "$first/stereosplat_tiny.safetensors"
-chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["chosen"])' \
+chosen=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["file"])' \
   "$blends/choice/scores.json")
-for c in "start|$first/stereosplat_tiny.safetensors" "${candidates[@]}"; do
-  if [ "${c%%|*}" = "$chosen" ]; then cp "${c#*|}" "$blends/chosen.safetensors"; fi
-done
-echo "weights: $blends/chosen.safetensors ($chosen; start: the first phase, t1: the near phase)"
+cp "$chosen" "$blends/chosen.safetensors"
+echo "weights: $blends/chosen.safetensors ($chosen)"

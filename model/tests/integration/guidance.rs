@@ -190,28 +190,22 @@ fn banded_plane_pair() -> Tensor {
         0,
     )
     .unwrap();
-    let columns = |t: &Tensor, from: usize, to: usize| t.narrow(3, from, to - from).unwrap();
-    let (a, b) = (BAND.start, BAND.end);
-    // The right image shows left column x at x - 8.
-    let left = Tensor::cat(
-        &[
-            &columns(&pair.get(0).unwrap().unsqueeze(0).unwrap(), 0, a),
-            &flat.get(0).unwrap().unsqueeze(0).unwrap(),
-            &columns(&pair.get(0).unwrap().unsqueeze(0).unwrap(), b, WIDTH),
-        ],
-        3,
-    )
-    .unwrap();
-    let right = Tensor::cat(
-        &[
-            &columns(&pair.get(1).unwrap().unsqueeze(0).unwrap(), 0, a - 8),
-            &flat.get(1).unwrap().unsqueeze(0).unwrap(),
-            &columns(&pair.get(1).unwrap().unsqueeze(0).unwrap(), b - 8, WIDTH),
-        ],
-        3,
-    )
-    .unwrap();
-    Tensor::cat(&[left, right], 0).unwrap()
+    // View `i` with its band's columns (the left image's shifted by `shift`: the right
+    // image shows left column x at x - 8) replaced by `flat`'s view `i`.
+    let banded = |i: usize, shift: usize| {
+        let view = pair.get(i).unwrap().unsqueeze(0).unwrap();
+        let (a, b) = (BAND.start - shift, BAND.end - shift);
+        Tensor::cat(
+            &[
+                &view.narrow(3, 0, a).unwrap(),
+                &flat.get(i).unwrap().unsqueeze(0).unwrap(),
+                &view.narrow(3, b, WIDTH - b).unwrap(),
+            ],
+            3,
+        )
+        .unwrap()
+    };
+    Tensor::cat(&[banded(0, 0), banded(1, 8)], 0).unwrap()
 }
 
 /// Image columns of the banded pair's flat band.

@@ -6,7 +6,8 @@
 //! (atomic on POSIX file systems), and the folder is synced so the rename itself is durable.
 //! The sibling is unique to the write, so writers of one file at once (threads, or parallel
 //! `synth` runs sharing a KITTI-360 root's calibration) never write into the same temporary
-//! file, and a reader sees one whole version. Every exporter of the workspace (PLY, PNG, the
+//! file, and a reader sees one whole version. It is created with `create_new`, so a name
+//! someone else made first (a file, or a link pointing elsewhere) is never written through. Every exporter of the workspace (PLY, PNG, the
 //! node's map files, the KITTI-360 text files) writes through here.
 
 use std::ffi::OsString;
@@ -32,9 +33,9 @@ pub fn write_atomic<E: From<io::Error>>(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
 ) -> Result<(), E> {
-    let tmp = temp_path(path);
+    let (tmp, file) = create_temp(path)?;
     let result = (|| {
-        let mut w = BufWriter::new(File::create(&tmp)?);
+        let mut w = BufWriter::new(file);
         write(&mut w)?;
         let file = w.into_inner().map_err(io::IntoInnerError::into_error)?;
         file.sync_all()?;
@@ -47,6 +48,21 @@ pub fn write_atomic<E: From<io::Error>>(
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// Creates a new temporary sibling of `path` ([`temp_path`]) with `create_new`: a file or a
+/// link already at that name (left by another process, or planted there) is never opened
+/// or followed; the next name is tried instead, a few times.
+fn create_temp(path: &Path) -> io::Result<(PathBuf, File)> {
+    let mut tries = 0;
+    loop {
+        let tmp = temp_path(path);
+        match File::options().write(true).create_new(true).open(&tmp) {
+            Ok(file) => return Ok((tmp, file)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && tries < 8 => tries += 1,
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 /// [`write_atomic`] of a byte buffer.
@@ -100,6 +116,32 @@ mod tests {
         write_bytes_atomic(&path, b"new").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"new");
         assert!(!temporary_left(&path));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_link_planted_at_the_next_temporary_name_is_not_written_through() {
+        let path = scratch("planted.bin");
+        let victim = scratch("victim.bin");
+        std::fs::write(&victim, b"not yours").unwrap();
+        // The name the next write would take (writes are numbered per process), planted as
+        // a link to another file.
+        let next = temp_path(&path);
+        let number: u64 = next
+            .to_string_lossy()
+            .rsplit('-')
+            .next()
+            .unwrap()
+            .trim_end_matches(".tmp")
+            .parse()
+            .unwrap();
+        for k in number + 1..number + 4 {
+            let name = format!("{}.{}-{k}.tmp", path.display(), std::process::id());
+            std::os::unix::fs::symlink(&victim, name).unwrap();
+        }
+        write_bytes_atomic(&path, b"mine").unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"mine");
+        assert_eq!(std::fs::read(&victim).unwrap(), b"not yours");
     }
 
     #[test]

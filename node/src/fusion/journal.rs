@@ -18,10 +18,13 @@
 //!
 //! A crash can tear only the newest segment's last record (records are appended and synced
 //! in order); replay stops before such a tail and says how much it kept ([`TornTail`]); a
-//! restarting node also cuts it from the file ([`AtTornTail`]). A bad record anywhere else is an error: the journal is damaged.
+//! restarting node also cuts it from the file ([`AtTornTail::Cut`]). A write that failed
+//! (a full disk, a failed sync) leaves bytes that the writer's next attempt follows with the
+//! same records again ([`super::journal_writer`]); replay skips them ([`FailedWrite`]). A bad
+//! record anywhere else is an error: the journal is damaged, and nothing is cut.
 
 use std::fs::{File, OpenOptions};
-use std::io::{BufReader, ErrorKind, Read, Write};
+use std::io::{BufReader, ErrorKind, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
@@ -33,10 +36,12 @@ use super::{GaussianId, GlobalMap, Increment, StoreError, WorldGaussian};
 
 const MAGIC: &[u8; 8] = b"SSGJRNL\n";
 const VERSION: u32 = 2;
+/// A new segment's first bytes: the magic, then the version (2) little endian.
+pub(super) const HEADER: [u8; 12] = *b"SSGJRNL\n\x02\x00\x00\x00";
 /// The oldest segment version read (without paged tiles).
 const OLDEST_VERSION: u32 = 1;
-/// Bytes before a segment's first record.
-const HEADER_BYTES: u64 = 12;
+/// Bytes before a segment's first record (a segment of this length holds no record).
+pub const HEADER_BYTES: u64 = 12;
 /// The file name ending of a segment.
 const SEGMENT_EXT: &str = "ssgj";
 
@@ -44,101 +49,6 @@ fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> StoreError + '_ {
     move |source| StoreError::Io {
         path: path.to_path_buf(),
         source,
-    }
-}
-
-/// Appends the map's changes to the journal's open segment, one record per bin.
-#[derive(Debug)]
-pub struct JournalWriter {
-    dir: PathBuf,
-    open: Option<(File, PathBuf)>,
-    segment_bytes: u64,
-    unsynced: bool,
-}
-
-impl JournalWriter {
-    /// A writer into the folder `dir` (created with the first segment). It opens a new
-    /// segment for its first record, so it never appends to a segment a crash may have torn.
-    pub fn new(dir: impl Into<PathBuf>) -> Self {
-        Self {
-            dir: dir.into(),
-            open: None,
-            segment_bytes: 0,
-            unsynced: false,
-        }
-    }
-
-    /// The journal's folder.
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
-    /// Bytes in the open segment (0 when none is open).
-    pub fn segment_bytes(&self) -> u64 {
-        self.segment_bytes
-    }
-
-    /// Appends the record of `inc`, which `map` has just taken in (its counters are read
-    /// after the bin), with the tiles paged in `before` the bin and out `after` it, opening a
-    /// segment first when none is open. The record is written but not yet durable:
-    /// [`JournalWriter::sync`] makes it so. Returns the bytes written.
-    pub fn append(
-        &mut self,
-        map: &GlobalMap,
-        inc: &Increment,
-        before: &[PageEvent],
-        after: &[PageEvent],
-    ) -> Result<u64, StoreError> {
-        let record = encode(map, inc, before, after);
-        if self.open.is_none() {
-            self.open_segment(map.increments())?;
-        }
-        let Some((file, path)) = &mut self.open else {
-            unreachable!("a segment was opened above")
-        };
-        file.write_all(&record).map_err(io_error(path))?;
-        self.segment_bytes += record.len() as u64;
-        self.unsynced = true;
-        Ok(record.len() as u64)
-    }
-
-    /// Makes every record appended so far durable (fdatasync of the open segment).
-    pub fn sync(&mut self) -> Result<(), StoreError> {
-        if let (Some((file, path)), true) = (&self.open, self.unsynced) {
-            file.sync_data().map_err(io_error(path))?;
-        }
-        self.unsynced = false;
-        Ok(())
-    }
-
-    /// Syncs and closes the open segment; returns its path (`None` when none was open).
-    /// The next record opens a new segment.
-    pub fn close_segment(&mut self) -> Result<Option<PathBuf>, StoreError> {
-        self.sync()?;
-        self.segment_bytes = 0;
-        Ok(self.open.take().map(|(_, path)| path))
-    }
-
-    fn open_segment(&mut self, first_sequence: u64) -> Result<(), StoreError> {
-        std::fs::create_dir_all(&self.dir).map_err(io_error(&self.dir))?;
-        let path = segment_path(&self.dir, first_sequence);
-        let mut file = OpenOptions::new()
-            .create(true)
-            .truncate(true)
-            .write(true)
-            .open(&path)
-            .map_err(io_error(&path))?;
-        let mut header = MAGIC.to_vec();
-        header.extend_from_slice(&VERSION.to_le_bytes());
-        file.write_all(&header).map_err(io_error(&path))?;
-        file.sync_data().map_err(io_error(&path))?;
-        // The new name must survive a crash too.
-        File::open(&self.dir)
-            .and_then(|d| d.sync_all())
-            .map_err(io_error(&self.dir))?;
-        self.segment_bytes = HEADER_BYTES;
-        self.open = Some((file, path));
-        Ok(())
     }
 }
 
@@ -206,7 +116,12 @@ fn events(r: &mut Reader, len: usize) -> Result<Vec<PageEvent>, StoreError> {
 }
 
 /// A record encoded with its length and checksum.
-fn encode(map: &GlobalMap, inc: &Increment, before: &[PageEvent], after: &[PageEvent]) -> Vec<u8> {
+pub(super) fn encode(
+    map: &GlobalMap,
+    inc: &Increment,
+    before: &[PageEvent],
+    after: &[PageEvent],
+) -> Vec<u8> {
     let mut p = Vec::with_capacity(72 + inc.removed.len() * 8 + inc.added.len() * RECORD_BYTES);
     p.extend_from_slice(&map.increments().to_le_bytes());
     p.extend_from_slice(&map.epoch().to_le_bytes());
@@ -314,7 +229,7 @@ pub struct TornTail {
 }
 
 /// What a replay does with an incomplete or corrupt record at the end of the last segment
-/// (one anywhere else is always an error).
+/// that no complete record follows (see [`GlobalMap::replay_journal`] for the rest).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AtTornTail {
     /// Stops there and truncates the segment to its complete records (a node restarting).
@@ -323,6 +238,18 @@ pub enum AtTornTail {
     Stop,
     /// Fails (the compactor, whose segments were synced and closed).
     Fail,
+}
+
+/// Bytes of a write that failed, which a later copy of the same records follows: skipped
+/// by replay, left in the file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FailedWrite {
+    /// The segment.
+    pub path: PathBuf,
+    /// Where the bytes start.
+    pub offset: u64,
+    /// How many there are (to the next record, or to the segment's end).
+    pub bytes: u64,
 }
 
 /// What a replay did.
@@ -335,25 +262,53 @@ pub struct Replay {
     /// The torn tail at the end of the newest segment, if there was one (cut from the file
     /// with [`AtTornTail::Cut`]).
     pub torn: Option<TornTail>,
+    /// Failed writes skipped because the records they held follow them again.
+    pub failed_writes: Vec<FailedWrite>,
 }
 
 /// How a segment's reading ended.
 enum End {
     /// At a record boundary.
     Clean,
-    /// In a record that is incomplete or fails its checksum, starting at this offset.
+    /// In a record that is incomplete or fails its checksum, starting at this offset, with
+    /// no complete record after it.
     Torn(u64),
+}
+
+/// What follows a bad record in its segment.
+enum After {
+    /// Nothing that reads as a record.
+    Nothing,
+    /// A complete record with the sequence number the map expects next, at this offset:
+    /// the bad bytes were a failed write, redone.
+    Redone(u64),
+    /// A complete record further on in the sequence: records were lost in between.
+    Later,
+}
+
+/// The sequence number a segment's name gives its first record.
+fn first_sequence(path: &Path) -> Option<u64> {
+    path.file_stem()?.to_str()?.parse().ok()
 }
 
 impl GlobalMap {
     /// Applies, in order, every record of `segments` (oldest first, as [`segments`] lists
     /// them) whose sequence number is past the map's; earlier ones are skipped. Tiles a
-    /// record pages in are read from the tiles folder `tiles`. An
-    /// incomplete or corrupt record at the end of the last segment is handled by `at_torn`
-    /// (and said in [`Replay::torn`]); anywhere else it is an error. A record
-    /// that does not follow the map (a gap in sequence numbers, a removed Gaussian the map
-    /// does not hold, an added id it already holds) is an error; the map may then be partly
-    /// replayed and should be dropped.
+    /// record pages in are read from the tiles folder `tiles`.
+    ///
+    /// A record that is incomplete or fails its checksum is one of three things:
+    /// - a failed write (the disk was full, a sync failed): the same records follow it,
+    ///   later in its segment or at the start of the next, so it is skipped and said in
+    ///   [`Replay::failed_writes`];
+    /// - a tail torn by a crash: nothing complete follows it in the last segment; it is
+    ///   handled by `at_torn` and said in [`Replay::torn`];
+    /// - damage: anything else (complete records after it that do not continue the map,
+    ///   or a bad record in an older segment that the next does not redo). That is an
+    ///   error, and nothing is cut: a record once synced is never removed.
+    ///
+    /// A record that does not follow the map (a gap in sequence numbers, a removed Gaussian
+    /// the map does not hold, an added id it already holds) is an error; the map may then be
+    /// partly replayed and should be dropped.
     pub fn replay_journal(
         &mut self,
         segments: &[PathBuf],
@@ -362,21 +317,30 @@ impl GlobalMap {
     ) -> Result<Replay, StoreError> {
         let mut replay = Replay::default();
         for (i, path) in segments.iter().enumerate() {
+            let End::Torn(offset) = self.replay_segment(path, tiles, &mut replay)? else {
+                continue;
+            };
+            let len = std::fs::metadata(path).map_err(io_error(path))?.len();
+            let redone_next = segments
+                .get(i + 1)
+                .and_then(|p| first_sequence(p))
+                .is_some_and(|first| first <= self.increments + 1);
             let last = i + 1 == segments.len();
-            match self.replay_segment(path, tiles, &mut replay)? {
-                End::Clean => {}
-                End::Torn(offset) if last && at_torn == AtTornTail::Cut => {
-                    replay.torn = Some(cut(path, offset)?);
-                }
-                End::Torn(offset) if last && at_torn == AtTornTail::Stop => {
-                    let len = std::fs::metadata(path).map_err(io_error(path))?.len();
+            match at_torn {
+                _ if redone_next => replay.failed_writes.push(FailedWrite {
+                    path: path.clone(),
+                    offset,
+                    bytes: len - offset,
+                }),
+                AtTornTail::Cut if last => replay.torn = Some(cut(path, offset)?),
+                AtTornTail::Stop if last => {
                     replay.torn = Some(TornTail {
                         path: path.clone(),
                         kept_bytes: offset,
                         cut_bytes: len - offset,
                     });
                 }
-                End::Torn(offset) => {
+                _ => {
                     return Err(StoreError::Invalid {
                         path: path.clone(),
                         offset: offset as usize,
@@ -415,23 +379,32 @@ impl GlobalMap {
         }
         let mut offset = HEADER_BYTES;
         loop {
-            let mut len = [0u8; 4];
-            match read_full(&mut input, &mut len).map_err(io_error(path))? {
-                0 => return Ok(End::Clean),
-                4 => {}
-                _ => return Ok(End::Torn(offset)),
-            }
-            let len = u32::from_le_bytes(len) as usize;
-            let mut payload = Vec::new();
-            let got = (&mut input)
-                .take(len as u64)
-                .read_to_end(&mut payload)
-                .map_err(io_error(path))?;
-            let mut sum = [0u8; 8];
-            let sum_got = read_full(&mut input, &mut sum).map_err(io_error(path))?;
-            if got < len || sum_got < 8 || fnv1a(&payload) != u64::from_le_bytes(sum) {
-                return Ok(End::Torn(offset));
-            }
+            let Some(payload) = read_record(&mut input).map_err(io_error(path))? else {
+                return Ok(End::Clean);
+            };
+            let Ok(payload) = payload else {
+                match after_bad_record(path, offset, self.increments + 1)? {
+                    After::Nothing => return Ok(End::Torn(offset)),
+                    After::Redone(next) => {
+                        replay.failed_writes.push(FailedWrite {
+                            path: path.to_path_buf(),
+                            offset,
+                            bytes: next - offset,
+                        });
+                        input.seek(SeekFrom::Start(next)).map_err(io_error(path))?;
+                        offset = next;
+                        continue;
+                    }
+                    After::Later => {
+                        return Err(StoreError::Invalid {
+                            path: path.to_path_buf(),
+                            offset: offset as usize,
+                            what: "corrupt journal record with later records after it",
+                        })
+                    }
+                }
+            };
+            let len = payload.len() as u64;
             let record = decode(&payload, version, path, offset)?;
             if record.sequence <= self.increments {
                 replay.skipped += 1;
@@ -439,7 +412,7 @@ impl GlobalMap {
                 self.apply_record(record, tiles, path, offset)?;
                 replay.applied += 1;
             }
-            offset += 12 + len as u64;
+            offset += 12 + len;
         }
     }
 
@@ -535,6 +508,59 @@ impl GlobalMap {
         }
         Ok(())
     }
+}
+
+/// The next record's payload: `None` at the end of the input, `Some(Err(()))` for a record
+/// that is incomplete or fails its checksum.
+#[allow(clippy::type_complexity)]
+fn read_record(input: &mut impl Read) -> std::io::Result<Option<Result<Vec<u8>, ()>>> {
+    let mut len = [0u8; 4];
+    match read_full(input, &mut len)? {
+        0 => return Ok(None),
+        4 => {}
+        _ => return Ok(Some(Err(()))),
+    }
+    let len = u32::from_le_bytes(len) as usize;
+    // Read through `take`, so a claimed length past the file's end allocates only what
+    // the file holds.
+    let mut payload = Vec::new();
+    let got = input.take(len as u64).read_to_end(&mut payload)?;
+    let mut sum = [0u8; 8];
+    let sum_got = read_full(input, &mut sum)?;
+    if got < len || sum_got < 8 || fnv1a(&payload) != u64::from_le_bytes(sum) {
+        return Ok(Some(Err(())));
+    }
+    Ok(Some(Ok(payload)))
+}
+
+/// What follows the bad record at `offset` of the segment `path` ([`After`]), found by
+/// looking at every later offset for a complete record (its length fits, its checksum
+/// matches) whose sequence number is `expected` or later. Reads the rest of the segment
+/// into memory: a failure path, bounded by the segment's size.
+fn after_bad_record(path: &Path, offset: u64, expected: u64) -> Result<After, StoreError> {
+    let bytes = std::fs::read(path).map_err(io_error(path))?;
+    let start = (offset as usize + 1).min(bytes.len());
+    for at in start..bytes.len().saturating_sub(20) {
+        let len = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap_or_default()) as usize;
+        let Some(end) = (at + 4).checked_add(len).filter(|e| e + 8 <= bytes.len()) else {
+            continue;
+        };
+        if len < 8 {
+            continue;
+        }
+        let payload = &bytes[at + 4..end];
+        let sequence = u64::from_le_bytes(payload[..8].try_into().unwrap_or_default());
+        // Each record holds at least its 8-byte sequence number and 12 bytes of framing.
+        let plausible = sequence >= expected && sequence - expected <= (bytes.len() / 20) as u64;
+        let sum = u64::from_le_bytes(bytes[end..end + 8].try_into().unwrap_or_default());
+        if plausible && fnv1a(payload) == sum {
+            return Ok(match sequence == expected {
+                true => After::Redone(at as u64),
+                false => After::Later,
+            });
+        }
+    }
+    Ok(After::Nothing)
 }
 
 /// Reads until `buf` is full or the input ends; the bytes read.

@@ -29,6 +29,7 @@ mod cells;
 mod export;
 mod increments;
 mod journal;
+mod journal_writer;
 mod snapshot;
 mod tiles;
 mod wire;
@@ -45,7 +46,13 @@ use renderer::GaussianSet;
 pub use cells::{cell_centre, cell_of, CellKey};
 pub use export::{bev_image, local_set, save_bev_png, BevView, ExportError};
 pub use increments::{Increment, InsertStats, MapReplica, ReplicaError, Snapshot};
-pub use journal::{segment_path, segments, AtTornTail, JournalWriter, Replay, TornTail};
+pub use journal::{
+    segment_path, segments, AtTornTail, FailedWrite, Replay, TornTail,
+    HEADER_BYTES as JOURNAL_HEADER_BYTES,
+};
+pub use journal_writer::{
+    create_dir_durably, open_on_disk, JournalWriter, OpenSegment, SegmentFile,
+};
 pub use snapshot::StoreError;
 pub use tiles::{
     collect_garbage, read_tile, tile_distance, tile_path, write_tile, PageEvent, PagedTile, TileKey,

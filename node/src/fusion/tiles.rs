@@ -86,7 +86,7 @@ pub fn write_tile(
     version: u64,
     gaussians: &[(GaussianId, WorldGaussian)],
 ) -> Result<(), StoreError> {
-    std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+    super::create_dir_durably(dir)?;
     let mut b = Vec::with_capacity(40 + gaussians.len() * RECORD_BYTES);
     b.extend_from_slice(MAGIC);
     b.extend_from_slice(&VERSION.to_le_bytes());

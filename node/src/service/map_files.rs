@@ -30,8 +30,8 @@ use glam::{DAffine3, DVec2, DVec3};
 use renderer::formats::MapFormat;
 
 use crate::fusion::{
-    bev_image, collect_garbage, local_set, save_bev_png, segments, AtTornTail, BevView, GaussianId,
-    GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
+    bev_image, collect_garbage, create_dir_durably, local_set, save_bev_png, segments, AtTornTail,
+    BevView, GaussianId, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
 };
 
 /// The checkpoint's base file name in the out folder.
@@ -266,10 +266,7 @@ pub fn start_map(
 /// removes the journal's segments, which the base now holds, and the tile files the base
 /// does not name. A crash between the two leaves files that a restore skips.
 pub fn checkpoint(map: &GlobalMap, dir: &Path) -> Result<(), StoreError> {
-    std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
+    create_dir_durably(dir)?;
     map.save(dir.join(CHECKPOINT))?;
     for path in segments(&dir.join(JOURNAL))? {
         std::fs::remove_file(&path).map_err(|source| StoreError::Io { path, source })?;

@@ -17,6 +17,13 @@
 //! journal, and holds in memory only the tree nodes the node changes while it writes (a bin
 //! or two) and one chunk of the file.
 //!
+//! Failures (a full disk, an I/O error, a failed fsync) lose nothing: a record whose write
+//! or sync failed is kept in memory and written again, to a new segment, by the next
+//! record or [`MapStore::flush`] ([`crate::fusion::JournalWriter`]); the base is written
+//! before any record, and retried until it is; a tile that cannot be written stays in
+//! memory. The node publishes a bin only once its record is durable
+//! ([`super::outputs`]), so what a crash can take is never something published.
+//!
 //! Paging ([`Paging`], [`crate::fusion::PagedTile`]): before a bin is fused, every tile on
 //! disk within the paging radius of the bin's origin is read back into the map
 //! ([`MapStore::prepare`]); after it, every tile in memory farther than the radius plus one
@@ -37,7 +44,7 @@ use glam::DVec3;
 
 use crate::fusion::{
     collect_garbage, segments, tile_distance, write_tile, GlobalMap, Increment, JournalWriter,
-    PageEvent, StoreError, StoredMap, TileKey,
+    PageEvent, StoreError, StoredMap, TileKey, JOURNAL_HEADER_BYTES as HEADER_BYTES,
 };
 
 use super::map_files::{checkpoint, CHECKPOINT, JOURNAL, TILES};
@@ -75,6 +82,17 @@ impl Default for Compaction {
     }
 }
 
+/// What became of a bin's record ([`MapStore::record`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Recorded {
+    /// Durable: it survives a crash (and so does every record before it).
+    Durable,
+    /// Written, not yet synced: the sync is due after more bins (`every` above 1).
+    Written,
+    /// Nothing is journaled while running (`every` 0).
+    NotKept,
+}
+
 /// What the compactor has done, shared with the node's counters.
 #[derive(Debug, Default)]
 struct Folded {
@@ -98,6 +116,8 @@ pub struct MapStore {
     paging: Option<Paging>,
     paged_in: Vec<PageEvent>,
     tile_counts: [u64; 3],
+    tile_failures: u64,
+    failing: bool,
     tx: Option<mpsc::Sender<(PathBuf, StoredMap)>>,
     thread: Option<JoinHandle<()>>,
     folded: Arc<Folded>,
@@ -151,11 +171,25 @@ impl MapStore {
                 path: dir.clone(),
                 source,
             })?;
-        if let Some(last) = segments(&dir.join(JOURNAL))?.pop() {
+        let mut writer = JournalWriter::new(dir.join(JOURNAL));
+        let mut found = segments(&dir.join(JOURNAL))?;
+        // A header-only last segment (a crash right after opening it) is the writer's to
+        // append to; the compactor folds only the segments before it.
+        if let Some(last) = found.last() {
+            let len = std::fs::metadata(last).map_err(|source| StoreError::Io {
+                path: last.clone(),
+                source,
+            })?;
+            if len.len() == HEADER_BYTES {
+                writer.adopt(last.clone());
+                found.pop();
+            }
+        }
+        if let Some(last) = found.pop() {
             let _ = tx.send((last, map.stored()));
         }
         Ok(Self {
-            writer: JournalWriter::new(dir.join(JOURNAL)),
+            writer,
             dir,
             every,
             compaction,
@@ -165,6 +199,8 @@ impl MapStore {
             paging: paging.filter(|_| every > 0),
             paged_in: Vec::new(),
             tile_counts: [0; 3],
+            tile_failures: 0,
+            failing: false,
             tx: Some(tx),
             thread: Some(thread),
             folded,
@@ -201,11 +237,13 @@ impl MapStore {
     }
 
     /// Writes the tiles the paging rule sends to disk (see the module doc) and drops them
-    /// from `map`; the events, for the record.
-    fn page_out(&mut self, map: &mut GlobalMap) -> Result<Vec<PageEvent>, StoreError> {
+    /// from `map`; the events, for the record. A tile that cannot be read in whole or
+    /// written stays in memory and the paging stops there: the events so far are
+    /// returned with the error, and the next bin tries again.
+    fn page_out(&mut self, map: &mut GlobalMap) -> (Vec<PageEvent>, Option<StoreError>) {
         let mut events = Vec::new();
         let (Some(paging), Some(anchor)) = (self.paging, map.latest_origin()) else {
-            return Ok(events);
+            return (events, None);
         };
         let config = *map.config();
         let side = config.tile_side();
@@ -228,7 +266,9 @@ impl MapStore {
             if map.paged_tiles().contains_key(&tile) {
                 // Bins fused into a tile whose file is on disk (a keep range beyond the
                 // paging radius): read it in so the tile goes out whole.
-                self.page_in(map, tile)?;
+                if let Err(e) = self.page_in(map, tile) {
+                    return (events, Some(e));
+                }
                 events.push(self.paged_in.pop().expect("page_in recorded it"));
             }
             let gaussians = map
@@ -237,7 +277,7 @@ impl MapStore {
             if let Err(e) = write_tile(&dir, tile, version, &gaussians) {
                 map.put_tile(tile, gaussians)
                     .expect("the tile was paged out just now");
-                return Err(e);
+                return (events, Some(e));
             }
             let paged = map.paged_tiles()[&tile];
             events.push(PageEvent::Out(tile, paged));
@@ -245,26 +285,53 @@ impl MapStore {
             self.tile_counts[1] += 1;
             self.tile_counts[2] += paged.count;
         }
-        Ok(events)
+        (events, None)
     }
 
     /// Journals `inc`, which `map` has just taken in, with the tiles paged in before it
     /// ([`MapStore::prepare`]) and out after it, and makes it durable when due (see
     /// [`MapStore::new`]); closes the segment for the compactor when it is large enough.
-    /// Returns whether the record is durable.
-    pub fn record(&mut self, map: &mut GlobalMap, inc: &Increment) -> Result<bool, StoreError> {
+    ///
+    /// The record is kept whatever happens: on an error (a full disk, a failed sync, a
+    /// base that cannot be written) it is not durable, and [`MapStore::flush`] (or the next
+    /// record) writes it again. A tile that cannot be paged out stays in memory and is
+    /// counted (`error/tile_write`); the record is written without it.
+    pub fn record(&mut self, map: &mut GlobalMap, inc: &Increment) -> Result<Recorded, StoreError> {
         if self.every == 0 {
-            return Ok(false);
+            return Ok(Recorded::NotKept);
         }
-        if let Some(empty) = self.empty.take() {
-            checkpoint(&empty, &self.dir)?;
+        let (after, paging) = self.page_out(map);
+        if let Some(e) = paging {
+            eprintln!("paging a tile out failed (it stays in memory): {e}");
+            self.tile_failures += 1;
         }
-        let after = self.page_out(map)?;
         let before = std::mem::take(&mut self.paged_in);
-        self.journal_bytes += self.writer.append(map, inc, &before, &after)?;
+        self.journal_bytes += self.writer.push(map, inc, &before, &after);
         self.unsynced_bins += 1;
+        self.flush(map)
+    }
+
+    /// Writes what is kept and not yet on disk (the first base, records whose write or sync
+    /// failed) and syncs when due; `map` must be the map after the last record kept.
+    /// [`Recorded::Durable`] once every record so far is durable.
+    pub fn flush(&mut self, map: &GlobalMap) -> Result<Recorded, StoreError> {
+        let flushed = self.try_flush(map);
+        self.failing = flushed.is_err();
+        flushed
+    }
+
+    fn try_flush(&mut self, map: &GlobalMap) -> Result<Recorded, StoreError> {
+        if self.every == 0 {
+            return Ok(Recorded::NotKept);
+        }
+        // The base comes first: records without their base would not restore.
+        if let Some(empty) = &self.empty {
+            checkpoint(empty, &self.dir)?;
+            self.empty = None;
+        }
         if self.unsynced_bins < self.every {
-            return Ok(false);
+            self.writer.write()?;
+            return Ok(Recorded::Written);
         }
         self.writer.sync()?;
         self.unsynced_bins = 0;
@@ -274,14 +341,22 @@ impl MapStore {
                 let _ = tx.send((path, map.stored()));
             }
         }
-        Ok(true)
+        Ok(Recorded::Durable)
     }
 
-    /// The store's counters: bytes journaled, base rewrites, bytes they wrote, failures, the
-    /// last one's duration, tiles paged in and out, and the Gaussians paged out.
-    pub fn counts(&self) -> [(&'static str, u64); 8] {
+    /// Whether the last record or flush failed: records are kept that are not yet where
+    /// they should be, and [`MapStore::flush`] is to be tried again.
+    pub fn failing(&self) -> bool {
+        self.failing
+    }
+
+    /// The store's counters: tiles that could not be paged out, bytes journaled, base
+    /// rewrites, bytes they wrote, failures, the last one's duration, tiles paged in and
+    /// out, and the Gaussians paged out.
+    pub fn counts(&self) -> [(&'static str, u64); 9] {
         let f = &self.folded;
         [
+            ("error/tile_write", self.tile_failures),
             ("map/tiles_paged_in", self.tile_counts[0]),
             ("map/tiles_paged_out", self.tile_counts[1]),
             ("map/gaussians_paged_out", self.tile_counts[2]),

@@ -11,6 +11,7 @@
 
 pub mod counters;
 pub mod error;
+mod held;
 mod inputs;
 pub mod keys;
 pub mod latency_stats;
@@ -33,6 +34,7 @@ mod workers;
 
 pub use counters::Counters;
 pub use error::ServiceError;
+pub use held::MAX_HELD_BINS;
 pub use keys::Keys;
 pub use latency_stats::{LatencyStats, LatencySummary, StageSummary};
 pub use limits::{InputLimits, Refusal};

@@ -277,6 +277,14 @@ pub async fn run_with(
             "replayed {} journal records past the base ({} it already held)",
             replay.applied, replay.skipped
         );
+        for w in &replay.failed_writes {
+            eprintln!(
+                "skipped {} bytes of a journal write that failed at byte {} of {} (its records follow it again)",
+                w.bytes,
+                w.offset,
+                w.path.display()
+            );
+        }
         if let Some(t) = &replay.torn {
             eprintln!(
                 "cut a record torn by a crash at the end of {}: kept its first {} bytes, cut {}",
@@ -409,6 +417,14 @@ pub async fn run_with(
                 }
             },
             Ok(q) = snapshot_requests.recv_async() => {
+                if !outputs.durable() {
+                    // The map holds bins whose records are not durable: a crash could take
+                    // back what a snapshot would show.
+                    outputs.counters.add("refused/snapshot_not_durable", 1);
+                    let why = "the map's journal is not durable (disk full?): snapshots wait until it is";
+                    q.reply_err(why).await.map_err(zenoh_err)?;
+                    continue;
+                }
                 let region = match RegionQuery::parse(q.parameters().iter()) {
                     Ok(region) => region,
                     Err(refused) => {
@@ -465,6 +481,7 @@ pub async fn run_with(
                 workers_event(&mut dispatch, event, &mut outputs.counters);
             },
             _ = stall_check.tick() => {
+                outputs.retry_held(dispatch.drops()).await?;
                 for id in dispatch.stalled(Instant::now(), config.workers.timeout) {
                     eprintln!(
                         "worker {id} sent no map within {:?}: its bin goes to another",

@@ -5,7 +5,10 @@
 //!
 //! Write-ahead: a bin is fused and its change journaled and synced (when due,
 //! [`super::map_store`]) before anything of the bin is published, so a crash cannot lose a
-//! published bin. A resumed map says so: its
+//! published bin. When the journal fails (a full disk), bins are held back until it takes
+//! them again ([`super::held`]), snapshot queries are refused meanwhile, and the
+//! counters say so (`error/checkpoint`, `map/held_bins`, `dropped/not_durable`). A resumed
+//! map says so: its
 //! first `map/update` is a snapshot of the restored map with the restored sequence number
 //! (a new map's first is increment 1), and the increments go on from there; the counter
 //! `map/epoch` in the diagnostics is the number of times the map was resumed.
@@ -27,36 +30,37 @@
 //! camera, the latency and the counters (with the server's own).
 
 use glam::DVec2;
-use renderer::GaussianSet;
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::counters::Counters;
 use super::error::ServiceError;
+use super::held::Held;
 use super::inputs::CameraPose;
 use super::keys::{self, Topic};
 use super::map_files::{gaussians_in_whole, RegionReadError};
-use super::map_store::MapStore;
+use super::map_store::{MapStore, Recorded};
 use super::memory::Releaser;
 use super::region::RegionQuery;
 use super::static_frames::StaticFrames;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
 use crate::fusion::{
-    bev_image, encode_map_snapshot, increment_message, snapshot_message, BevView, GaussianId,
-    GlobalMap, Increment, Snapshot, WorldGaussian,
+    bev_image, encode_map_snapshot, snapshot_message, BevView, GaussianId, GlobalMap, Increment,
+    Snapshot, WorldGaussian,
 };
-use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::image::image_from_rgb;
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
-use crate::msg::pose::pose_from_affine;
 use crate::msg::sensor_msgs::Image;
 use crate::msg::std_msgs::Header;
 use crate::msg::tf2_msgs::{world_to, TfMessage, WORLD};
 use crate::msg::Message;
 use crate::pipeline::self_check::{verdict_code, CheckAction, CheckOutcome};
-use crate::pipeline::worker::{now_ns, Output, Rendered, Stamps, WorkerEvent};
+use crate::pipeline::worker::{now_ns, Rendered, Stamps, WorkerEvent};
 use crate::transport::Outlet;
+
+#[path = "bin_publish.rs"]
+mod bin_publish;
 
 /// What a run of the node did.
 #[derive(Clone, Debug, Default)]
@@ -101,6 +105,8 @@ pub(super) struct Outputs<'a> {
     releaser: Option<Releaser>,
     /// A resumed map's snapshot is still to be published (before the first increment).
     resume_pending: bool,
+    /// Bins fused whose journal record is not yet durable, not yet published.
+    held: Held,
     /// Stamps of closed bins, until their map is published.
     closed_ns: BTreeMap<u64, i64>,
     /// Stamps, self-check and operating point of published bins, until they close (and
@@ -143,6 +149,7 @@ impl<'a> Outputs<'a> {
             store,
             releaser: None,
             resume_pending: false,
+            held: Held::default(),
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
             point_names: Vec::new(),
@@ -185,104 +192,6 @@ impl<'a> Outputs<'a> {
         }
     }
 
-    /// Fuses one finished bin and checkpoints the map when due, then publishes the bin:
-    /// map, its static transform, pose, map increment (after a resumed map's snapshot, and
-    /// with a snapshot when due), bird's-eye view, then its latency if the bin has closed and
-    /// needs no render. All stamped with the bin's source stamp.
-    async fn bin_done(&mut self, out: Output, drops: u64) -> Result<(), ServiceError> {
-        let mut stamps = out.stamps;
-        let header = |frame: &str| Header::new(stamps.source_ns, frame);
-        match out.result {
-            Ok(set) => {
-                if std::mem::take(&mut self.resume_pending) {
-                    self.put_encoded_update(self.snapshot(header(WORLD)))
-                        .await?;
-                }
-                // A map that failed its check and was not dimmed (SGM's fallback failed too,
-                // or the policy only flags) is published for what it is but kept out of the
-                // global map: the bin is taken in empty, so the increments stay one per bin.
-                let unfused =
-                    out.check.flagged() && out.check.action != CheckAction::LoweredOpacity;
-                let empty = GaussianSet::default();
-                let to_fuse = if unfused {
-                    self.counters.add("check/unfused", 1);
-                    &empty
-                } else {
-                    &set
-                };
-                if let Some(store) = &mut self.store {
-                    if let Err(e) = store.prepare(&mut self.map, out.bin_to_world.translation) {
-                        eprintln!("reading paged tiles back failed: {e}");
-                        self.counters.add("error/checkpoint", 1);
-                    }
-                }
-                let fused = self.map.insert_bin(out.bin_id, to_fuse, out.bin_to_world);
-                self.latest_source_ns = stamps.source_ns;
-                if let Ok(inc) = &fused {
-                    self.journal(inc);
-                }
-                stamps.map_fused_ns = now_ns();
-                let frame = format!("bin_{}", out.bin_id);
-                match cloud_from_gaussians(&set, header(&frame), None) {
-                    Ok(cloud) => self.put(keys::BIN_MAP, cloud.encode()).await?,
-                    Err(_) => self.counters.add("error/encode_map", 1),
-                }
-                if let Some(f) = self.foxglove {
-                    f.bin_map(out.bin_id, stamps.source_ns, &set);
-                    f.bin_frame(out.bin_id, &out.bin_to_world, stamps.source_ns);
-                }
-                let placed = world_to(frame, &out.bin_to_world, stamps.source_ns);
-                self.static_tf.push(placed);
-                self.put_static_tf().await?;
-                // The pose last: a subscriber holding map and pose has the whole bin.
-                let pose = pose_from_affine(&out.bin_to_world, header(WORLD));
-                self.put(keys::BIN_POSE, pose.encode()).await?;
-                stamps.publish_ns = now_ns();
-                self.summary.bins_published += 1;
-                match fused {
-                    Ok(inc) => {
-                        let sequence = self.map.increments();
-                        if let Some(f) = self.foxglove {
-                            let summary = serde_json::json!({
-                                "bin_id": out.bin_id,
-                                "sequence": sequence,
-                                "added": inc.added.len(),
-                                "removed": inc.removed.len(),
-                                "total": self.map.total_len(),
-                            });
-                            let origin = out.bin_to_world.translation;
-                            f.map_increment(summary, &inc.added, origin, stamps.source_ns);
-                        }
-                        let msg = increment_message(&inc, sequence, header(WORLD));
-                        self.put_update(msg).await?;
-                        let due = self.snapshot_every > 0
-                            && self
-                                .summary
-                                .bins_published
-                                .is_multiple_of(self.snapshot_every);
-                        if due {
-                            self.put_encoded_update(self.snapshot(header(WORLD)))
-                                .await?;
-                        }
-                    }
-                    Err(_) => self.counters.add("error/fusion", 1),
-                }
-                if self.bev {
-                    self.put_bev(header(WORLD)).await?;
-                }
-            }
-            Err(_) => self.counters.add("error/reconstruct", 1),
-        }
-        self.count_check(&out.check);
-        if out.render_follows {
-            self.awaiting_render.insert(out.bin_id);
-        }
-        self.published
-            .insert(out.bin_id, (stamps, out.check, out.point));
-        self.counters.set("queue/depth", out.queue_depth as u64);
-        self.flush_latency(drops).await
-    }
-
     /// Counts a bin's self-check and what was done about it.
     fn count_check(&mut self, check: &CheckOutcome) {
         if let Some(r) = &check.primary {
@@ -303,6 +212,9 @@ impl<'a> Outputs<'a> {
     /// Publishes a bin's render (frame `bin_<id>`, stamped like its map) and then its
     /// latency if the bin has closed.
     async fn rendered(&mut self, r: Rendered, drops: u64) -> Result<(), ServiceError> {
+        let Some(r) = self.held.take_render(r) else {
+            return Ok(());
+        };
         self.awaiting_render.remove(&r.bin_id);
         let stamps = self.published.get_mut(&r.bin_id).map(|(s, _, _)| s);
         let source_ns = stamps.as_ref().map_or(0, |s| s.source_ns);
@@ -333,6 +245,15 @@ impl<'a> Outputs<'a> {
     /// its close or its render. The drive's last bin never closes (no frame after it), so
     /// its message has no close stamp (`bin_close_ns` 0) and no before-close margin.
     pub async fn finish(&mut self, drops: u64) -> Result<(), ServiceError> {
+        self.retry_held(drops).await?;
+        let held = self.held.drain().len();
+        if held > 0 {
+            eprintln!(
+                "{held} bins were never published: the map's journal refused their records \
+                 to the end (the map saved at the stop holds them if it can be written)"
+            );
+            self.counters.add("dropped/not_durable", held as u64);
+        }
         self.awaiting_render.clear();
         let open: Vec<u64> = self.published.keys().copied().collect();
         for id in open {
@@ -435,14 +356,14 @@ impl<'a> Outputs<'a> {
 
     /// Journals a fused bin's change (and the tiles paged with it) before the bin is
     /// published; a failure is reported on stderr and counted (`error/checkpoint`), and the
-    /// bin is still published.
+    /// store keeps the record to write again ([`MapStore::failing`]).
     fn journal(&mut self, inc: &Increment) {
         let Some(store) = &mut self.store else {
             return;
         };
         match store.record(&mut self.map, inc) {
-            Ok(true) => self.counters.add("map/checkpoints", 1),
-            Ok(false) => {}
+            Ok(Recorded::Durable) => self.counters.add("map/checkpoints", 1),
+            Ok(_) => {}
             Err(e) => {
                 eprintln!("checkpoint failed: {e}");
                 self.counters.add("error/checkpoint", 1);

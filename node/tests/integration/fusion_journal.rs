@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use glam::{DAffine3, DVec3};
 use node::fusion::{segments, AtTornTail, GlobalMap, JournalWriter, StoreError};
 use node::service::map_files::{restore, CHECKPOINT, JOURNAL};
-use node::service::map_store::MapStore;
+use node::service::map_store::{MapStore, Recorded};
 use node::service::Compaction;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -222,8 +222,9 @@ fn the_compactor_folds_the_journal_into_the_base_within_the_bytes_journaled() {
         let (set, pose) = random_bin(&mut rng, k);
         let inc = map.insert_bin(k, &set, pose).unwrap();
         increments += (inc.added.len() * 88 + inc.removed.len() * 8) as u64;
-        assert!(
+        assert_eq!(
             store.record(&mut map, &inc).unwrap(),
+            Recorded::Durable,
             "synced before publishing"
         );
     }

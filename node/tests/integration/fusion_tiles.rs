@@ -16,7 +16,7 @@ use node::fusion::{
 use node::service::map_files::{
     export_with_limit, gaussians_in_whole, restore, whole_map, RegionReadError, CHECKPOINT, TILES,
 };
-use node::service::map_store::MapStore;
+use node::service::map_store::{MapStore, Recorded};
 use node::service::{Compaction, Paging};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -172,7 +172,7 @@ fn a_loop_driven_twice_fuses_into_its_paged_tiles_and_memory_stays_bounded() {
             .insert_bin(k, &world_road_bin(&mut rng, pose), pose)
             .unwrap();
         assert_eq!(inc.stats.evicted, 0);
-        assert!(store.record(&mut map, &inc).unwrap());
+        assert_eq!(store.record(&mut map, &inc).unwrap(), Recorded::Durable);
         most_resident = most_resident.max(map.len());
         // A crash after any bin restores the live map, tiles on disk included.
         if k % 7 == 0 {

@@ -35,6 +35,7 @@ mod formats_interop;
 mod foxglove_client;
 mod fusion;
 mod fusion_journal;
+mod fusion_journal_faults;
 mod fusion_keep;
 mod fusion_tiles;
 #[cfg(unix)]
@@ -46,6 +47,7 @@ mod msg_rgb;
 mod node_bad_input;
 mod node_budget;
 mod node_crash;
+mod node_disk_full;
 mod node_far;
 mod node_region;
 mod node_replay;

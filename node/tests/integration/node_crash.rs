@@ -34,14 +34,14 @@ use node::transport::open;
 use zenoh::qos::CongestionControl;
 
 /// A `stereosplat` process with its stderr collected as it is written.
-struct Child {
+pub(crate) struct Child {
     process: std::process::Child,
     stderr: Arc<Mutex<String>>,
 }
 
 impl Child {
     /// Starts `stereosplat args`.
-    fn spawn(args: &[&str]) -> Self {
+    pub(crate) fn spawn(args: &[&str]) -> Self {
         let mut process = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
             .args(args)
             .stdout(Stdio::piped())
@@ -61,18 +61,18 @@ impl Child {
     }
 
     /// Everything written to stderr so far.
-    fn stderr(&self) -> String {
+    pub(crate) fn stderr(&self) -> String {
         self.stderr.lock().unwrap().clone()
     }
 
     /// Kills it with SIGKILL (no chance to save anything) and reaps it.
-    fn kill_9(mut self) {
+    pub(crate) fn kill_9(mut self) {
         self.process.kill().unwrap();
         self.process.wait().unwrap();
     }
 
     /// Sends SIGTERM (a clean stop), waits; its exit status, stdout and stderr.
-    fn terminate(self) -> (ExitStatus, String, String) {
+    pub(crate) fn terminate(self) -> (ExitStatus, String, String) {
         let pid = nix::unistd::Pid::from_raw(self.process.id() as i32);
         nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM).unwrap();
         self.wait()
@@ -91,7 +91,7 @@ impl Child {
 
 /// Starts `stereosplat run` (SGM, no renders, a snapshot only on request) on a free loopback
 /// port with `--out out`, plus `extra` flags; returns it and its endpoint once it listens.
-async fn start_node(ns: &str, out: &Path, extra: &[&str]) -> (Child, String) {
+pub(crate) async fn start_node(ns: &str, out: &Path, extra: &[&str]) -> (Child, String) {
     let port = drive_support::free_port();
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let out = out.to_str().unwrap();
@@ -132,7 +132,7 @@ fn bins_opened(poses: &[glam::DAffine3]) -> usize {
 }
 
 /// Plays frames `range` of `drive` (camera infos first).
-async fn play(player: &Player, drive: &Drive, range: std::ops::Range<usize>) {
+pub(crate) async fn play(player: &Player, drive: &Drive, range: std::ops::Range<usize>) {
     player
         .camera_infos(&drive.rig, drive.frames[range.start].0)
         .await;
@@ -145,12 +145,12 @@ async fn play(player: &Player, drive: &Drive, range: std::ops::Range<usize>) {
 
 /// What one run of the node published: bin ids of its bin maps, its map updates (sequence,
 /// decoded) in arrival order.
-struct Published {
-    bins: Vec<u64>,
-    updates: Vec<(u64, Update)>,
+pub(crate) struct Published {
+    pub(crate) bins: Vec<u64>,
+    pub(crate) updates: Vec<(u64, Update)>,
 }
 
-fn published(collector: &Collector, keys: &Keys) -> Published {
+pub(crate) fn published(collector: &Collector, keys: &Keys) -> Published {
     let bins = collector
         .headers(&keys.bin_map())
         .iter()
@@ -167,7 +167,7 @@ fn published(collector: &Collector, keys: &Keys) -> Published {
 /// Asserts that `map` holds exactly the Gaussians subscribers hold in `published`: the same
 /// ids, source bins and f64 positions, and the f32 fields as the wire carries them (opacity
 /// as a logit, colour as an SH coefficient) to 1e-5.
-fn assert_same_gaussians(map: &GlobalMap, published: &Snapshot) {
+pub(crate) fn assert_same_gaussians(map: &GlobalMap, published: &Snapshot) {
     assert_eq!(map.len(), published.gaussians.len());
     for (id, p) in &published.gaussians {
         let g = map
@@ -189,7 +189,7 @@ fn assert_same_gaussians(map: &GlobalMap, published: &Snapshot) {
 }
 
 /// The snapshot the node answers a query with, and its sequence number.
-async fn requested_snapshot(player: &Player, keys: &Keys) -> (u64, Snapshot) {
+pub(crate) async fn requested_snapshot(player: &Player, keys: &Keys) -> (u64, Snapshot) {
     let replies = player.session.get(keys.snapshot_request()).await.unwrap();
     let reply = replies.recv_async().await.expect("the node answers");
     let msg = MapUpdate::decode(&reply.result().unwrap().payload().to_bytes()).unwrap();

@@ -8,6 +8,7 @@
 //! what each path answers; `server` serves it with axum on hyper, bounded so that no
 //! client can hold the node.
 
+mod host;
 mod routes;
 mod server;
 #[cfg(test)]

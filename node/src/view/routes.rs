@@ -16,7 +16,8 @@
 //! Paths are matched whole against this table and never joined onto a folder: a library
 //! file is served only under its own URL, so no path (`..` or not) reaches another file.
 //! Every answer carries `Cache-Control: no-store` (the page polls) and
-//! `X-Content-Type-Options: nosniff`.
+//! `X-Content-Type-Options: nosniff`. A request whose `Host` is neither an address nor
+//! `localhost` is refused with 421 before any of this ([`super::host`]).
 //!
 //! The libraries come from the folder `npm ci` filled (setup does it); nothing is fetched
 //! from elsewhere, and the page names no other host.
@@ -90,6 +91,7 @@ pub fn router(state: Arc<Mutex<ViewState>>, node_modules: PathBuf) -> Router {
     router
         .fallback(unknown)
         .layer(axum::middleware::map_response(no_store))
+        .layer(axum::middleware::from_fn(super::host::check_host))
         .with_state(Shared {
             state,
             node_modules: node_modules.into(),

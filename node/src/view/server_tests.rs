@@ -172,6 +172,20 @@ async fn every_route_answers_get_with_its_type_and_the_shared_headers() {
 }
 
 #[tokio::test]
+async fn a_request_naming_another_host_is_refused_before_any_route() {
+    let addr = start(Limits::default()).await;
+    for (host, status) in [
+        ("rebound.attacker.example", 421),
+        (&*format!("localhost:{}", addr.port()), 200),
+    ] {
+        let mut stream = TcpStream::connect(addr).await.unwrap();
+        let req = format!("GET /api/state HTTP/1.1\r\nHost: {host}\r\n\r\n");
+        stream.write_all(req.as_bytes()).await.unwrap();
+        assert_eq!(read_answer(&mut stream).await.status, status, "{host}");
+    }
+}
+
+#[tokio::test]
 async fn head_has_get_s_headers_and_no_body() {
     let addr = start(Limits::default()).await;
     for path in [

@@ -9,7 +9,9 @@
 //!   the cell is removed and the bin's Gaussians of that cell are added;
 //! - otherwise (equal or lower) the bin's Gaussians of that cell are dropped.
 //!
-//! So every cell holds the Gaussians of exactly one bin. Gaussians with a NaN or infinite
+//! So every cell holds the Gaussians of exactly one bin. Opacity and confidence are clamped
+//! to [0, 1] on the way in, here and in every reader of a stored map (a confidence of 1e30
+//! would otherwise win its cells for ever). Gaussians with a NaN or infinite
 //! field, with an opacity below `opacity_floor`, or outside the keep rule ([`Keep`]: farther
 //! than `keep.max_range_m` from their bin's camera, or less confident than
 //! `keep.min_confidence`) are skipped before the rule (and counted). The keep rule exists for
@@ -468,11 +470,12 @@ impl GlobalMap {
                 stats.skipped_invalid += 1;
                 continue;
             }
-            if l.opacity < self.config.opacity_floor {
+            let (opacity, confidence) = (l.opacity.clamp(0.0, 1.0), l.confidence.clamp(0.0, 1.0));
+            if opacity < self.config.opacity_floor {
                 stats.pruned_opacity += 1;
                 continue;
             }
-            if !self.config.keep.keeps(l.mean, l.confidence) {
+            if !self.config.keep.keeps(l.mean, confidence) {
                 stats.not_kept += 1;
                 continue;
             }
@@ -487,9 +490,9 @@ impl GlobalMap {
                 position,
                 log_scale: l.log_scale,
                 rotation: (pose_rotation * local_rotation).normalize().as_quat(),
-                opacity: l.opacity,
+                opacity,
                 color: l.color,
-                confidence: l.confidence,
+                confidence,
                 bin_id,
             };
             out.push((cell_of(position, self.config.cell_size), g));
@@ -579,3 +582,7 @@ pub struct StoredMap {
     increments: u64,
     epoch: u64,
 }
+
+#[cfg(test)]
+#[path = "range_tests.rs"]
+mod range_tests;

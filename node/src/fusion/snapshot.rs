@@ -380,7 +380,9 @@ pub(super) struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
-    /// One Gaussian as [`put_gaussian`] writes it; a NaN or infinite field is an error.
+    /// One Gaussian as [`put_gaussian`] writes it; a NaN or infinite field is an error, and
+    /// opacity and confidence are clamped to [0, 1] (the map's own are; a file's need not
+    /// be). The base, the journal and the tiles all read Gaussians here.
     pub fn gaussian(&mut self) -> Result<(GaussianId, WorldGaussian), StoreError> {
         let at = self.pos;
         let id = GaussianId(self.u64()?);
@@ -396,6 +398,11 @@ impl<'a> Reader<'a> {
         if !g.is_finite() {
             return Err(self.invalid(at, "Gaussian with a NaN or infinite field"));
         }
+        let g = WorldGaussian {
+            opacity: g.opacity.clamp(0.0, 1.0),
+            confidence: g.confidence.clamp(0.0, 1.0),
+            ..g
+        };
         Ok((id, g))
     }
 

@@ -11,6 +11,9 @@
 //!   timeout is given out again, ahead of every waiting bin and never dropped: it was
 //!   already accepted. Each hand-out is an attempt; an answer for an older attempt is late,
 //!   discarded and counted, so no bin is published twice.
+//! - A worker whose reply the node dropped is expelled ([`Dispatch::expel`]): its bin is
+//!   given out again too, but that hand-out does not count towards [`MAX_ATTEMPTS`]: the
+//!   worker failed, not the bin (and each such hand-out costs the pool a worker).
 //! - Maps are released in bin order: a finished bin waits until every earlier bin still in
 //!   the node's hands is finished or dropped. A render follows its map.
 
@@ -53,6 +56,9 @@ struct Flight {
     since: Instant,
     /// Its map arrived (the worker may still be rendering it).
     mapped: bool,
+    /// Hand-outs so far that do not count towards [`MAX_ATTEMPTS`] (their worker was
+    /// expelled).
+    forgiven: u32,
 }
 
 /// What became of an answer.
@@ -71,7 +77,8 @@ pub struct Dispatch {
     capacity: usize,
     local: bool,
     waiting: VecDeque<Job>,
-    again: VecDeque<(Job, u32)>,
+    /// Bins to give out again: the job, its next attempt and its forgiven hand-outs.
+    again: VecDeque<(Job, u32, u32)>,
     flights: BTreeMap<u64, Flight>,
     /// Worker processes ready for bins, and the bin each holds; a stalled one (its bin
     /// given out again) holds its bin id until it answers or leaves.
@@ -134,12 +141,25 @@ impl Dispatch {
     /// A worker process left: the bin it held, if any, is given out again (or, when its
     /// map had come, finished without its render). False for a worker that had not joined.
     pub fn left(&mut self, id: &str) -> bool {
+        self.remove(id, true)
+    }
+
+    /// A worker process whose reply the node dropped: it gets no more bins, and the bin it
+    /// held, if any, is given out again without using one of the bin's attempts. False for
+    /// a worker that had not joined (or already left).
+    pub fn expel(&mut self, id: &str) -> bool {
+        self.remove(id, false)
+    }
+
+    /// Takes worker `id` out; its bin's hand-out counts towards [`MAX_ATTEMPTS`] when
+    /// `counts`.
+    fn remove(&mut self, id: &str, counts: bool) -> bool {
         let Some(held) = self.remotes.remove(id) else {
             return false;
         };
         let slot = Slot::Remote(id.to_string());
         if let Some(bin) = held.filter(|&b| self.holds(b, &slot, None)) {
-            self.lost(bin);
+            self.lost(bin, counts);
         }
         true
     }
@@ -151,9 +171,10 @@ impl Dispatch {
             .is_some_and(|f| &f.slot == slot && attempt.is_none_or(|a| a == f.attempt))
     }
 
-    /// `bin`'s worker will send nothing more: a bin without its map is given out again, one
-    /// whose render is missing is finished with an error in its place.
-    fn lost(&mut self, bin: u64) {
+    /// `bin`'s worker will send nothing more: a bin without its map is given out again (the
+    /// hand-out counting towards [`MAX_ATTEMPTS`] when `counts`), one whose render is
+    /// missing is finished with an error in its place.
+    fn lost(&mut self, bin: u64, counts: bool) {
         match self.flights.get(&bin).map(|f| f.mapped) {
             Some(true) => {
                 let render = WorkerEvent::Render(Rendered {
@@ -163,7 +184,7 @@ impl Dispatch {
                 });
                 self.render(bin, render);
             }
-            Some(false) => self.again(bin),
+            Some(false) => self.again(bin, counts),
             None => {}
         }
     }
@@ -186,22 +207,24 @@ impl Dispatch {
         // leaves: `again` takes the bin back without freeing its worker.
         late.into_iter()
             .map(|(bin, id)| {
-                self.again(bin);
+                self.again(bin, true);
                 id
             })
             .collect()
     }
 
-    /// Gives `bin` out again, or after [`MAX_ATTEMPTS`] publishes it as failed. Its worker
-    /// is not freed here: one that left is gone, one whose query ended is freed by
-    /// [`Self::answered`], and a stalled one stays busy until then.
-    fn again(&mut self, bin: u64) {
+    /// Gives `bin` out again, or after [`MAX_ATTEMPTS`] counted hand-outs (this one counts
+    /// when `counts`) publishes it as failed. Its worker is not freed here: one that left is
+    /// gone, one whose query ended is freed by [`Self::answered`], and a stalled one stays
+    /// busy until then.
+    fn again(&mut self, bin: u64, counts: bool) {
         let Some(f) = self.flights.remove(&bin) else {
             return;
         };
         self.reassigned += 1;
-        if f.attempt + 1 < MAX_ATTEMPTS {
-            self.again.push_back((f.job, f.attempt + 1));
+        let forgiven = f.forgiven + u32::from(!counts);
+        if f.attempt + 1 - forgiven < MAX_ATTEMPTS {
+            self.again.push_back((f.job, f.attempt + 1, forgiven));
             return;
         }
         let job = f.job;
@@ -234,10 +257,10 @@ impl Dispatch {
         }
         let mut out = Vec::new();
         for slot in idle {
-            let Some((job, attempt)) = self
+            let Some((job, attempt, forgiven)) = self
                 .again
                 .pop_front()
-                .or_else(|| self.waiting.pop_front().map(|j| (j, 0)))
+                .or_else(|| self.waiting.pop_front().map(|j| (j, 0, 0)))
             else {
                 break;
             };
@@ -254,6 +277,7 @@ impl Dispatch {
                     attempt,
                     since: now,
                     mapped: false,
+                    forgiven,
                 },
             );
             out.push(Assignment { slot, job, attempt });
@@ -307,7 +331,7 @@ impl Dispatch {
     /// not): it is idle again. A bin whose map never came is given out again.
     pub fn answered(&mut self, slot: &Slot, bin: u64, attempt: u32) {
         if self.holds(bin, slot, Some(attempt)) {
-            self.lost(bin);
+            self.lost(bin, true);
         }
         self.free(slot, bin);
     }

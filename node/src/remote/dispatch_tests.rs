@@ -253,3 +253,33 @@ fn a_dropped_bin_does_not_hold_back_the_bins_after_it() {
     assert_eq!(released(&mut d), vec![(0, 'm'), (2, 'm')]);
     assert_eq!(d.unfinished(), 0);
 }
+
+#[test]
+fn a_bin_whose_worker_is_expelled_goes_out_again_without_using_an_attempt() {
+    let mut d = Dispatch::new(4, false);
+    for id in ["a", "b", "c", "d", "e", "f"] {
+        d.joined(id);
+    }
+    d.submit(job(0));
+    let now = Instant::now();
+    // Three workers in turn send replies the node drops: the bin is still given out.
+    for (id, attempt) in [("a", 0), ("b", 1), ("c", 2)] {
+        assert_eq!(bins(&d.assign(now)), vec![(remote(id), 0, attempt)]);
+        assert!(d.expel(id));
+        assert!(!d.expel(id), "once");
+    }
+    assert_eq!(d.workers(), 3);
+    // Then three hand-outs that count: the third is the last.
+    for attempt in [3, 4, 5] {
+        assert!(d.released().is_empty());
+        assert_eq!(bins(&d.assign(now)), vec![(remote("d"), 0, attempt)]);
+        d.answered(&remote("d"), 0, attempt);
+    }
+    let WorkerEvent::Map(failed) = d.released().remove(0) else {
+        panic!("a map")
+    };
+    assert!(failed.result.unwrap_err().contains("no worker answered"));
+    assert_eq!(d.reassigned(), 6);
+    // An expelled worker's late map is discarded.
+    assert_eq!(d.event(&remote("a"), Some(0), map(0, false)), Answer::Late);
+}

@@ -6,7 +6,12 @@
 //! A request for another reconstructor than this worker's, or of another protocol
 //! version, is refused with an error reply saying both, and counted. Bins run one at a time
 //! on one thread; a second bin arriving while one runs waits, a third is refused as busy
-//! (a node sends one at a time), so memory stays bounded whatever arrives.
+//! (a node sends one at a time), so memory stays bounded whatever arrives. Busy is told
+//! from the request's first bytes ([`Request::kind`]), before its images are decoded.
+//!
+//! The queryable is declared complete: it answers its whole key, as the node's greeting
+//! and bins ask (the node sends them to every queryable on the key and takes replies from
+//! the session whose greeting it took, [`super::pool`]).
 
 use std::future::Future;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -17,7 +22,7 @@ use tokio::sync::mpsc::{unbounded_channel, UnboundedSender};
 use zenoh::query::Query;
 
 use super::fingerprint::Fingerprint;
-use super::wire::{BinJob, Hello, Reply, Request};
+use super::wire::{BinJob, Hello, Reply, Request, RequestKind, REQUEST_PREFIX};
 use crate::pipeline::operating::PointRunner;
 use crate::pipeline::self_check::{OnCheckFail, SelfCheck};
 use crate::pipeline::worker::{run_job, Job, RenderWith, WorkerEvent};
@@ -88,6 +93,7 @@ pub async fn serve(
     let key = config.keys.worker(id);
     let queries = session
         .declare_queryable(key.clone())
+        .complete(true)
         .await
         .map_err(TransportError::from)?;
     let token = session
@@ -127,6 +133,11 @@ pub async fn serve(
 
 /// Answers one query.
 async fn answer(query: Query, me: Hello, work: Sender<Work>, counts: Arc<Counts>) {
+    if work.is_full() && kind(&query) == Some(RequestKind::Bin) {
+        counts.refused.fetch_add(1, Ordering::Relaxed);
+        let _ = query.reply_err("refused: busy with another bin").await;
+        return;
+    }
     let payload = query.payload().map(|p| p.to_bytes());
     let request = match Request::decode(payload.as_deref().unwrap_or_default()) {
         Ok(r) => r,
@@ -172,6 +183,14 @@ async fn answer(query: Query, me: Hello, work: Sender<Work>, counts: Arc<Counts>
         }
         let _ = query.reply(query.key_expr().clone(), reply.encode()).await;
     }
+}
+
+/// What `query` asks, from its payload's first bytes (`None`: not a request).
+fn kind(query: &Query) -> Option<RequestKind> {
+    let mut prefix = [0u8; REQUEST_PREFIX];
+    let mut reader = query.payload()?.reader();
+    std::io::Read::read_exact(&mut reader, &mut prefix).ok()?;
+    Request::kind(&prefix).ok()
 }
 
 /// The thread that owns the reconstructor and the rasterizer and runs bins one at a time.

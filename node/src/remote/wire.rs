@@ -68,6 +68,18 @@ pub struct BinJob {
     pub stamps: Stamps,
 }
 
+impl BinJob {
+    /// The payload of `Request::Bin` with this job, made without moving the job (the node
+    /// keeps it to check the worker's answer against).
+    pub fn request(&self) -> Vec<u8> {
+        let mut w = CdrWriter::new();
+        w.u32(VERSION);
+        w.u8(REQUEST_BIN);
+        write_job(&mut w, self);
+        w.into_bytes()
+    }
+}
+
 /// What the node asks a worker.
 #[derive(Clone, Debug)]
 pub enum Request {
@@ -98,6 +110,18 @@ pub enum Reply {
     Render(Rendered),
 }
 
+/// What a request asks, as [`Request::kind`] reads it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RequestKind {
+    /// [`Request::Hello`].
+    Hello,
+    /// [`Request::Bin`].
+    Bin,
+}
+
+/// The bytes [`Request::kind`] reads: the CDR header, the version and the kind.
+pub const REQUEST_PREFIX: usize = 9;
+
 const REQUEST_HELLO: u8 = 1;
 const REQUEST_BIN: u8 = 2;
 const REPLY_HELLO: u8 = 1;
@@ -114,12 +138,22 @@ impl Request {
                 w.u8(REQUEST_HELLO);
                 f.write(&mut w);
             }
-            Request::Bin(job) => {
-                w.u8(REQUEST_BIN);
-                write_job(&mut w, job);
-            }
+            Request::Bin(job) => return job.request(),
         }
         w.into_bytes()
+    }
+
+    /// What the request whose payload starts with `prefix` asks, from its first
+    /// [`REQUEST_PREFIX`] bytes alone: a busy worker refuses a bin without decoding its
+    /// images.
+    pub fn kind(prefix: &[u8]) -> Result<RequestKind, WireError> {
+        let mut r = CdrReader::new(prefix)?;
+        read_version(&mut r)?;
+        match r.u8("request kind")? {
+            REQUEST_HELLO => Ok(RequestKind::Hello),
+            REQUEST_BIN => Ok(RequestKind::Bin),
+            other => Err(invalid("request kind", format!("{other} is not 1 or 2"))),
+        }
     }
 
     /// Decodes a payload of [`VERSION`].
@@ -396,9 +430,16 @@ fn write_image(w: &mut CdrWriter, image: &RgbImage) {
     }
 }
 
+/// `a x b`, or an error naming `what` when the product does not fit a `u64` (a header's
+/// sizes are checked before anything is read or allocated by them).
+fn times(what: &'static str, a: u64, b: u64) -> Result<u64, WireError> {
+    a.checked_mul(b)
+        .ok_or_else(|| invalid(what, format!("{a} x {b} does not fit 64 bits")))
+}
+
 fn read_image(r: &mut CdrReader<'_>) -> Result<RgbImage, WireError> {
     let (width, height) = (r.u32("image width")?, r.u32("image height")?);
-    let values = 3 * width as u64 * height as u64;
+    let values = times("image size", 3 * width as u64, height as u64)?;
     let data = match r.u8("image kind")? {
         IMAGE_BYTES => {
             let bytes = r.bytes("image bytes")?;
@@ -426,8 +467,9 @@ fn f32_bytes(values: &[f32]) -> Vec<u8> {
 
 /// `count` little-endian floats from a `uint8[]` sequence holding exactly them.
 fn read_f32s(r: &mut CdrReader<'_>, what: &'static str, count: u64) -> Result<Vec<f32>, WireError> {
+    let want = times(what, 4, count)?;
     let bytes = r.bytes(what)?;
-    if bytes.len() as u64 != 4 * count {
+    if bytes.len() as u64 != want {
         return Err(invalid(
             what,
             format!("{} bytes for {count} floats", bytes.len()),
@@ -454,14 +496,14 @@ fn write_set(w: &mut CdrWriter, set: &GaussianSet) {
 fn read_set(r: &mut CdrReader<'_>) -> Result<GaussianSet, WireError> {
     let n = r.u32("gaussians")? as u64;
     let vec3 = |r: &mut CdrReader<'_>, what| -> Result<Vec<Vec3>, WireError> {
-        Ok(read_f32s(r, what, 3 * n)?
+        Ok(read_f32s(r, what, times(what, 3, n)?)?
             .chunks_exact(3)
             .map(Vec3::from_slice)
             .collect())
     };
     let means = vec3(r, "means")?;
     let log_scales = vec3(r, "log_scales")?;
-    let rotations = read_f32s(r, "rotations", 4 * n)?
+    let rotations = read_f32s(r, "rotations", times("rotations", 4, n)?)?
         .chunks_exact(4)
         .map(Quat::from_slice)
         .collect();

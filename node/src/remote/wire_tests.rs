@@ -202,3 +202,64 @@ fn another_protocol_version_is_refused_by_name() {
     let e = Request::decode(&bytes).unwrap_err().to_string();
     assert_eq!(e, "`version`: protocol 9; this build speaks 1");
 }
+
+/// An image header claiming `width` x `height` of `kind`, then an empty byte sequence.
+fn image_header(width: u32, height: u32, kind: u8) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    w.u32(width);
+    w.u32(height);
+    w.u8(kind);
+    w.bytes(&[]);
+    w.into_bytes()
+}
+
+#[test]
+fn image_sizes_at_the_u32_extremes_are_errors_not_wrapped_products() {
+    // 3 x u32::MAX x u32::MAX does not fit 64 bits: without checked arithmetic it wraps in
+    // release builds (and panics in debug ones).
+    for kind in [IMAGE_BYTES, IMAGE_FLOATS] {
+        let bytes = image_header(u32::MAX, u32::MAX, kind);
+        let e = read_image(&mut CdrReader::new(&bytes).unwrap()).unwrap_err();
+        assert!(e.to_string().contains("does not fit 64 bits"), "{e}");
+    }
+    // u32::MAX x 1 fits; its floats do too (4 x 3 x u32::MAX), and an empty sequence is not
+    // that many.
+    let bytes = image_header(u32::MAX, 1, IMAGE_FLOATS);
+    let e = read_image(&mut CdrReader::new(&bytes).unwrap()).unwrap_err();
+    assert!(
+        e.to_string().contains("0 bytes for 12884901885 floats"),
+        "{e}"
+    );
+    // More floats than 64 bits can count in bytes.
+    let mut w = CdrWriter::new();
+    w.bytes(&[]);
+    let bytes = w.into_bytes();
+    let e = read_f32s(&mut CdrReader::new(&bytes).unwrap(), "floats", u64::MAX / 2).unwrap_err();
+    assert!(e.to_string().contains("does not fit 64 bits"), "{e}");
+    // A map claiming u32::MAX Gaussians with empty arrays is an error.
+    let mut w = CdrWriter::new();
+    w.u32(u32::MAX);
+    w.bytes(&[]);
+    let bytes = w.into_bytes();
+    assert!(read_set(&mut CdrReader::new(&bytes).unwrap()).is_err());
+}
+
+#[test]
+fn a_request_kind_is_read_from_its_first_bytes_alone() {
+    let bin = Request::Bin(Box::new(job())).encode();
+    let hello = Request::Hello(fingerprint()).encode();
+    assert_eq!(
+        Request::kind(&bin[..REQUEST_PREFIX]).unwrap(),
+        RequestKind::Bin
+    );
+    assert_eq!(
+        Request::kind(&hello[..REQUEST_PREFIX]).unwrap(),
+        RequestKind::Hello
+    );
+    assert!(Request::kind(&bin[..REQUEST_PREFIX - 1]).is_err());
+    let mut other = bin.clone();
+    other[8] = 7;
+    assert!(Request::kind(&other).is_err());
+    // The job's own payload is the request's.
+    assert_eq!(job().request(), bin);
+}

@@ -401,6 +401,8 @@ pub async fn run_with(
     // After `stop`: no more inputs; the bins in hand are finished (for a worker
     // process's timeout at most) and published.
     let mut stopping: Option<Instant> = None;
+    // Worker ids with a counter of their own so far.
+    let mut worker_counters = 0;
 
     loop {
         let mut todo = Vec::new();
@@ -518,7 +520,19 @@ pub async fn run_with(
             match a.slot.clone() {
                 Slot::Local => _ = worker.submit(a.job),
                 Slot::Remote(id) => {
-                    outputs.counters.add(&format!("workers/bins/{id}"), 1);
+                    // One counter per worker id, for the first ids only: a peer
+                    // cycling through ids cannot grow the counters without bound.
+                    let name = format!("workers/bins/{id}");
+                    let named = outputs.counters.get(&name) > 0
+                        || worker_counters < crate::remote::MAX_WORKERS;
+                    match named {
+                        true if outputs.counters.get(&name) == 0 => {
+                            worker_counters += 1;
+                            outputs.counters.add(&name, 1);
+                        }
+                        true => outputs.counters.add(&name, 1),
+                        false => outputs.counters.add("workers/bins_past_limit", 1),
+                    }
                     pool.send(&id, a);
                 }
             }

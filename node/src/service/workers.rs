@@ -1,6 +1,12 @@
 //! The node loop's side of its workers ([`crate::remote`]): what it makes of the worker
 //! processes' events, and the publishing, in bin order, of the maps the dispatcher
 //! releases.
+//!
+//! A worker whose reply the node drops ([`crate::remote::admit`]) is counted under the
+//! reason (`discarded/worker_*`) and expelled: it gets no more bins (`workers/expelled`),
+//! and the bin it held goes to another worker without using one of its attempts. Replies
+//! from another session than the worker's are counted (`discarded/worker_replier`) without
+//! blaming the worker.
 
 use crate::pipeline::worker::WorkerEvent;
 use crate::remote::{Answer, Dispatch, PoolEvent, Slot};
@@ -36,13 +42,28 @@ pub(super) fn workers_event(dispatch: &mut Dispatch, event: PoolEvent, counters:
                 counters.set("discarded/late_bin", dispatch.late());
             }
         }
+        PoolEvent::Rejected { id, bin, why } => {
+            eprintln!("worker {id} on bin {bin}: {why}; its reply is dropped");
+            counters.add(why.counter(), 1);
+            if dispatch.expel(&id) {
+                eprintln!("worker {id} gets no more bins");
+                counters.add("workers/expelled", 1);
+            }
+        }
         PoolEvent::Ended {
             id,
             bin,
             attempt,
             error,
             silent,
+            foreign,
         } => {
+            if foreign > 0 {
+                eprintln!(
+                    "bin {bin}: replies from another session on worker {id}'s key: {foreign}"
+                );
+                counters.add("discarded/worker_replier", foreign);
+            }
             if let Some(why) = error {
                 eprintln!("worker {id} on bin {bin}: {why}");
                 counters.add("error/worker_reply", 1);

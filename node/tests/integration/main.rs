@@ -56,6 +56,7 @@ mod node_self_check;
 mod node_stamps_tf;
 mod node_wedge;
 mod node_workers;
+mod node_workers_rogue;
 mod python_subscriber;
 mod record;
 mod ros2_bridge;

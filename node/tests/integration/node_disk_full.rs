@@ -139,10 +139,9 @@ async fn a_full_disk_holds_bins_back_until_there_is_room_and_a_restart_restores_
     );
     let refused = player.session.get(keys.snapshot_request()).await.unwrap();
     let reply = refused.recv_async().await.expect("the node answers");
-    let why = reply
-        .result()
-        .err()
-        .expect("a snapshot is refused while full");
+    let Err(why) = reply.result() else {
+        panic!("a snapshot is refused while full")
+    };
     assert!(
         why.payload()
             .try_to_string()

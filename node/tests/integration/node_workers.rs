@@ -115,14 +115,19 @@ fn remote_only(timeout: Duration) -> WorkersConfig {
 }
 
 /// The node's counter `name` in its last diagnostics message (0 before any).
-fn counter(outputs: &Collector, keys: &Keys, name: &str) -> u64 {
+pub(crate) fn counter(outputs: &Collector, keys: &Keys, name: &str) -> u64 {
     let last = outputs.decoded::<Diagnostics>(&keys.diagnostics()).pop();
     last.and_then(|d| d.counters.into_iter().find(|c| c.kind == name))
         .map_or(0, |c| c.count)
 }
 
 /// Waits (60 s at most) until counter `name` reaches `at_least`.
-async fn wait_counter(outputs: &Collector, keys: &Keys, name: &str, at_least: u64) -> bool {
+pub(crate) async fn wait_counter(
+    outputs: &Collector,
+    keys: &Keys,
+    name: &str,
+    at_least: u64,
+) -> bool {
     wait_for(Duration::from_secs(60), || {
         counter(outputs, keys, name) >= at_least
     })

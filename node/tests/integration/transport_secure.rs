@@ -4,8 +4,9 @@
 //! with rcgen, plus the access control of `launch/zenoh_acl.json5`) keeps out a peer without
 //! a client certificate and one whose certificate another authority signed, and lets a
 //! viewer read but not publish inputs while the camera's inputs get through; a second node on
-//! a port in use fails before it says it is ready; and only a worker process with the
-//! worker role's certificate takes the node's bins.
+//! a port in use fails before it says it is ready; and only a worker process with its own
+//! certificate takes the node's bins, on its own key (another worker's certificate, or a
+//! viewer's, gets none).
 
 use crate::drive_support::{Drive, Player};
 use crate::net_support;
@@ -463,7 +464,7 @@ fn tls_flags(files: &TlsFiles) -> Vec<String> {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
-async fn in_the_secure_profile_only_a_worker_certificate_takes_bins() {
+async fn in_the_secure_profile_a_worker_takes_bins_with_its_own_certificate_on_its_own_key() {
     let dir = temp_dir("zenoh-secure-workers");
     let ca = Authority::new(&dir, "ca");
     let endpoint = format!("tls/127.0.0.1:{}", net_support::free_port());
@@ -497,8 +498,8 @@ async fn in_the_secure_profile_only_a_worker_certificate_takes_bins() {
     ));
     ready_rx.await.expect("the node starts");
 
-    // Two workers with certificates of the node's authority: one with the worker role's
-    // name, one with the viewer's.
+    // Workers with certificates of the node's authority: worker a with its own, one with
+    // a's certificate announcing itself as b, one with the viewer's.
     let worker = |cn: &str, id: &str| {
         let mut args: Vec<String> = ["--connect", &endpoint, "--method", "sgm", "--id", id]
             .map(String::from)
@@ -508,7 +509,8 @@ async fn in_the_secure_profile_only_a_worker_certificate_takes_bins() {
         let refs: Vec<&str> = args.iter().map(String::as_str).collect();
         WorkerProcess::spawn(&refs)
     };
-    let _good = worker("stereosplat-worker", "good");
+    let _a = worker("stereosplat-worker-a", "a");
+    let _posing = worker("stereosplat-worker-a", "b");
     let _viewer = worker("stereosplat-viewer", "viewer");
 
     let drive = Drive::small("secure-workers");
@@ -534,7 +536,8 @@ async fn in_the_secure_profile_only_a_worker_certificate_takes_bins() {
         "{c:?}"
     );
     assert_eq!(c.get("workers/joined"), 1, "{c:?}");
-    assert_eq!(c.get("workers/bins/good"), summary.bins_published);
+    assert_eq!(c.get("workers/bins/a"), summary.bins_published);
+    assert_eq!(c.get("workers/bins/b"), 0);
     assert_eq!(c.get("workers/bins/viewer"), 0);
     let _ = std::fs::remove_dir_all(dir);
 }

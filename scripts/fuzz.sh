@@ -6,7 +6,9 @@
 # crashed, panicked, hung (over $FUZZ_TIMEOUT_S s) or asked for more than $FUZZ_RSS_MB MiB.
 #   bash scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]
 #   bash scripts/fuzz.sh --build      # only install cargo-fuzz and build the targets
-# (default 20 s, every target). Corpora grow in fuzz/corpus/<target>; a failing input is
+# (default 20 s, every target). The targets of decoders in the running node's modules (worker
+# protocol, input path, region queries, live view, camera-info YAML) need `node`'s runtime
+# feature and a much larger build: FUZZ_FEATURES=runtime builds and runs them too. Corpora grow in fuzz/corpus/<target>; a failing input is
 # kept in fuzz/artifacts/<target>/ and `cargo fuzz run TARGET FILE` replays it. `--build`
 # touches neither the workspace's target directory nor the corpora, so CI runs it beside
 # the tests (.ci/run).
@@ -33,6 +35,8 @@ fi
 fuzz() { env -u CARGO_PROFILE_RELEASE_DEBUG RUSTC_BOOTSTRAP=1 cargo fuzz "$@"; }
 # Sixteen codegen units: a much faster build of the instrumented tree, a little slower runs.
 flags=(--release --sanitizer address --codegen-units 16)
+features="${FUZZ_FEATURES:-}"
+if [ -n "$features" ]; then flags+=(--features "$features"); fi
 
 fuzz build "${flags[@]}"
 if $build_only; then
@@ -44,6 +48,15 @@ if [ "$#" -gt 0 ]; then
   targets=("$@")
 else
   mapfile -t targets < <(fuzz list)
+  if [ -z "$features" ]; then
+    # Without the runtime feature its targets are not built: leave them out.
+    mapfile -t runtime < <(awk '/^name = /{n=$3} /^required-features/{gsub(/"/, "", n); print n}' fuzz/Cargo.toml)
+    kept=()
+    for t in "${targets[@]}"; do
+      [[ " ${runtime[*]} " == *" $t "* ]] || kept+=("$t")
+    done
+    targets=("${kept[@]}")
+  fi
 fi
 
 failed=()
@@ -51,15 +64,9 @@ for target in "${targets[@]}"; do
   log="fuzz/logs/$target.log"
   mkdir -p fuzz/logs
   echo "== $target: $seconds s"
-  # Known, open: the mcap crate reserves the length a summary record's string claims (up to
-  # 4 GiB, never written beyond the bytes present) before reading it. The reader refuses such
-  # chunk headers itself, not yet summary strings; for this target only the resident memory
-  # is limited, and single reservations up to 4 GiB pass.
-  extra=()
-  if [ "$target" = mcap ]; then extra=(-malloc_limit_mb=4200); fi
   if fuzz run "${flags[@]}" "$target" "fuzz/corpus/$target" -- \
     -max_total_time="$seconds" -timeout="$timeout_s" -rss_limit_mb="$rss_mb" \
-    "${extra[@]}" -print_final_stats=1 >"$log" 2>&1; then
+    -print_final_stats=1 >"$log" 2>&1; then
     runs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")"
     echo "   ok: ${runs:-?} executions, corpus $(find "fuzz/corpus/$target" -type f | wc -l) inputs"
   else

@@ -1,15 +1,22 @@
 //! Every decoder of outside input as one entry point taking raw bytes: the CDR messages the
-//! node subscribes to, MCAP logs, the fused map's checkpoint, map files (PLY, SPZ, glTF binary), the KITTI-360 text
-//! files and launch files. Each entry decodes as the product does and then walks what it
-//! decoded (conversions, iterations), so a malformed input reaches the code a real one would.
+//! node subscribes to and the whole input path they take, MCAP logs (finished and cut off),
+//! the fused map's checkpoint, journal and tile files, map files (PLY, SPZ, glTF binary),
+//! the KITTI-360 text files, launch files, and with the `runtime` feature the worker
+//! protocol, snapshot region queries, the live view's HTTP parameters, snapshot attachment
+//! and topics, and ROS `camera_calibration` YAML files ([`live`]). Each entry decodes as the
+//! product does and then walks what it decoded (conversions, iterations), so a malformed
+//! input reaches the code a real one would.
 //!
 //! None may panic, hang or allocate far beyond its input, whatever the bytes: the fuzz
 //! targets (`fuzz/`, coverage-guided, `scripts/fuzz.sh`) and the test suite's seeded
 //! mutations of valid inputs (`node/tests/integration/decoders_mutated.rs`) both call these
 //! entries, by the names in [`ENTRIES`], so the two exercise the same code.
 //!
-//! Decoders that read files (KITTI-360 text, MCAP) get the bytes written to a scratch folder
-//! of this process first ([`scratch_dir`]).
+//! Decoders that read files (KITTI-360 text, MCAP, journal and tile files, YAML) get the
+//! bytes written to a scratch folder of this process first ([`scratch_dir`]). An input made
+//! of several binary parts (a journal segment and its tile files, a stream of input samples)
+//! is cut into length-prefixed parts ([`frames`], made by [`join_frames`]); one made of
+//! several text files, at NULs ([`split`]).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -20,7 +27,10 @@ use model::kitti360::timestamps::read_timestamps;
 use model::kitti360::{layout, Calibration};
 
 use crate::bag::BagReader;
-use crate::fusion::{decode_update, GlobalMap};
+use crate::fusion::{
+    decode_update, read_tile, segment_path, tile_path, AtTornTail, FusionConfig, GlobalMap,
+    PagedTile, TileKey,
+};
 use crate::launch::Plan;
 use crate::msg::gaussians::gaussians_from_cloud;
 use crate::msg::geometry_msgs::PoseStamped;
@@ -32,11 +42,17 @@ use crate::msg::sensor_msgs::{CameraInfo, Image, PointCloud2};
 use crate::msg::tf2_msgs::TfMessage;
 use crate::msg::Message;
 
+#[cfg(feature = "runtime")]
+pub mod live;
+
 /// An entry point: raw bytes in, nothing out (it must simply return).
 pub type Entry = fn(&[u8]);
 
-/// Every entry by its name (the fuzz target of the same name calls it).
-pub const ENTRIES: [(&str, Entry); 16] = [
+/// Every entry by its name (the fuzz target of the same name calls it). The entries of
+/// [`live`] are there with the `runtime` feature only, as are their fuzz targets.
+pub const ENTRIES: &[(&str, Entry)] = &[
+    #[cfg(feature = "runtime")]
+    ("camera_calibration", live::camera_calibration),
     ("cdr_camera_info", cdr_camera_info),
     ("cdr_image", cdr_image),
     ("cdr_latency", cdr_latency),
@@ -46,13 +62,30 @@ pub const ENTRIES: [(&str, Entry); 16] = [
     ("cdr_tf", cdr_tf),
     ("glb", glb),
     ("global_map", global_map),
+    ("journal_segment", journal_segment),
     ("kitti_calibration", kitti_calibration),
     ("kitti_poses", kitti_poses),
     ("kitti_timestamps", kitti_timestamps),
     ("launch", launch),
     ("mcap", mcap),
+    ("mcap_recover", mcap_recover),
+    #[cfg(feature = "runtime")]
+    ("node_inputs", live::node_inputs),
     ("ply", ply),
+    #[cfg(feature = "runtime")]
+    ("region_query", live::region_query),
     ("spz", spz),
+    ("tile_file", tile_file),
+    #[cfg(feature = "runtime")]
+    ("view_http_params", live::view_http_params),
+    #[cfg(feature = "runtime")]
+    ("view_snapshot_attachment", live::view_snapshot_attachment),
+    #[cfg(feature = "runtime")]
+    ("view_topics", live::view_topics),
+    #[cfg(feature = "runtime")]
+    ("worker_reply", live::worker_reply),
+    #[cfg(feature = "runtime")]
+    ("worker_request", live::worker_request),
 ];
 
 /// `sensor_msgs/CameraInfo`, then the intrinsics the node takes from it.
@@ -164,18 +197,104 @@ pub fn launch(data: &[u8]) {
     }
 }
 
-/// An MCAP log as `replay --mcap` reads it: the summary, then every message in log-time order.
+/// An MCAP log as `replay --mcap` reads it (`BagReader::open_or_recover`: a file that is not
+/// a finished recording is recovered), then every message in log-time order.
 pub fn mcap(data: &[u8]) {
     let path = scratch_file("bag.mcap", data);
-    let Ok(bag) = BagReader::open(&path) else {
-        return;
-    };
+    if let Ok((bag, _)) = BagReader::open_or_recover(&path) {
+        walk_bag(&bag);
+    }
+}
+
+/// An MCAP log read as a cut-off recording (`BagReader::recover`, whatever its footer says),
+/// then every message of the recovered part.
+pub fn mcap_recover(data: &[u8]) {
+    let path = scratch_file("cut.mcap", data);
+    if let Ok((bag, recovery)) = BagReader::recover(&path) {
+        let _ = recovery.to_string();
+        walk_bag(&bag);
+    }
+}
+
+/// A bag's summary, then its messages until the first error.
+fn walk_bag(bag: &BagReader) {
     let _ = (bag.channels().len(), bag.message_count(), bag.time_range());
     for message in bag.messages() {
         if message.is_err() {
             break;
         }
     }
+}
+
+/// A journal segment as a restarting node replays it onto its base (here an empty map of the
+/// default settings; a torn last record is left in the file, as `export` leaves it, where
+/// the node would also cut it off: the same decoding without a sync), with the tile files
+/// its records page in. The input is [`frames`]: the
+/// segment, then any number of tile files, each as its version (u64) and the file's bytes,
+/// written to the tiles folder under the name its own header gives
+/// (`<x>_<y>_<version>.sstile`). A map replayed whole is walked as the node then uses it,
+/// and saved and read back as the compactor's base.
+pub fn journal_segment(data: &[u8]) {
+    let parts = frames(data, MAX_FRAMES);
+    let dir = fresh_dir("journal");
+    let (journal, tiles) = (dir.join("journal"), dir.join("tiles"));
+    let segment = segment_path(&journal, 1);
+    write_file(&segment, parts.first().copied().unwrap_or_default());
+    std::fs::create_dir_all(&tiles).expect("the scratch folder is writable");
+    for part in parts.iter().skip(1) {
+        let (version, file) = part.split_at(part.len().min(8));
+        let mut v = [0u8; 8];
+        v[..version.len()].copy_from_slice(version);
+        let (tile, _) = tile_header(file);
+        write_file(&tile_path(&tiles, tile, u64::from_le_bytes(v)), file);
+    }
+    let Ok(mut map) = GlobalMap::new(FusionConfig::default()) else {
+        return;
+    };
+    let Ok(replay) = map.replay_journal(&[segment], &tiles, AtTornTail::Stop) else {
+        return;
+    };
+    let _ = (
+        replay.applied,
+        map.len(),
+        map.total_len(),
+        map.resident_tiles(),
+    );
+    let near = map.paged_tiles_near(map.latest_origin().unwrap_or_default(), 1e3);
+    for tile in near {
+        let _ = map.read_paged_tile(&tiles, tile);
+    }
+    let _ = map.snapshot();
+    let _ = GlobalMap::from_bytes(&map.to_bytes(), Path::new("global_map.ssgmap"));
+}
+
+/// A tile file (`<x>_<y>_<version>.sstile`) as a map pages it in: read as the tile and the
+/// count its own header names (so a well-formed file is read to its end), of the default
+/// settings' tiles.
+pub fn tile_file(data: &[u8]) {
+    let dir = fresh_dir("tiles");
+    let (tile, count) = tile_header(data);
+    let paged = PagedTile { version: 3, count };
+    write_file(&tile_path(&dir, tile, paged.version), data);
+    if let Ok(gaussians) = read_tile(&dir, tile, paged, &FusionConfig::default()) {
+        let _ = gaussians
+            .iter()
+            .filter(|(_, g)| g.is_finite() && g.position.z > 0.0)
+            .count();
+    }
+}
+
+/// The tile and Gaussian count a tile file's header names (magic 8 bytes, version 4, then x,
+/// y and count, 8 bytes each); zeros where the file is too short.
+fn tile_header(file: &[u8]) -> (TileKey, u64) {
+    let field = |at: usize| {
+        let mut b = [0u8; 8];
+        if let Some(bytes) = file.get(at..at + 8) {
+            b.copy_from_slice(bytes);
+        }
+        u64::from_le_bytes(b)
+    };
+    ((field(12) as i64, field(20) as i64), field(28))
 }
 
 /// A 3DGS PLY file (binary or ASCII).
@@ -210,6 +329,14 @@ pub fn scratch_dir() -> PathBuf {
     DIR.with(PathBuf::clone)
 }
 
+/// The folder `name` in [`scratch_dir`], emptied: what an earlier input left there is gone.
+pub fn fresh_dir(name: &str) -> PathBuf {
+    let dir = scratch_dir().join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("the scratch folder is writable");
+    dir
+}
+
 /// Writes `bytes` to `name` in [`scratch_dir`] and returns its path, for decoders that take
 /// a path.
 pub fn scratch_file(name: &str, bytes: &[u8]) -> PathBuf {
@@ -218,11 +345,14 @@ pub fn scratch_file(name: &str, bytes: &[u8]) -> PathBuf {
     path
 }
 
-/// Writes `bytes` to `path`, creating its parent folders (a path under [`scratch_dir`]).
+/// Writes `bytes` to `path`, creating its parent folders (a path under [`scratch_dir`]). An
+/// earlier file there is removed first rather than truncated: on ext4 a write over a
+/// truncated file waits for its blocks (`auto_da_alloc`), 15 times slower here.
 fn write_file(path: &Path, bytes: &[u8]) {
     if let Some(parent) = path.parent() {
         std::fs::create_dir_all(parent).expect("the scratch folder is writable");
     }
+    let _ = std::fs::remove_file(path);
     std::fs::write(path, bytes).expect("the scratch folder is writable");
 }
 
@@ -248,6 +378,39 @@ pub fn split<const N: usize>(data: &[u8]) -> [&[u8]; N] {
     parts
 }
 
+/// Parts one input is cut into at most ([`frames`]).
+pub const MAX_FRAMES: usize = 64;
+
+/// `data` as length-prefixed parts: a little-endian u32 length, then that many bytes, over
+/// and over; a length past the end takes what is left, and a last length cut short is a
+/// part of its own bytes. At most `max` parts (the last takes the rest).
+pub fn frames(data: &[u8], max: usize) -> Vec<&[u8]> {
+    let mut parts = Vec::new();
+    let mut rest = data;
+    while !rest.is_empty() && parts.len() < max {
+        if parts.len() + 1 == max || rest.len() < 4 {
+            parts.push(rest);
+            break;
+        }
+        let len = u32::from_le_bytes([rest[0], rest[1], rest[2], rest[3]]) as usize;
+        let body = &rest[4..];
+        let len = len.min(body.len());
+        parts.push(&body[..len]);
+        rest = &body[len..];
+    }
+    parts
+}
+
+/// `parts` joined as [`frames`] cuts them (for seeds and tests).
+pub fn join_frames(parts: &[&[u8]]) -> Vec<u8> {
+    let mut out = Vec::new();
+    for part in parts {
+        out.extend_from_slice(&(part.len() as u32).to_le_bytes());
+        out.extend_from_slice(part);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -260,8 +423,19 @@ mod tests {
     }
 
     #[test]
+    fn frames_cut_at_their_lengths_and_keep_what_is_left() {
+        let joined = join_frames(&[b"ab", b"", b"xyz"]);
+        assert_eq!(frames(&joined, 8), [&b"ab"[..], b"", b"xyz"]);
+        assert_eq!(frames(&joined, 2), [&b"ab"[..], &joined[6..]]);
+        // A length past the end takes the rest; a cut length is a part of its bytes.
+        assert_eq!(frames(b"\xff\0\0\0abc", 8), [&b"abc"[..]]);
+        assert_eq!(frames(b"\x01\0\0\0ab\0", 8), [&b"a"[..], b"b\0"]);
+        assert!(frames(b"", 8).is_empty());
+    }
+
+    #[test]
     fn every_entry_returns_on_empty_and_junk_input() {
-        for (name, entry) in ENTRIES {
+        for &(name, entry) in ENTRIES {
             for input in [&b""[..], b"\0", b"\xff\xff\xff\xff", b"ply\nformat"] {
                 entry(input);
             }

@@ -1,7 +1,8 @@
 //! The seed inputs of the decoders' entry points (`node::untrusted_input`): for each entry, a
 //! few valid inputs made by the project's own encoders, so fuzzing and the mutation test
 //! start from what the decoders really see and mutate outward. Shared by the `fuzz_seeds`
-//! example (the fuzz corpus) and the test suite (`decoders_mutated`).
+//! example (the fuzz corpus) and the test suite (`decoders_mutated`); the seeds of the
+//! entries that need the `runtime` feature are in `live_seeds.rs`.
 
 use std::path::{Path, PathBuf};
 
@@ -11,7 +12,9 @@ use model::kitti360::poses::{write_pose_file, PoseFormat};
 use model::kitti360::timestamps::write_timestamps;
 use model::kitti360::{layout, Calibration};
 use node::bag::{BagWriter, ChannelInfo, CDR};
-use node::fusion::{FusionConfig, GlobalMap};
+use node::fusion::{
+    segment_path, tile_path, write_tile, FusionConfig, GlobalMap, JournalWriter, PageEvent,
+};
 use node::msg::gaussians::cloud_from_gaussians;
 use node::msg::image::{camera_info, image_from_rgb};
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
@@ -21,11 +24,16 @@ use node::msg::schema::ros2msg;
 use node::msg::std_msgs::Header;
 use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::{Message, MessageKind};
+use node::untrusted_input::join_frames;
 use renderer::formats::{write_map, MapFormat};
 use renderer::{scene, GaussianSet, Intrinsics};
 
+#[cfg(feature = "runtime")]
+#[path = "live_seeds.rs"]
+mod live_seeds;
+
 /// A stamp in 2023, nanoseconds.
-const STAMP: i64 = 1_700_000_000_250_000_000;
+pub const STAMP: i64 = 1_700_000_000_250_000_000;
 
 /// Writes every seed as `out/<entry>/<seed>` (a scratch folder `out/scratch` is made and
 /// removed on the way).
@@ -76,11 +84,14 @@ pub fn write_all(out: &Path) -> anyhow::Result<()> {
     )?;
     seeds.put("cdr_latency", "bin_latency", &bin_latency().encode())?;
     seeds.put("cdr_latency", "diagnostics", &diagnostics().encode())?;
-    seeds.put(
-        "mcap",
-        "bag",
-        &bag(&seeds.0, &[&image.encode(), &pose_msg.encode()])?,
-    )?;
+    let bag = bag(&seeds.0, &[&image.encode(), &pose_msg.encode()])?;
+    // Cut in the middle of its last chunk, as a recorder killed with -9 leaves it (`mcap`
+    // recovers it as `replay --mcap` does).
+    let cut = &bag[..cut_in_last_chunk(&bag)];
+    for target in ["mcap", "mcap_recover"] {
+        seeds.put(target, "bag", &bag)?;
+        seeds.put(target, "cut", cut)?;
+    }
     seeds.put("ply", "binary", &ply(&gaussians)?)?;
     for format in [MapFormat::Spz, MapFormat::Glb] {
         let mut bytes = Vec::new();
@@ -95,6 +106,9 @@ pub fn write_all(out: &Path) -> anyhow::Result<()> {
     let path = seeds.0.join("scratch").join("global_map.ssgmap");
     map.save(&path)?;
     seeds.put("global_map", "two_bins", &std::fs::read(&path)?)?;
+    journal(&seeds, &gaussians, pose)?;
+    #[cfg(feature = "runtime")]
+    live_seeds::write(&seeds, &k, &gaussians, pose)?;
     seeds.put("ply", "ascii", ASCII_PLY.as_bytes())?;
     seeds.put("kitti_calibration", "synthetic", &calibration(&seeds.0)?)?;
     for (name, format) in [
@@ -118,11 +132,11 @@ pub fn write_all(out: &Path) -> anyhow::Result<()> {
 }
 
 /// The output directory.
-struct Seeds(PathBuf);
+pub struct Seeds(PathBuf);
 
 impl Seeds {
     /// Writes seed `name` of `target`.
-    fn put(&self, target: &str, name: &str, bytes: &[u8]) -> std::io::Result<()> {
+    pub fn put(&self, target: &str, name: &str, bytes: &[u8]) -> std::io::Result<()> {
         let dir = self.0.join(target);
         std::fs::create_dir_all(&dir)?;
         std::fs::write(dir.join(name), bytes)
@@ -130,7 +144,7 @@ impl Seeds {
 }
 
 /// A small image with a different value in every channel.
-fn rgb(width: u32, height: u32) -> RgbImage {
+pub fn rgb(width: u32, height: u32) -> RgbImage {
     let bytes: Vec<u8> = (0..3 * width * height).map(|i| (i * 7) as u8).collect();
     RgbImage::from_rgb8(width, height, &bytes)
 }
@@ -190,8 +204,51 @@ fn diagnostics() -> Diagnostics {
     }
 }
 
+/// Journals as a node writes them, in the `journal_segment` entry's input form (the
+/// segment, then each tile file with its version): one bin, and three bins with a tile of
+/// the first paged out after the second (far away) and back in before the third (back
+/// near the first); and that tile's file alone (`tile_file`).
+fn journal(seeds: &Seeds, gaussians: &GaussianSet, pose: DAffine3) -> anyhow::Result<()> {
+    let dir = seeds.0.join("scratch").join("journal_seed");
+    let (journal, tiles) = (dir.join("journal"), dir.join("tiles"));
+    let mut map = GlobalMap::new(FusionConfig::default())?;
+    let mut writer = JournalWriter::new(&journal);
+    let inc = map.insert_bin(1, gaussians, pose)?;
+    writer.append(&map, &inc, &[], &[])?;
+    // The segment is named after its first record's sequence number, 1.
+    let segment = segment_path(&journal, 1);
+    seeds.put(
+        "journal_segment",
+        "one_bin",
+        &join_frames(&[&std::fs::read(&segment)?]),
+    )?;
+    let far = DAffine3::from_translation(DVec3::new(2.0e3, 0.0, 0.0)) * pose;
+    let inc = map.insert_bin(2, gaussians, far)?;
+    // The first bin's tiles come first (smaller x); page one out as the node does after a bin.
+    let tile = *map
+        .resident_tiles()
+        .keys()
+        .next()
+        .ok_or_else(|| anyhow::anyhow!("tiles in memory"))?;
+    let version = map.increments();
+    let out = map.take_tile(tile, version).map_err(anyhow::Error::msg)?;
+    write_tile(&tiles, tile, version, &out)?;
+    let paged = map.paged_tiles()[&tile];
+    writer.append(&map, &inc, &[], &[PageEvent::Out(tile, paged)])?;
+    map.page_in(&tiles, tile)?;
+    let inc = map.insert_bin(3, gaussians, pose)?;
+    writer.append(&map, &inc, &[PageEvent::In(tile, paged)], &[])?;
+    writer.close_segment()?;
+    let tile_file = std::fs::read(tile_path(&tiles, tile, version))?;
+    let versioned = [&version.to_le_bytes()[..], &tile_file].concat();
+    let paged_input = join_frames(&[&std::fs::read(&segment)?, &versioned]);
+    seeds.put("journal_segment", "paged", &paged_input)?;
+    seeds.put("tile_file", "one", &tile_file)?;
+    Ok(())
+}
+
 /// An MCAP file holding `payloads[0]` on an image channel and `payloads[1]` on a pose
-/// channel, twice each, as `BagWriter` writes it.
+/// channel, twice each (a chunk each time), as `BagWriter` writes it.
 fn bag(dir: &Path, payloads: &[&[u8]; 2]) -> anyhow::Result<Vec<u8>> {
     let channel = |topic: &str, kind: MessageKind| ChannelInfo {
         topic: topic.into(),
@@ -212,9 +269,26 @@ fn bag(dir: &Path, payloads: &[&[u8]; 2]) -> anyhow::Result<Vec<u8>> {
             let time = STAMP as u64 + t;
             bag.write(channel, time, time, i as u32, payload)?;
         }
+        // One chunk per instant, as a recorder closes one every second.
+        bag.flush()?;
     }
     bag.finish()?;
     Ok(std::fs::read(&path)?)
+}
+
+/// The byte halfway through the last chunk record of the MCAP file `bag` (its data section's
+/// records walked from the start: opcode, u64 length, body).
+fn cut_in_last_chunk(bag: &[u8]) -> usize {
+    const CHUNK: u8 = 0x06;
+    let (mut at, mut cut) = (8, bag.len() / 2);
+    while at + 9 <= bag.len() {
+        let len = u64::from_le_bytes(bag[at + 1..at + 9].try_into().unwrap_or_default()) as usize;
+        if bag[at] == CHUNK {
+            cut = at + (9 + len) / 2;
+        }
+        at = at.saturating_add(9).saturating_add(len);
+    }
+    cut
 }
 
 /// `gaussians` as a binary 3DGS PLY.

@@ -7,9 +7,12 @@
 //! reads it back in log-time order, bit for bit, checking the chunk and summary CRCs so that a
 //! damaged file gives a [`BagError`] instead of wrong data; [`BagReader::recover`] reads the
 //! complete chunks of a recording that was cut off (a recorder killed with -9), saying how
-//! much it kept ([`Recovery`]). The writer closes a chunk at least every second while
-//! recording ([`BagWriter::flush`]), so such a kill loses about the last second. [`Pacer`] turns recorded log times
-//! into sleeps so a replay keeps the recorded timing, a multiple of it, or none.
+//! much it kept ([`Recovery`]). Neither lets a damaged file make the `mcap` crate allocate
+//! what its lengths claim: every string length and chunk size is checked against the bytes
+//! present before the crate parses the record. The writer closes a chunk at least every
+//! second while recording ([`BagWriter::flush`]), so such a kill loses about the last second.
+//! [`Pacer`] turns recorded log times into sleeps so a replay keeps the recorded timing, a
+//! multiple of it, or none.
 //!
 //! Chunks are compressed with zstd only: the `mcap` crate's lz4 feature would add a C build of
 //! liblz4 for a compression that ROS 2 tools rarely write; an lz4 bag gives a

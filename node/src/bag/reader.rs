@@ -8,7 +8,10 @@ use std::sync::Arc;
 
 use mcap::records::{op, ChunkIndex, Record};
 
-use super::records::{compression_name_fits, for_each_record, le_u64, read_at, MAX_CHUNK_BYTES};
+use super::records::{
+    chunk_sizes_fit, compression_name_fits, for_each_record, le_u64, read_at, ChunkError,
+    MAX_CHUNK_BYTES,
+};
 use super::recover::{recover_index, Recovery};
 use super::summary::{read_index, ChannelSummary, Index};
 use super::{BagError, Message};
@@ -149,6 +152,7 @@ impl BagReader {
         if !agrees {
             return Err(self.corrupt(at, "chunk header disagrees with its index".into()));
         }
+        chunk_sizes_fit(&header).map_err(|reason| self.corrupt(at, reason))?;
         let limit = chunk.chunk_length.max(chunk.uncompressed_size) as usize;
         let times = chunk.message_start_time..=chunk.message_end_time;
         let mut problem = None;
@@ -172,7 +176,10 @@ impl BagReader {
                 }),
             }
         })
-        .map_err(format_error)?;
+        .map_err(|e| match e {
+            ChunkError::Format(source) => format_error(source),
+            ChunkError::Claims(reason) => self.corrupt(at, reason),
+        })?;
         match problem {
             Some(reason) => Err(self.corrupt(at, reason)),
             None => Ok(()),

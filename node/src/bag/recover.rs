@@ -2,7 +2,8 @@
 //! leaves an MCAP file with no footer and no index, but every chunk it finished is whole
 //! and carries its own CRC. This walks the data section record by record from the start,
 //! keeps the schemas, channels and complete chunks (CRC checked) it meets, and stops at the
-//! first record that is cut off or damaged; the index it builds serves
+//! first record that is cut off, damaged or claims more than it holds (a string or a chunk
+//! size, checked before the `mcap` crate parses the record); the index it builds serves
 //! [`super::BagReader`]'s usual log-time reading of the recovered part.
 
 use std::collections::{BTreeMap, HashMap};
@@ -14,7 +15,10 @@ use std::sync::Arc;
 use mcap::records::{op, ChunkIndex, Record};
 use mcap::MAGIC;
 
-use super::records::{compression_name_fits, for_each_record, le_u64, read_at, MAX_CHUNK_BYTES};
+use super::records::{
+    chunk_sizes_fit, claims_fit, compression_name_fits, for_each_record, le_u64, read_at,
+    MAX_CHUNK_BYTES,
+};
 use super::summary::Index;
 use super::BagError;
 
@@ -101,6 +105,9 @@ pub(super) fn recover_index(
             }
             op::SCHEMA | op::CHANNEL => {
                 let body = read_at(path, file, pos + 9, len as usize)?;
+                if let Err(reason) = claims_fit(opcode, &body) {
+                    break format!("record at byte {pos}: {reason}");
+                }
                 match mcap::parse_record(opcode, &body) {
                     Ok(r) => found.definition(r.into_owned()),
                     Err(e) => break format!("record at byte {pos}: {e}"),
@@ -152,9 +159,7 @@ impl Found {
         else {
             return Err("did not parse as a chunk".into());
         };
-        if header.uncompressed_size > MAX_CHUNK_BYTES {
-            return Err("uncompressed size larger than 4 GiB".into());
-        }
+        chunk_sizes_fit(&header)?;
         let limit = (record.len() as u64).max(header.uncompressed_size) as usize;
         let times = header.message_start_time..=header.message_end_time;
         let mut definitions = Vec::new();

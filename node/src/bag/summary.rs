@@ -12,7 +12,7 @@ use mcap::records::{op, ChunkIndex};
 use mcap::sans_io::{SummaryReadEvent, SummaryReader, SummaryReaderOptions};
 use mcap::MAGIC;
 
-use super::records::{le_u64, read_at};
+use super::records::{le_u64, read_at, summary_records_fit};
 use super::{BagError, ChannelInfo, SCHEMA_ENCODING};
 
 /// One channel of a bag and how many messages it holds.
@@ -93,15 +93,27 @@ pub(super) fn read_index(path: &Path, file: &File, file_len: u64) -> Result<Inde
             format!("footer points to a summary at byte {summary_start}, outside the file"),
         ));
     }
+    // The summary section and the footer up to its CRC field: what the CRC covers.
+    let covered = read_at(
+        path,
+        file,
+        summary_start,
+        (file_len - CRC_FROM_END - summary_start) as usize,
+    )?;
     if summary_crc != 0 {
-        let covered = (file_len - CRC_FROM_END - summary_start) as usize;
-        let calculated = crc32fast::hash(&read_at(path, file, summary_start, covered)?);
+        let calculated = crc32fast::hash(&covered);
         if calculated != summary_crc {
             return Err(corrupt(
                 summary_start,
                 format!("summary CRC is {calculated:08x}, footer says {summary_crc:08x}"),
             ));
         }
+    }
+    // The library's summary reader parses every record it meets, reserving what their
+    // strings claim: each length is checked first.
+    let section = &covered[..(footer_at - summary_start) as usize];
+    if let Err((at, reason)) = summary_records_fit(section) {
+        return Err(corrupt(summary_start + at as u64, reason));
     }
     let summary = read_summary(file, file_len)
         .map_err(|source| BagError::Format {

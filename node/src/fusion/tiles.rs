@@ -294,9 +294,12 @@ impl GlobalMap {
         Ok(paged)
     }
 
-    /// Gaussians in the whole map: those in memory plus those in paged-out tiles.
+    /// Gaussians in the whole map: those in memory plus those in paged-out tiles (saturating:
+    /// the counts of a damaged checkpoint can add up past `u64::MAX`).
     pub fn total_len(&self) -> u64 {
-        self.len() as u64 + self.paged.values().map(|p| p.count).sum::<u64>()
+        self.paged
+            .values()
+            .fold(self.len() as u64, |n, p| n.saturating_add(p.count))
     }
 
     /// The tiles with Gaussians in memory, with their counts, in tile order.
@@ -323,9 +326,18 @@ impl GlobalMap {
             return Err("the tile is paged out already");
         }
         let per_tile = self.config.columns_per_tile();
+        // The tile's ground columns; a tile so far out that they overflow holds none (a
+        // journal record may name any tile).
+        let columns = |t: i64| {
+            let first = t.checked_mul(per_tile)?;
+            Some(first..first.checked_add(per_tile)?)
+        };
+        let (Some(xs), Some(ys)) = (columns(tile.0), columns(tile.1)) else {
+            return Ok(Vec::new());
+        };
         let mut ids = Vec::new();
-        for cx in tile.0 * per_tile..(tile.0 + 1) * per_tile {
-            for cy in tile.1 * per_tile..(tile.1 + 1) * per_tile {
+        for cx in xs {
+            for cy in ys.clone() {
                 for key in self.cells.column_cells((cx, cy)) {
                     ids.extend(self.cells.remove(key));
                 }

@@ -356,3 +356,36 @@ fn fits_rig(frame: &RawFrame, rig: &StereoRig, limits: &InputLimits) -> Result<(
     }
     Ok(())
 }
+
+/// The input topics, in the order [`feed`]'s callers number them.
+pub(crate) const INPUT_TOPICS: [Topic; 5] = [
+    keys::LEFT_IMAGE,
+    keys::RIGHT_IMAGE,
+    keys::LEFT_INFO,
+    keys::RIGHT_INFO,
+    keys::POSE,
+];
+
+/// Runs `samples` (topic and payload) through a fresh input side with the default
+/// synchroniser, binner and limits, as the node takes its inputs: what the fuzzing of the
+/// input path calls (`crate::untrusted_input::live::node_inputs`). Returns the jobs it
+/// submitted (each frame already brought to the working size, as the worker gets it) and
+/// the counters.
+pub(crate) fn feed<'a>(samples: impl IntoIterator<Item = (Topic, &'a [u8])>) -> (usize, Counters) {
+    let mut inputs = Inputs::new(
+        SyncConfig::default(),
+        BinnerConfig::default(),
+        InputLimits::default(),
+    );
+    let mut counters = Counters::default();
+    let mut jobs = 0;
+    for (topic, payload) in samples {
+        let payload = ZBytes::from(payload.to_vec());
+        let steps = inputs.on_sample(topic, &payload, &mut counters);
+        jobs += steps
+            .iter()
+            .filter(|s| matches!(s, Step::Submit(_)))
+            .count();
+    }
+    (jobs, counters)
+}

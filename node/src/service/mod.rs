@@ -12,7 +12,7 @@
 pub mod counters;
 pub mod error;
 mod held;
-mod inputs;
+pub(crate) mod inputs;
 pub mod keys;
 pub mod latency_stats;
 pub mod limits;

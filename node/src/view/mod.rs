@@ -28,9 +28,13 @@ use tokio::task::JoinHandle;
 
 use crate::service::Keys;
 
-pub use routes::{DEFAULT_BUDGET, DEFAULT_RADIUS_M, MAX_BUDGET, MAX_RADIUS_M};
-pub use state::{TilePly, ViewState, MAX_LATENCY_ROWS};
+pub use routes::{
+    tile_query, tiles_query, TileQuery, TilesQuery, DEFAULT_BUDGET, DEFAULT_RADIUS_M, MAX_BUDGET,
+    MAX_RADIUS_M,
+};
+pub use state::{MapSync, TilePly, ViewState, MAX_LATENCY_ROWS};
 pub use tiles::{ground_tile, TileInfo, TileRules, TilesError, ViewTiles};
+pub use watch::{fetch_batch, paged_tiles, take_sample};
 
 /// Where the view listens and where its browser libraries are.
 #[derive(Clone, Debug, PartialEq, Eq)]

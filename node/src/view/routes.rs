@@ -33,6 +33,7 @@ use axum::routing::get;
 use axum::Router;
 
 use super::state::{TilePly, ViewState};
+use crate::fusion::TileKey;
 
 /// The page.
 const INDEX_HTML: &str = include_str!("../../../view/index.html");
@@ -137,53 +138,84 @@ pub const MAX_RADIUS_M: f64 = 100_000.0;
 /// The largest Gaussian budget a page may ask for.
 pub const MAX_BUDGET: usize = 50_000_000;
 
-async fn api_tiles(State(s): State<Shared>, uri: Uri) -> Response {
-    let params = match params(&uri, &["x", "y", "radius", "budget"]) {
-        Ok(p) => p,
-        Err(e) => return error(StatusCode::BAD_REQUEST, &e),
-    };
+/// What `/api/tiles` asks for, checked.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TilesQuery {
+    /// The page's point, relative to the map's origin (ground x-y, z 0).
+    pub point: glam::DVec3,
+    /// Metres around it.
+    pub radius: f64,
+    /// Gaussians listed at most.
+    pub budget: usize,
+}
+
+/// The parameters of an `/api/tiles` request (see the table above), or the words of the
+/// 400 answer to it.
+pub fn tiles_query(uri: &Uri) -> Result<TilesQuery, String> {
+    let params = params(uri, &["x", "y", "radius", "budget"])?;
     let (Some(x), Some(y)) = (params[0], params[1]) else {
-        return error(StatusCode::BAD_REQUEST, "/api/tiles needs x and y");
+        return Err("/api/tiles needs x and y".into());
     };
     let radius = params[2].unwrap_or(DEFAULT_RADIUS_M);
     let budget = params[3].unwrap_or(DEFAULT_BUDGET as f64);
     if !(0.0..=MAX_RADIUS_M).contains(&radius) || !(1.0..=MAX_BUDGET as f64).contains(&budget) {
-        return error(
-            StatusCode::BAD_REQUEST,
-            &format!("radius must be in 0..={MAX_RADIUS_M} m and budget in 1..={MAX_BUDGET}"),
-        );
+        return Err(format!(
+            "radius must be in 0..={MAX_RADIUS_M} m and budget in 1..={MAX_BUDGET}"
+        ));
     }
-    let point = glam::DVec3::new(x, y, 0.0);
+    Ok(TilesQuery {
+        point: glam::DVec3::new(x, y, 0.0),
+        radius,
+        budget: budget as usize,
+    })
+}
+
+/// What `/map/tile.ply` asks for, checked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileQuery {
+    /// The tile.
+    pub tile: TileKey,
+    /// Its most opaque Gaussians to send, or all of them.
+    pub take: Option<usize>,
+}
+
+/// The parameters of a `/map/tile.ply` request (see the table above), or the words of the
+/// 400 answer to it.
+pub fn tile_query(uri: &Uri) -> Result<TileQuery, String> {
+    let params = params(uri, &["x", "y", "v", "take"])?;
+    let whole = |v: Option<f64>| v.filter(|v| v.fract() == 0.0 && v.abs() < 1e15);
+    let (Some(x), Some(y)) = (whole(params[0]), whole(params[1])) else {
+        return Err("/map/tile.ply needs whole numbers x and y".into());
+    };
+    let take = match params[3] {
+        None => None,
+        Some(t) if t.fract() == 0.0 && (1.0..=MAX_BUDGET as f64).contains(&t) => Some(t as usize),
+        Some(_) => return Err(format!("take must be a whole number in 1..={MAX_BUDGET}")),
+    };
+    Ok(TileQuery {
+        tile: (x as i64, y as i64),
+        take,
+    })
+}
+
+async fn api_tiles(State(s): State<Shared>, uri: Uri) -> Response {
+    let q = match tiles_query(&uri) {
+        Ok(q) => q,
+        Err(e) => return error(StatusCode::BAD_REQUEST, &e),
+    };
     let json = s
         .state()
-        .tiles_near(point, radius, budget as usize)
+        .tiles_near(q.point, q.radius, q.budget)
         .to_string();
     ok("application/json", json)
 }
 
 async fn tile_ply(State(s): State<Shared>, uri: Uri) -> Response {
-    let params = match params(&uri, &["x", "y", "v", "take"]) {
-        Ok(p) => p,
+    let q = match tile_query(&uri) {
+        Ok(q) => q,
         Err(e) => return error(StatusCode::BAD_REQUEST, &e),
     };
-    let whole = |v: Option<f64>| v.filter(|v| v.fract() == 0.0 && v.abs() < 1e15);
-    let (Some(x), Some(y)) = (whole(params[0]), whole(params[1])) else {
-        return error(
-            StatusCode::BAD_REQUEST,
-            "/map/tile.ply needs whole numbers x and y",
-        );
-    };
-    let take = match params[3] {
-        None => None,
-        Some(t) if t.fract() == 0.0 && (1.0..=MAX_BUDGET as f64).contains(&t) => Some(t as usize),
-        Some(_) => {
-            return error(
-                StatusCode::BAD_REQUEST,
-                &format!("take must be a whole number in 1..={MAX_BUDGET}"),
-            )
-        }
-    };
-    let answer = s.state().tile_ply((x as i64, y as i64), take);
+    let answer = s.state().tile_ply(q.tile, q.take);
     match answer {
         TilePly::Ready(version, bytes) => with_header(
             ok("application/octet-stream", bytes),

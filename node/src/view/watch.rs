@@ -10,6 +10,7 @@ use std::future::Future;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use glam::DVec2;
 use tokio::sync::mpsc;
 use zenoh::Session;
 
@@ -134,8 +135,9 @@ async fn query_snapshot(session: &Session, keys: &Keys, state: &Mutex<ViewState>
 }
 
 /// The tile side and the paged tiles a whole-snapshot reply's attachment names (`None`
-/// when it names none or does not parse).
-fn paged_tiles(attachment: &[u8]) -> Option<(f64, Vec<(TileKey, usize)>)> {
+/// when it names none or does not parse): the JSON the node's snapshot queryable attaches,
+/// `{"tile_m": side, "paged_tiles": [[x, y, gaussians], ...]}`.
+pub fn paged_tiles(attachment: &[u8]) -> Option<(f64, Vec<(TileKey, usize)>)> {
     let json: serde_json::Value = serde_json::from_slice(attachment).ok()?;
     let side = json["tile_m"].as_f64()?;
     let tiles = json["paged_tiles"]
@@ -158,33 +160,10 @@ async fn fetch_tiles(session: &Session, keys: &Keys, state: &Mutex<ViewState>) {
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .wanted_tiles();
-    let Some(&(first, _)) = wanted.first() else {
+    let Some((tiles, parameters)) = fetch_batch(&wanted) else {
         return;
     };
-    let batch: Vec<_> = wanted
-        .into_iter()
-        .filter(|(k, _)| {
-            (k.0 - first.0).abs() <= FETCH_REACH && (k.1 - first.1).abs() <= FETCH_REACH
-        })
-        .collect();
-    let lo = batch
-        .iter()
-        .map(|(_, b)| b.0)
-        .reduce(|a, b| a.min(b))
-        .unwrap_or_default();
-    let hi = batch
-        .iter()
-        .map(|(_, b)| b.1)
-        .reduce(|a, b| a.max(b))
-        .unwrap_or_default();
-    let selector = format!(
-        "{}?box={},{},{},{}",
-        keys.snapshot_request(),
-        lo.x,
-        lo.y,
-        hi.x,
-        hi.y
-    );
+    let selector = format!("{}?{parameters}", keys.snapshot_request());
     // The pages share one key: consolidation would keep only the last.
     let Ok(replies) = session
         .get(selector)
@@ -207,11 +186,44 @@ async fn fetch_tiles(session: &Session, keys: &Keys, state: &Mutex<ViewState>) {
             _ => return,
         }
     }
-    let tiles: Vec<TileKey> = batch.iter().map(|(k, _)| *k).collect();
     state
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .tiles_fetched(&tiles, &gaussians);
+}
+
+/// What one fetch asks the node for: the first of the `wanted` let-go tiles (with their
+/// ground boxes, [`ViewState::wanted_tiles`]) and the others within [`FETCH_REACH`] tiles of
+/// it, and the region query's parameters for the box around them (`box=x0,y0,x1,y1`,
+/// [`crate::service::region`]); `None` when none is wanted.
+pub fn fetch_batch(wanted: &[(TileKey, (DVec2, DVec2))]) -> Option<(Vec<TileKey>, String)> {
+    let &(first, _) = wanted.first()?;
+    let reach = FETCH_REACH.unsigned_abs();
+    let batch: Vec<_> = wanted
+        .iter()
+        .filter(|(k, _)| k.0.abs_diff(first.0) <= reach && k.1.abs_diff(first.1) <= reach)
+        .collect();
+    let lo = batch
+        .iter()
+        .map(|(_, b)| b.0)
+        .reduce(|a, b| a.min(b))
+        .unwrap_or_default();
+    let hi = batch
+        .iter()
+        .map(|(_, b)| b.1)
+        .reduce(|a, b| a.max(b))
+        .unwrap_or_default();
+    let tiles = batch.iter().map(|(k, _)| *k).collect();
+    Some((tiles, format!("box={},{},{},{}", lo.x, lo.y, hi.x, hi.y)))
+}
+
+/// Takes `payload` in as one message of the `n`-th topic the view watches (modulo their
+/// number: map update, bin pose, bin render, bird's-eye view, latency, diagnostics, left
+/// image, left camera info), as the watcher takes each sample: what the fuzzing of the
+/// view's topics calls (`crate::untrusted_input::live::view_topics`). Returns how the map
+/// fared for a map update.
+pub fn take_sample(st: &mut ViewState, n: usize, payload: &[u8]) -> Option<MapSync> {
+    take(st, WATCHED[n % WATCHED.len()], payload)
 }
 
 /// Decodes one message of `topic` into the state. Returns how the map fared for map

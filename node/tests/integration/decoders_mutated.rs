@@ -8,8 +8,9 @@
 //! the same every run. The coverage-guided search over millions (`scripts/fuzz.sh`,
 //! docs/fuzzing.md) runs outside the test suite.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::time::Instant;
 
 use node::untrusted_input::ENTRIES;
 use rand::{Rng, SeedableRng};
@@ -20,6 +21,15 @@ use crate::fuzz_seeds;
 
 /// Mutated inputs per seed.
 const MUTATIONS: usize = 300;
+
+/// Mutated inputs per seed in this run: [`MUTATIONS`], or `DECODERS_MUTATIONS` from the
+/// environment for a longer run by hand (the same seeded generator, run longer).
+fn mutations() -> usize {
+    std::env::var("DECODERS_MUTATIONS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(MUTATIONS)
+}
 
 /// The seeds of every entry, by entry name.
 fn seeds() -> BTreeMap<String, Vec<(String, Vec<u8>)>> {
@@ -91,15 +101,25 @@ fn mutate(input: &[u8], rng: &mut ChaCha8Rng) -> Vec<u8> {
 #[test]
 fn every_decoder_survives_its_seeds_and_their_mutations() {
     let seeds = seeds();
+    assert_eq!(
+        seeds.keys().map(String::as_str).collect::<BTreeSet<_>>(),
+        ENTRIES
+            .iter()
+            .map(|&(name, _)| name)
+            .collect::<BTreeSet<_>>(),
+        "a seed folder per entry and an entry per seed folder"
+    );
+    let mutations = mutations();
     let mut tried = 0;
-    for (name, entry) in ENTRIES {
+    for &(name, entry) in ENTRIES {
+        let started = Instant::now();
         let inputs = seeds
             .get(name)
             .unwrap_or_else(|| panic!("no seeds for {name}"));
         assert!(!inputs.is_empty(), "{name}: seeds");
         let mut rng = ChaCha8Rng::seed_from_u64(0x5eed ^ name.len() as u64);
         for (seed_name, seed) in inputs {
-            for i in 0..=MUTATIONS {
+            for i in 0..=mutations {
                 let input = if i == 0 {
                     seed.clone()
                 } else {
@@ -116,6 +136,11 @@ fn every_decoder_survives_its_seeds_and_their_mutations() {
                 tried += 1;
             }
         }
+        let n = inputs.len() * (mutations + 1);
+        eprintln!(
+            "{name}: {n} inputs in {:.2} s",
+            started.elapsed().as_secs_f64()
+        );
     }
-    assert!(tried > 14 * MUTATIONS, "{tried} inputs");
+    assert!(tried > 14 * mutations, "{tried} inputs");
 }

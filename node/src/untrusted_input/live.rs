@@ -1,0 +1,210 @@
+//! The entries of decoders that live in the running node's modules (the `runtime` feature):
+//! the worker protocol, the input path, snapshot region queries, the live view's HTTP
+//! parameters, snapshot attachment and topics, and ROS `camera_calibration` YAML files.
+//! Their fuzz targets build `node` with that feature (docs/fuzzing.md).
+
+use std::sync::OnceLock;
+
+use glam::{DAffine3, DQuat, DVec3};
+
+use super::{frames, scratch_file, split, MAX_FRAMES};
+use crate::fusion::{FusionConfig, GlobalMap};
+use crate::msg::gaussians::cloud_from_gaussians;
+use crate::msg::image::image_from_rgb;
+use crate::msg::std_msgs::Header;
+use crate::pair::calib::{read_camera_info, CalibrationInput};
+use crate::remote::wire::{Reply, Request, REQUEST_PREFIX};
+use crate::service::inputs::{feed, INPUT_TOPICS};
+use crate::service::region::RegionQuery;
+use crate::view::{
+    fetch_batch, paged_tiles, take_sample, tile_query, tiles_query, ViewState, DEFAULT_BUDGET,
+    MAX_RADIUS_M,
+};
+
+/// A request to a worker process (`stereosplat worker`), as the worker reads it: its kind
+/// from the first [`REQUEST_PREFIX`] bytes (a busy worker refuses a bin by them alone), then
+/// the whole request decoded and what the worker reads of it before the reconstructor runs:
+/// the fingerprint it compares, the frame and the rig.
+pub fn worker_request(data: &[u8]) {
+    if let Some(prefix) = data.get(..REQUEST_PREFIX) {
+        let _ = Request::kind(prefix);
+    }
+    match Request::decode(data) {
+        Ok(Request::Hello(fingerprint)) => {
+            let _ = fingerprint.describe();
+        }
+        Ok(Request::Bin(job)) => {
+            let _ = job.fingerprint.describe();
+            let frame = &job.frame;
+            let _ = (frame.left.data.len(), frame.right.data.len(), job.rig);
+            let _ = crate::fusion::pose_problem(&frame.left_to_world);
+        }
+        Err(e) => {
+            let _ = e.to_string();
+        }
+    }
+}
+
+/// A worker process's reply, as the node decodes it, then what the node does with it: a
+/// map is fused into a global map in its bin's pose and converted to the bin map message, a
+/// render to an image message.
+pub fn worker_reply(data: &[u8]) {
+    match Reply::decode(data) {
+        Ok(Reply::Hello(hello)) => {
+            let _ = (hello.fingerprint.describe(), hello.threads);
+        }
+        Ok(Reply::Map(_, out)) => {
+            let Ok(set) = &out.result else {
+                return;
+            };
+            let header = Header::new(out.stamps.source_ns, "bin");
+            let _ = cloud_from_gaussians(set, header, None);
+            if let Ok(mut map) = GlobalMap::new(FusionConfig::default()) {
+                let _ = map.insert_bin(out.bin_id, set, out.bin_to_world);
+            }
+        }
+        Ok(Reply::Render(rendered)) => {
+            if let Ok(image) = &rendered.image {
+                let _ = image_from_rgb(image, Header::new(rendered.render_end_ns, "bin"));
+            }
+        }
+        Err(e) => {
+            let _ = e.to_string();
+        }
+    }
+}
+
+/// The node's whole input path (`Inputs::on_sample`, default limits and settings, fresh
+/// counters): the input as one sample on each input topic, then as a stream of samples
+/// ([`frames`]: each part's first byte picks the topic, left image, right image, left and
+/// right camera info, pose, modulo 5; the rest is the payload).
+pub fn node_inputs(data: &[u8]) {
+    let _ = feed(INPUT_TOPICS.iter().map(|&t| (t, data)));
+    let samples = frames(data, MAX_FRAMES).into_iter().filter_map(|part| {
+        let (&topic, payload) = part.split_first()?;
+        Some((INPUT_TOPICS[topic as usize % INPUT_TOPICS.len()], payload))
+    });
+    let _ = feed(samples);
+}
+
+/// A snapshot query's parameters (the part of a zenoh selector after `?`, `k=v;k=v`, read as
+/// UTF-8 with replacement), parsed by `RegionQuery::parse` as the node's queryable does, then
+/// the region looked up in a small map and its reply's attachment made.
+pub fn region_query(data: &[u8]) {
+    let text = String::from_utf8_lossy(data);
+    let parameters = zenoh::query::Parameters::from(text.as_ref());
+    let Ok(Some(region)) = RegionQuery::parse(parameters.iter()) else {
+        return;
+    };
+    let map = small_map();
+    let found = map.gaussians_in(region.min, region.max).len();
+    let _ = map.paged_tiles_in(region.min, region.max);
+    let pages = found.div_ceil(region.page_size).max(1);
+    let _ = region.attachment(pages - 1, pages, found);
+}
+
+/// A map of one bin near the world origin, made once.
+fn small_map() -> &'static GlobalMap {
+    static MAP: OnceLock<GlobalMap> = OnceLock::new();
+    MAP.get_or_init(|| {
+        let k = renderer::Intrinsics::from_hfov(16, 8, 80.0);
+        let set = renderer::scene::random_in_view(3, 24, &k);
+        let pose = DAffine3::from_rotation_translation(
+            DQuat::from_rotation_z(0.4),
+            DVec3::new(3.0, -2.0, 1.5),
+        );
+        let mut map = GlobalMap::new(FusionConfig::default()).expect("the default settings");
+        map.insert_bin(0, &set, pose).expect("a finite pose");
+        map
+    })
+}
+
+/// The query string of a live view request (`x=..&y=..`, UTF-8), as the view's server reads
+/// it for `/api/tiles` and for `/map/tile.ply` (the URL parsed as hyper does, then the
+/// parameters checked), each answered from a view holding a small map.
+pub fn view_http_params(data: &[u8]) {
+    let Ok(query) = std::str::from_utf8(data) else {
+        return;
+    };
+    let parse = |path: &str| format!("{path}?{query}").parse::<axum::http::Uri>().ok();
+    let gaussians: Vec<_> = small_map().gaussians().map(|(_, g)| *g).collect();
+    let Some(mut state) = ViewState::saved(gaussians, 8.0) else {
+        return;
+    };
+    if let Some(q) = parse("/api/tiles").and_then(|uri| tiles_query(&uri).ok()) {
+        let _ = state.tiles_near(q.point, q.radius, q.budget).to_string();
+    }
+    if let Some(q) = parse("/map/tile.ply").and_then(|uri| tile_query(&uri).ok()) {
+        let _ = state.tile_ply(q.tile, q.take);
+    }
+}
+
+/// The JSON a whole-map snapshot reply attaches (the tile side and the tiles the node keeps
+/// on disk), as the live view reads it into a fresh view; then the page's listing of the
+/// tiles, its asking for them, and the region query the view makes to fetch them, parsed as
+/// the node parses it.
+pub fn view_snapshot_attachment(data: &[u8]) {
+    let Some((side, tiles)) = paged_tiles(data) else {
+        return;
+    };
+    let mut state = ViewState::default();
+    state.adopt_tile_side(side);
+    state.paged_on_node(side, &tiles);
+    let _ = state
+        .tiles_near(DVec3::ZERO, MAX_RADIUS_M, DEFAULT_BUDGET)
+        .to_string();
+    for &(tile, _) in tiles.iter().take(8) {
+        let _ = state.tile_ply(tile, None);
+    }
+    if let Some((_, parameters)) = fetch_batch(&state.wanted_tiles()) {
+        let parameters = zenoh::query::Parameters::from(parameters.as_str());
+        let _ = RegionQuery::parse(parameters.iter());
+    }
+    let _ = state.to_json().to_string();
+}
+
+/// Messages on the node's topics as the live view takes them into its state (map updates
+/// into its tiled copy, bin poses, renders and input images to PNG, latency, diagnostics,
+/// camera info): the input as one message on each topic it watches, then as a stream of
+/// messages ([`frames`]: each part's first byte picks the topic, in the order of
+/// `view::take_sample`; the rest is the payload); then the page's JSON.
+pub fn view_topics(data: &[u8]) {
+    let mut state = ViewState::default();
+    for n in 0..8 {
+        let _ = take_sample(&mut state, n, data);
+    }
+    let mut state = ViewState::default();
+    for part in frames(data, MAX_FRAMES) {
+        if let Some((&n, payload)) = part.split_first() {
+            let _ = take_sample(&mut state, n.into(), payload);
+        }
+    }
+    let _ = state.to_json().to_string();
+    let _ = state.map_ply();
+    let _ = state.tiles_near(DVec3::ZERO, MAX_RADIUS_M, DEFAULT_BUDGET);
+}
+
+/// The left and right cameras' ROS `camera_calibration` YAML files (joined by a NUL, see
+/// [`split`]) as `stereosplat reconstruct --camera-info L --camera-info-right R` reads them
+/// for images of the size the left file names, and the left file alone with `--baseline`.
+pub fn camera_calibration(data: &[u8]) {
+    let [left, right] = split::<2>(data);
+    let left = scratch_file("left.yaml", left);
+    let right = scratch_file("right.yaml", right);
+    let size = read_camera_info(&left).map_or((640, 480), |info| (info.width, info.height));
+    let both = CalibrationInput {
+        camera_info: Some(left.clone()),
+        camera_info_right: Some(right),
+        ..CalibrationInput::default()
+    };
+    let alone = CalibrationInput {
+        camera_info: Some(left),
+        baseline: Some(0.12),
+        ..CalibrationInput::default()
+    };
+    for input in [both, alone] {
+        if let Ok(calibration) = input.resolve(size) {
+            let _ = calibration.disparity_per_inverse_depth();
+        }
+    }
+}

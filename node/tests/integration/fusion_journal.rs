@@ -20,7 +20,8 @@ use rand_chacha::ChaCha8Rng;
 
 use super::fusion::{map_with, random_bin};
 
-fn scratch(name: &str) -> PathBuf {
+/// A fresh folder for test `name`, under the system temporary folder.
+pub(crate) fn scratch(name: &str) -> PathBuf {
     let dir =
         std::env::temp_dir().join(format!("stereosplat_journal_{name}_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

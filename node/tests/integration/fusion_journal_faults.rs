@@ -25,6 +25,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::fusion::{map_with, random_bin};
+use super::fusion_journal::scratch;
 use super::node_disk_full::{fill, Tmpfs};
 
 /// What the disk does with the next operations.
@@ -97,14 +98,6 @@ fn faulty_writer(dir: &Path, plan: &Arc<Mutex<Plan>>) -> JournalWriter {
     )
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("stereosplat_faults_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// A drive of random bins into a new map whose empty base is saved in `dir`.
 struct Drive {
     map: GlobalMap,
@@ -132,6 +125,20 @@ impl Drive {
     }
 }
 
+/// A faulty writer (no faults planned yet) into `dir` after three bins, each synced; the
+/// plan, the writer, the drive and the segment holding the three records.
+fn three_synced_bins(dir: &Path) -> (Arc<Mutex<Plan>>, JournalWriter, Drive, PathBuf) {
+    let plan = Arc::new(Mutex::new(Plan::default()));
+    let mut writer = faulty_writer(dir, &plan);
+    let mut drive = Drive::new(dir);
+    for _ in 0..3 {
+        drive.bin(&mut writer).unwrap();
+        writer.sync().unwrap();
+    }
+    let first = segments(&dir.join(JOURNAL)).unwrap().pop().unwrap();
+    (plan, writer, drive, first)
+}
+
 /// The map a crash now would leave (the files read as they are).
 fn after_crash(dir: &Path) -> GlobalMap {
     restore(dir, AtTornTail::Stop).unwrap().unwrap().map
@@ -144,15 +151,10 @@ fn len(path: &Path) -> u64 {
 #[test]
 fn a_full_disk_mid_record_cuts_it_back_and_the_retry_writes_every_record() {
     let dir = scratch("full");
-    let plan = Arc::new(Mutex::new(Plan::default()));
-    let mut writer = faulty_writer(&dir, &plan);
-    let mut drive = Drive::new(&dir);
-    for _ in 0..4 {
-        drive.bin(&mut writer).unwrap();
-        writer.sync().unwrap();
-    }
+    let (plan, mut writer, mut drive, first) = three_synced_bins(&dir);
+    drive.bin(&mut writer).unwrap();
+    writer.sync().unwrap();
     let durable = drive.map.to_bytes();
-    let first = segments(&dir.join(JOURNAL)).unwrap().pop().unwrap();
     let synced_len = len(&first);
     // The disk fills 100 bytes into the fifth record.
     plan.lock().unwrap().room = Some(100);
@@ -187,14 +189,7 @@ fn a_full_disk_mid_record_cuts_it_back_and_the_retry_writes_every_record() {
 #[test]
 fn a_failed_fsync_is_not_taken_for_success_and_its_records_go_to_a_new_segment() {
     let dir = scratch("fsync");
-    let plan = Arc::new(Mutex::new(Plan::default()));
-    let mut writer = faulty_writer(&dir, &plan);
-    let mut drive = Drive::new(&dir);
-    for _ in 0..3 {
-        drive.bin(&mut writer).unwrap();
-        writer.sync().unwrap();
-    }
-    let first = segments(&dir.join(JOURNAL)).unwrap().pop().unwrap();
+    let (plan, mut writer, mut drive, first) = three_synced_bins(&dir);
     let synced_len = len(&first);
     drive.bin(&mut writer).unwrap();
     plan.lock().unwrap().failing_syncs = 1;
@@ -216,14 +211,7 @@ fn a_failed_fsync_is_not_taken_for_success_and_its_records_go_to_a_new_segment()
 #[test]
 fn a_failed_write_that_cannot_be_cut_back_is_skipped_at_restore_and_nothing_is_cut() {
     let dir = scratch("no_cut");
-    let plan = Arc::new(Mutex::new(Plan::default()));
-    let mut writer = faulty_writer(&dir, &plan);
-    let mut drive = Drive::new(&dir);
-    for _ in 0..3 {
-        drive.bin(&mut writer).unwrap();
-        writer.sync().unwrap();
-    }
-    let first = segments(&dir.join(JOURNAL)).unwrap().pop().unwrap();
+    let (plan, mut writer, mut drive, first) = three_synced_bins(&dir);
     let synced_len = len(&first);
     *plan.lock().unwrap() = Plan {
         room: Some(60),

@@ -19,6 +19,14 @@ impl Counters {
         self.0.insert(kind.to_string(), n);
     }
 
+    /// Sets every counter of `other` to its value there (counters kept by another part of
+    /// the node, such as the input thread's).
+    pub fn set_all(&mut self, other: &Counters) {
+        for (k, v) in &other.0 {
+            self.0.insert(k.clone(), *v);
+        }
+    }
+
     /// The value of `kind` (0 if never counted).
     pub fn get(&self, kind: &str) -> u64 {
         self.0.get(kind).copied().unwrap_or(0)

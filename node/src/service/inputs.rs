@@ -115,17 +115,18 @@ impl Inputs {
         }
     }
 
-    /// Takes one sample of input `topic`; a payload that does not decode, is unusable or is
-    /// refused by the limits is counted as `bad_message/<topic>` (and a refusal under its
-    /// reason too) and ignored. The payload's size is checked before it is made contiguous
-    /// (a copy when zenoh received it in fragments).
-    pub fn on_sample(
+    /// Takes one sample of input `topic` that arrived at `arrival_ns` (the node's clock); a
+    /// payload that does not decode, is unusable or is refused by the limits is counted as
+    /// `bad_message/<topic>` (and a refusal under its reason too) and ignored. The payload's
+    /// size is checked before it is made contiguous (a copy when zenoh received it in
+    /// fragments).
+    pub fn on_sample_at(
         &mut self,
         topic: Topic,
         payload: &ZBytes,
+        arrival_ns: i64,
         counters: &mut Counters,
     ) -> Vec<Step> {
-        let arrival_ns = now_ns();
         let synced = match self.limits.check_message(payload.len()) {
             Err(e) => Err(e.into()),
             Ok(()) => self.take(topic, &payload.to_bytes(), arrival_ns, counters),
@@ -381,7 +382,7 @@ pub(crate) fn feed<'a>(samples: impl IntoIterator<Item = (Topic, &'a [u8])>) -> 
     let mut jobs = 0;
     for (topic, payload) in samples {
         let payload = ZBytes::from(payload.to_vec());
-        let steps = inputs.on_sample(topic, &payload, &mut counters);
+        let steps = inputs.on_sample_at(topic, &payload, now_ns(), &mut counters);
         jobs += steps
             .iter()
             .filter(|s| matches!(s, Step::Submit(_)))

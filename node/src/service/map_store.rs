@@ -91,6 +91,8 @@ pub enum Recorded {
     Written,
     /// Nothing is journaled while running (`every` 0).
     NotKept,
+    /// Kept in memory only: the store is failing, and the next flush writes it.
+    Kept,
 }
 
 /// What the compactor has done, shared with the node's counters.
@@ -296,10 +298,23 @@ impl MapStore {
     /// base that cannot be written) it is not durable, and [`MapStore::flush`] (or the next
     /// record) writes it again. A tile that cannot be paged out stays in memory and is
     /// counted (`error/tile_write`); the record is written without it.
+    ///
+    /// While the store is [failing](MapStore::failing), the record is only kept: the write
+    /// is left to the next [`MapStore::flush`], so a full disk costs one attempt per retry,
+    /// not two per bin.
     pub fn record(&mut self, map: &mut GlobalMap, inc: &Increment) -> Result<Recorded, StoreError> {
         if self.every == 0 {
             return Ok(Recorded::NotKept);
         }
+        self.keep(map, inc);
+        match self.failing {
+            true => Ok(Recorded::Kept),
+            false => self.flush(map),
+        }
+    }
+
+    /// Adds `inc`'s record to what the writer holds, paging tiles out first.
+    fn keep(&mut self, map: &mut GlobalMap, inc: &Increment) {
         let (after, paging) = self.page_out(map);
         if let Some(e) = paging {
             eprintln!("paging a tile out failed (it stays in memory): {e}");
@@ -308,7 +323,6 @@ impl MapStore {
         let before = std::mem::take(&mut self.paged_in);
         self.journal_bytes += self.writer.push(map, inc, &before, &after);
         self.unsynced_bins += 1;
-        self.flush(map)
     }
 
     /// Writes what is kept and not yet on disk (the first base, records whose write or sync

@@ -10,6 +10,7 @@ use tokio::sync::mpsc;
 use zenoh::sample::Locality;
 
 use super::error::ServiceError;
+use super::input_thread::InputThread;
 use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
@@ -349,7 +350,8 @@ pub async fn run_with(
             let _ = out_tx.send(o);
         },
     );
-    let mut steps = Inputs::new(config.sync, binner, config.limits);
+    let (mut input_thread, mut batches) =
+        InputThread::spawn(Inputs::new(config.sync, binner, config.limits));
     let mut snapshot_gate =
         SnapshotGate::new(keys.snapshot_request(), config.limits.snapshot_interval);
     let bev = config.renders != RenderWith::Off;
@@ -403,20 +405,29 @@ pub async fn run_with(
     let mut stopping: Option<Instant> = None;
     // Worker ids with a counter of their own so far.
     let mut worker_counters = 0;
+    // Until the input thread has ended (after `stop`) and its last steps are taken.
+    let mut inputs_open = true;
 
     loop {
         let mut todo = Vec::new();
         tokio::select! {
             _ = &mut stop, if stopping.is_none() => {
                 stopping = Some(Instant::now() + config.workers.timeout);
+                input_thread.close();
             },
             Ok(s) = input.recv_async(), if stopping.is_none() => {
                 match input_keys.get(s.key_expr().as_str()) {
-                    Some(&t) => {
-                        todo = steps.on_sample(t, s.payload(), &mut outputs.counters);
-                    }
+                    Some(&t) => input_thread.send(t, s.payload().clone()).await,
                     None => outputs.counters.add("ignored/unknown_key", 1),
                 }
+            },
+            batch = batches.recv(), if inputs_open => match batch {
+                Some(batch) => {
+                    outputs.counters.set_all(&batch.counters);
+                    todo = batch.steps;
+                }
+                // Closed at stop, after the samples it held.
+                None => inputs_open = false,
             },
             Ok(q) = snapshot_requests.recv_async() => {
                 if !outputs.durable() {
@@ -538,7 +549,8 @@ pub async fn run_with(
             }
         }
         publish_released(&mut dispatch, &mut outputs, pace.as_mut(), &point_names).await?;
-        let at_rest = dispatch.idle() || (!config.workers.local && dispatch.workers() == 0);
+        let at_rest =
+            !inputs_open && (dispatch.idle() || (!config.workers.local && dispatch.workers() == 0));
         if stopping.is_some_and(|deadline| at_rest || Instant::now() > deadline) {
             break;
         }

@@ -6,6 +6,7 @@
 use std::sync::OnceLock;
 
 use glam::{DAffine3, DQuat, DVec3};
+use model::frame::{RgbImage, StereoFrame, StereoRig};
 
 use super::{frames, scratch_file, split, MAX_FRAMES};
 use crate::fusion::{FusionConfig, GlobalMap};
@@ -13,6 +14,9 @@ use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::image::image_from_rgb;
 use crate::msg::std_msgs::Header;
 use crate::pair::calib::{read_camera_info, CalibrationInput};
+use crate::pipeline::self_check::OnCheckFail;
+use crate::pipeline::worker::{Job, Stamps};
+use crate::remote::admit::{admit_map, admit_render, Rules};
 use crate::remote::wire::{Reply, Request, REQUEST_PREFIX};
 use crate::service::inputs::{feed, INPUT_TOPICS};
 use crate::service::region::RegionQuery;
@@ -46,14 +50,27 @@ pub fn worker_request(data: &[u8]) {
 }
 
 /// A worker process's reply, as the node decodes it, then what the node does with it: a
-/// map is fused into a global map in its bin's pose and converted to the bin map message, a
-/// render to an image message.
+/// map is admitted against a job of its own bin and pose ([`admit_map`]: the range checks
+/// and the node's own self-check of the map), then fused into a global map and converted
+/// to the bin map message; a render is admitted ([`admit_render`]) and converted to an
+/// image message.
 pub fn worker_reply(data: &[u8]) {
     match Reply::decode(data) {
         Ok(Reply::Hello(hello)) => {
             let _ = (hello.fingerprint.describe(), hello.threads);
         }
         Ok(Reply::Map(_, out)) => {
+            let mut job = reply_job().clone();
+            job.bin_id = out.bin_id;
+            job.frame.left_to_world = out.bin_to_world;
+            let rules = Rules {
+                on_check_fail: OnCheckFail::Sgm,
+                sgm_method: false,
+                max_gaussians: usize::MAX,
+            };
+            let Ok(out) = admit_map(&job, &rules, *out) else {
+                return;
+            };
             let Ok(set) = &out.result else {
                 return;
             };
@@ -64,6 +81,15 @@ pub fn worker_reply(data: &[u8]) {
             }
         }
         Ok(Reply::Render(rendered)) => {
+            let mut job = reply_job().clone();
+            job.bin_id = rendered.bin_id;
+            if let Ok(image) = &rendered.image {
+                job.rig.intrinsics.width = image.width;
+                job.rig.intrinsics.height = image.height;
+            }
+            let Ok(rendered) = admit_render(&job, rendered) else {
+                return;
+            };
             if let Ok(image) = &rendered.image {
                 let _ = image_from_rgb(image, Header::new(rendered.render_end_ns, "bin"));
             }
@@ -74,7 +100,38 @@ pub fn worker_reply(data: &[u8]) {
     }
 }
 
-/// The node's whole input path (`Inputs::on_sample`, default limits and settings, fresh
+/// The job replies are admitted against: a 32x16 pair of seeded noise from a rig of 0.5 m
+/// (its bin and pose are replaced by the reply's, so the binding checks pass and the range
+/// checks and the self-check see the reply's content).
+fn reply_job() -> &'static Job {
+    static JOB: OnceLock<Job> = OnceLock::new();
+    JOB.get_or_init(|| {
+        let intrinsics = renderer::Intrinsics::from_hfov(32, 16, 80.0);
+        let noise = |seed: u32| {
+            let bytes: Vec<u8> = (0..3 * 32 * 16u32)
+                .map(|i| (i.wrapping_mul(2_654_435_761).wrapping_add(seed) >> 13) as u8)
+                .collect();
+            RgbImage::from_rgb8(32, 16, &bytes)
+        };
+        Job {
+            bin_id: 0,
+            frame: StereoFrame {
+                index: 0,
+                left: noise(1),
+                right: noise(2),
+                left_to_world: DAffine3::IDENTITY,
+            },
+            rig: StereoRig {
+                intrinsics,
+                baseline: 0.5,
+            },
+            stamps: Stamps::default(),
+            point: 0,
+        }
+    })
+}
+
+/// The node's whole input path (`Inputs::on_sample_at`, default limits and settings, fresh
 /// counters): the input as one sample on each input topic, then as a stream of samples
 /// ([`frames`]: each part's first byte picks the topic, left image, right image, left and
 /// right camera info, pose, modulo 5; the rest is the payload).

@@ -360,6 +360,10 @@ fn a_first_base_that_cannot_be_written_is_retried_and_no_record_goes_before_it()
     assert!(e.to_string().contains("No space left"), "{e}");
     assert!(store.failing());
     assert!(store.flush(&map).is_err(), "still full");
+    // A bin fused while the store fails is kept, not written: the next flush writes it.
+    let (set, pose) = random_bin(&mut rng, 1);
+    let inc = map.insert_bin(1, &set, pose).unwrap();
+    assert_eq!(store.record(&mut map, &inc).unwrap(), Recorded::Kept);
     assert!(
         segments(&dir.join(JOURNAL)).unwrap().is_empty(),
         "no record before its base"
@@ -367,8 +371,8 @@ fn a_first_base_that_cannot_be_written_is_retried_and_no_record_goes_before_it()
     std::fs::remove_file(&ballast).unwrap();
     assert_eq!(store.flush(&map).unwrap(), Recorded::Durable);
     assert!(!store.failing());
-    let (set, pose) = random_bin(&mut rng, 1);
-    let inc = map.insert_bin(1, &set, pose).unwrap();
+    let (set, pose) = random_bin(&mut rng, 2);
+    let inc = map.insert_bin(2, &set, pose).unwrap();
     assert_eq!(store.record(&mut map, &inc).unwrap(), Recorded::Durable);
     store.finish().unwrap();
     let restored = restore(&dir, AtTornTail::Fail).unwrap().unwrap();

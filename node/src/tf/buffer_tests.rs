@@ -475,6 +475,23 @@ fn stamps_at_their_extremes_neither_overflow_nor_panic() {
         tf.lookup("a", "b", i64::MAX),
         Err(TfError::ExtrapolationFuture { .. })
     ));
+    // A cache of no length (or a negative one) keeps the newest sample alone.
+    for cache_ns in [0, -5, i64::MIN] {
+        let mut none = TfBuffer::new(TfConfig {
+            cache_ns,
+            ..TfConfig::default()
+        });
+        let t = |stamp| transform("a", "b", stamp, DQuat::IDENTITY, DVec3::X);
+        none.insert(&t(T0), false).unwrap();
+        none.insert(&t(T0 + 1), false).unwrap();
+        assert!(matches!(
+            none.insert(&t(T0), false),
+            Err(TfError::TooOld { .. })
+        ));
+        assert_eq!(none.dynamic_samples(), 1, "cache {cache_ns}");
+        assert!(none.lookup("a", "b", T0 + 1).is_ok());
+        assert!(none.lookup("a", "b", i64::MIN).is_err());
+    }
     // With the default cache the far past is too old.
     let mut short = TfBuffer::new(TfConfig::default());
     let t = |stamp| transform("a", "b", stamp, DQuat::IDENTITY, DVec3::X);

@@ -92,14 +92,16 @@ impl TimeCache {
     }
 
     /// Inserts `sample` in stamp order (stamps may come in any order), then drops what is
-    /// older than the newest minus `cache_ns`, then the oldest beyond `max_samples` (at
-    /// least 1). Returns how many samples were dropped for the cap.
+    /// older than the newest minus `cache_ns` (a negative length counts as 0), then the
+    /// oldest beyond `max_samples` (at least 1), so the newest always stays. Returns how many
+    /// samples were dropped for the cap.
     pub fn insert(
         &mut self,
         sample: Sample,
         cache_ns: i64,
         max_samples: usize,
     ) -> Result<usize, Refused> {
+        let cache_ns = cache_ns.max(0);
         let newest_ns = self.newest_ns();
         if sample.stamp_ns < newest_ns.saturating_sub(cache_ns) {
             return Err(Refused::TooOld { newest_ns });

@@ -52,9 +52,8 @@ use glam::{DAffine3, DQuat, DVec3};
 
 use crate::msg::geometry_msgs::TransformStamped;
 use crate::msg::pose::checked_transform;
-use cache::{At, Refused, TimeCache};
+use cache::{At, Refused, Sample, TimeCache};
 
-pub use cache::Sample;
 pub use error::TfError;
 pub use odometry::{camera_pose_from_odometry, odometry_transform, CameraPose};
 
@@ -68,7 +67,7 @@ pub const DEFAULT_CACHE_NS: i64 = 10_000_000_000;
 /// The buffer's settings.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TfConfig {
-    /// How long a dynamic edge keeps samples behind its newest, nanoseconds.
+    /// How long a dynamic edge keeps samples behind its newest, nanoseconds (below 0: 0).
     pub cache_ns: i64,
     /// Samples one dynamic edge holds at most (the oldest go first beyond it): 10 s of a
     /// 100 Hz publisher by default.

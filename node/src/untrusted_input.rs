@@ -182,7 +182,7 @@ pub fn cdr_path(data: &[u8]) {
 }
 
 /// Frames the [`tf_buffer`] entry's buffer holds at most (the lookups are every pair).
-const TF_FRAMES: usize = 32;
+pub const TF_FRAMES: usize = 32;
 
 /// A `/tf` and `/tf_static` stream as a tf listener takes it: [`frames`], each a flag byte
 /// (lowest bit set: `/tf_static`) then a `TFMessage` payload; every transform inserted into

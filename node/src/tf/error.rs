@@ -12,7 +12,7 @@ pub enum TfError {
     /// Parent and child are the same frame.
     #[error("transform from frame `{0}` to itself")]
     SameFrame(String),
-    /// A frame name longer than [`TfConfig::max_name_bytes`].
+    /// A frame name longer than [`TfConfig::max_name_bytes`](super::TfConfig::max_name_bytes).
     #[error("frame name of {len} bytes (at most {max})")]
     NameTooLong {
         /// Its length.
@@ -31,7 +31,7 @@ pub enum TfError {
         #[source]
         source: ConvertError,
     },
-    /// A new frame while the buffer holds [`TfConfig::max_frames`].
+    /// A new frame while the buffer holds [`TfConfig::max_frames`](super::TfConfig::max_frames).
     #[error("frame `{frame}` refused: the buffer holds its {max} frames")]
     TooManyFrames {
         /// The refused name.
@@ -120,7 +120,7 @@ pub enum TfError {
         /// The edge's newest stamp.
         newest_ns: i64,
     },
-    /// [`TfBuffer::lookup_static`] met a dynamic edge.
+    /// [`TfBuffer::lookup_static`](super::TfBuffer::lookup_static) met a dynamic edge.
     #[error("edge {parent} -> {child} is dynamic, not a static mount")]
     NotStatic {
         /// The edge's parent.

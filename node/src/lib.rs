@@ -18,6 +18,8 @@
 //!   the node live in Foxglove through the Foxglove SDK's WebSocket server.
 //! - [`pareto`]: operating points measured side by side (`stereosplat bench pareto`).
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
+//! - [`tf`]: a tf buffer of `/tf` and `/tf_static`, looked up between frames at a stamp, and
+//!   the camera's pose from a body's `nav_msgs/Odometry` and the camera mount.
 //! - [`untrusted_input`]: every decoder of outside input as one entry point on raw bytes
 //!   (what the fuzz targets and the decoders' mutation test call).
 
@@ -41,6 +43,7 @@ pub mod pipeline;
 pub mod remote;
 #[cfg(feature = "runtime")]
 pub mod service;
+pub mod tf;
 pub mod transport;
 pub mod untrusted_input;
 #[cfg(feature = "runtime")]

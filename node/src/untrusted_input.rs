@@ -1,5 +1,6 @@
 //! Every decoder of outside input as one entry point taking raw bytes: the CDR messages the
-//! node subscribes to and the whole input path they take, MCAP logs (finished and cut off),
+//! node subscribes to and the whole input path they take, a `/tf` and `/tf_static` stream
+//! through the tf buffer, MCAP logs (finished and cut off),
 //! the fused map's checkpoint, journal and tile files, map files (PLY, SPZ, glTF binary),
 //! the KITTI-360 text files, launch files, and with the `runtime` feature the worker
 //! protocol, snapshot region queries, the live view's HTTP parameters, snapshot attachment
@@ -37,10 +38,12 @@ use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::{intrinsics_from_camera_info, rgb8_from_image, rgb_from_image};
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
+use crate::msg::nav_msgs::{odometry_pose, Odometry, Path as NavPath};
 use crate::msg::pose::affine_from_pose;
 use crate::msg::sensor_msgs::{CameraInfo, Image, PointCloud2};
 use crate::msg::tf2_msgs::TfMessage;
 use crate::msg::Message;
+use crate::tf::{camera_pose_from_odometry, odometry_transform, TfBuffer, TfConfig, LATEST};
 
 #[cfg(feature = "runtime")]
 pub mod live;
@@ -57,6 +60,8 @@ pub const ENTRIES: &[(&str, Entry)] = &[
     ("cdr_image", cdr_image),
     ("cdr_latency", cdr_latency),
     ("cdr_map_update", cdr_map_update),
+    ("cdr_odometry", cdr_odometry),
+    ("cdr_path", cdr_path),
     ("cdr_point_cloud", cdr_point_cloud),
     ("cdr_pose", cdr_pose),
     ("cdr_tf", cdr_tf),
@@ -75,6 +80,7 @@ pub const ENTRIES: &[(&str, Entry)] = &[
     #[cfg(feature = "runtime")]
     ("region_query", live::region_query),
     ("spz", spz),
+    ("tf_buffer", tf_buffer),
     ("tile_file", tile_file),
     #[cfg(feature = "runtime")]
     ("view_http_params", live::view_http_params),
@@ -145,6 +151,77 @@ pub fn cdr_tf(data: &[u8]) {
             );
         }
     }
+}
+
+/// `nav_msgs/Odometry` as an odometry pose source takes it: the body's pose, the camera's
+/// pose through a mount, and the pose as an edge of a tf buffer looked up at its stamp.
+pub fn cdr_odometry(data: &[u8]) {
+    let Ok(msg) = Odometry::decode(data) else {
+        return;
+    };
+    let _ = odometry_pose(&msg);
+    let mount = DAffine3::from_rotation_translation(
+        DQuat::from_rotation_y(0.1),
+        DVec3::new(0.3, -0.06, 1.2),
+    );
+    let _ = camera_pose_from_odometry(&msg, &mount);
+    let mut tf = TfBuffer::new(TfConfig::default());
+    if tf.insert(&odometry_transform(&msg), false).is_ok() {
+        let stamp = msg.header.stamp.to_nanos();
+        let _ = tf.lookup(&msg.header.frame_id, &msg.child_frame_id, stamp);
+    }
+}
+
+/// `nav_msgs/Path` as a corrected trajectory: every pose's stamp and affine form.
+pub fn cdr_path(data: &[u8]) {
+    if let Ok(msg) = NavPath::decode(data) {
+        for pose in &msg.poses {
+            let _ = (pose.header.stamp.to_nanos(), affine_from_pose(pose));
+        }
+    }
+}
+
+/// Frames the [`tf_buffer`] entry's buffer holds at most (the lookups are every pair).
+pub const TF_FRAMES: usize = 32;
+
+/// A `/tf` and `/tf_static` stream as a tf listener takes it: [`frames`], each a flag byte
+/// (lowest bit set: `/tf_static`) then a `TFMessage` payload; every transform inserted into
+/// a buffer of [`TF_FRAMES`] frames, then every pair of frames looked up at the latest
+/// common time, at the first, middle and last stamp seen and at the extremes, and through
+/// static edges only.
+pub fn tf_buffer(data: &[u8]) {
+    let mut tf = TfBuffer::new(TfConfig {
+        max_frames: TF_FRAMES,
+        ..TfConfig::default()
+    });
+    let (mut first, mut last) = (i64::MAX, i64::MIN);
+    for part in frames(data, MAX_FRAMES) {
+        let Some((&flag, payload)) = part.split_first() else {
+            continue;
+        };
+        let Ok(msg) = TfMessage::decode(payload) else {
+            continue;
+        };
+        for t in &msg.transforms {
+            let stamp = t.header.stamp.to_nanos();
+            (first, last) = (first.min(stamp), last.max(stamp));
+            let _ = tf.insert(t, flag & 1 == 1);
+        }
+    }
+    let middle = first / 2 + last / 2;
+    let names: Vec<&str> = tf.frames().collect();
+    for target in &names {
+        for source in &names {
+            for stamp in [LATEST, first, middle, last, i64::MIN, i64::MAX] {
+                let _ = tf.lookup(target, source, stamp);
+            }
+            let _ = (
+                tf.latest_common(target, source),
+                tf.lookup_static(target, source),
+            );
+        }
+    }
+    let _ = (tf.counts(), tf.dynamic_samples());
 }
 
 /// The fused map's checkpoint (`global_map.ssgmap`) as `run` reads it when it resumes: every

@@ -2,7 +2,8 @@
 //! few valid inputs made by the project's own encoders, so fuzzing and the mutation test
 //! start from what the decoders really see and mutate outward. Shared by the `fuzz_seeds`
 //! example (the fuzz corpus) and the test suite (`decoders_mutated`); the seeds of the
-//! entries that need the `runtime` feature are in `live_seeds.rs`.
+//! entries that need the `runtime` feature are in `live_seeds.rs`, those of the robot-side
+//! pose sources (Odometry, Path, tf streams) in `robot_seeds.rs`.
 
 use std::path::{Path, PathBuf};
 
@@ -31,6 +32,8 @@ use renderer::{scene, GaussianSet, Intrinsics};
 #[cfg(feature = "runtime")]
 #[path = "live_seeds.rs"]
 mod live_seeds;
+#[path = "robot_seeds.rs"]
+mod robot_seeds;
 
 /// A stamp in 2023, nanoseconds.
 pub const STAMP: i64 = 1_700_000_000_250_000_000;
@@ -75,6 +78,7 @@ pub fn write_all(out: &Path) -> anyhow::Result<()> {
     };
     seeds.put("cdr_tf", "two", &tf.encode())?;
     seeds.put("cdr_tf", "empty", &TfMessage::default().encode())?;
+    robot_seeds::write(&seeds, pose)?;
     let bin_cloud = cloud_from_gaussians(&gaussians, Header::new(STAMP, "bin_3"), None)?;
     seeds.put("cdr_point_cloud", "bin", &bin_cloud.encode())?;
     seeds.put(

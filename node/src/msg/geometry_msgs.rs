@@ -1,4 +1,6 @@
-//! `geometry_msgs`: PoseStamped and the Pose, Point and Quaternion it holds.
+//! `geometry_msgs`: PoseStamped and the Pose, Point and Quaternion it holds; TransformStamped
+//! and its Transform and Vector3; and the covariance-carrying PoseWithCovariance, Twist and
+//! TwistWithCovariance that `nav_msgs/Odometry` is made of.
 
 use super::cdr::{CdrReader, CdrWriter, DecodeError};
 use super::std_msgs::Header;
@@ -91,6 +93,9 @@ impl Message for Pose {
     }
 }
 
+/// Fewest bytes one `Pose` takes on the wire: seven `f64`.
+pub const POSE_BYTES: usize = 7 * 8;
+
 /// `geometry_msgs/msg/PoseStamped`: a pose in `header.frame_id` at `header.stamp`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PoseStamped {
@@ -115,6 +120,10 @@ impl Message for PoseStamped {
         })
     }
 }
+
+/// Fewest bytes one `PoseStamped` takes on the wire (no padding): stamp, a `frame_id` of
+/// length 0 (read as the empty string), the pose.
+pub const POSE_STAMPED_MIN_BYTES: usize = 8 + 4 + POSE_BYTES;
 
 /// `geometry_msgs/msg/Vector3`: a vector (a translation, metres).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -196,6 +205,106 @@ impl Message for TransformStamped {
             header: Header::read(r)?,
             child_frame_id: r.string("child_frame_id")?,
             transform: Transform::read(r)?,
+        })
+    }
+}
+
+/// A row-major 6x6 covariance over (x, y, z, rotation about x, about y, about z), as
+/// `PoseWithCovariance` and `TwistWithCovariance` carry it (`float64[36]`).
+pub type Covariance6 = [f64; 36];
+
+/// `geometry_msgs/msg/PoseWithCovariance`: a pose and its uncertainty.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseWithCovariance {
+    /// The pose.
+    pub pose: Pose,
+    /// Its covariance (see [`Covariance6`]); rotations are fixed-axis angles.
+    pub covariance: Covariance6,
+}
+
+impl Default for PoseWithCovariance {
+    fn default() -> Self {
+        Self {
+            pose: Pose::default(),
+            covariance: [0.0; 36],
+        }
+    }
+}
+
+impl Message for PoseWithCovariance {
+    const KIND: MessageKind = MessageKind::PoseWithCovariance;
+
+    fn write(&self, w: &mut CdrWriter) {
+        self.pose.write(w);
+        w.f64_array(&self.covariance);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            pose: Pose::read(r)?,
+            covariance: r.f64_array("pose.covariance")?,
+        })
+    }
+}
+
+/// `geometry_msgs/msg/Twist`: a velocity, linear (m/s) then angular (rad/s).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Twist {
+    /// Linear velocity.
+    pub linear: Vector3,
+    /// Angular velocity.
+    pub angular: Vector3,
+}
+
+impl Message for Twist {
+    const KIND: MessageKind = MessageKind::Twist;
+
+    fn write(&self, w: &mut CdrWriter) {
+        self.linear.write(w);
+        self.angular.write(w);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        let [x, y, z] = r.f64_array("twist.linear")?;
+        let linear = Vector3 { x, y, z };
+        let [x, y, z] = r.f64_array("twist.angular")?;
+        Ok(Self {
+            linear,
+            angular: Vector3 { x, y, z },
+        })
+    }
+}
+
+/// `geometry_msgs/msg/TwistWithCovariance`: a velocity and its uncertainty.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TwistWithCovariance {
+    /// The velocity.
+    pub twist: Twist,
+    /// Its covariance (see [`Covariance6`]).
+    pub covariance: Covariance6,
+}
+
+impl Default for TwistWithCovariance {
+    fn default() -> Self {
+        Self {
+            twist: Twist::default(),
+            covariance: [0.0; 36],
+        }
+    }
+}
+
+impl Message for TwistWithCovariance {
+    const KIND: MessageKind = MessageKind::TwistWithCovariance;
+
+    fn write(&self, w: &mut CdrWriter) {
+        self.twist.write(w);
+        w.f64_array(&self.covariance);
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            twist: Twist::read(r)?,
+            covariance: r.f64_array("twist.covariance")?,
         })
     }
 }

@@ -37,8 +37,18 @@ pub enum MessageKind {
     Transform,
     /// `geometry_msgs/msg/TransformStamped`.
     TransformStamped,
+    /// `geometry_msgs/msg/PoseWithCovariance`.
+    PoseWithCovariance,
+    /// `geometry_msgs/msg/Twist`.
+    Twist,
+    /// `geometry_msgs/msg/TwistWithCovariance`.
+    TwistWithCovariance,
     /// `tf2_msgs/msg/TFMessage`.
     TfMessage,
+    /// `nav_msgs/msg/Odometry`.
+    Odometry,
+    /// `nav_msgs/msg/Path`.
+    Path,
     /// `stereosplat_msgs/msg/BinLatency`.
     BinLatency,
     /// `stereosplat_msgs/msg/Counter`.
@@ -51,7 +61,7 @@ pub enum MessageKind {
 
 impl MessageKind {
     /// All kinds, in declaration order.
-    pub const ALL: [MessageKind; 19] = [
+    pub const ALL: [MessageKind; 24] = [
         Self::Time,
         Self::Header,
         Self::Image,
@@ -66,7 +76,12 @@ impl MessageKind {
         Self::Vector3,
         Self::Transform,
         Self::TransformStamped,
+        Self::PoseWithCovariance,
+        Self::Twist,
+        Self::TwistWithCovariance,
         Self::TfMessage,
+        Self::Odometry,
+        Self::Path,
         Self::BinLatency,
         Self::Counter,
         Self::Diagnostics,
@@ -90,7 +105,12 @@ impl MessageKind {
             Self::Vector3 => "geometry_msgs/msg/Vector3",
             Self::Transform => "geometry_msgs/msg/Transform",
             Self::TransformStamped => "geometry_msgs/msg/TransformStamped",
+            Self::PoseWithCovariance => "geometry_msgs/msg/PoseWithCovariance",
+            Self::Twist => "geometry_msgs/msg/Twist",
+            Self::TwistWithCovariance => "geometry_msgs/msg/TwistWithCovariance",
             Self::TfMessage => "tf2_msgs/msg/TFMessage",
+            Self::Odometry => "nav_msgs/msg/Odometry",
+            Self::Path => "nav_msgs/msg/Path",
             Self::BinLatency => "stereosplat_msgs/msg/BinLatency",
             Self::Counter => "stereosplat_msgs/msg/Counter",
             Self::Diagnostics => "stereosplat_msgs/msg/Diagnostics",
@@ -144,7 +164,15 @@ impl MessageKind {
             Self::TransformStamped => {
                 "std_msgs/Header header\nstring child_frame_id\nTransform transform\n"
             }
+            Self::PoseWithCovariance => "Pose pose\nfloat64[36] covariance\n",
+            Self::Twist => "Vector3 linear\nVector3 angular\n",
+            Self::TwistWithCovariance => "Twist twist\nfloat64[36] covariance\n",
             Self::TfMessage => "geometry_msgs/TransformStamped[] transforms\n",
+            Self::Odometry => {
+                "std_msgs/Header header\nstring child_frame_id\n\
+                 geometry_msgs/PoseWithCovariance pose\ngeometry_msgs/TwistWithCovariance twist\n"
+            }
+            Self::Path => "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses\n",
             Self::BinLatency => BIN_LATENCY_MSG,
             Self::Counter => COUNTER_MSG,
             Self::Diagnostics => DIAGNOSTICS_MSG,

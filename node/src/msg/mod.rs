@@ -4,7 +4,8 @@
 //! * [`cdr`]: the plain-CDR (XCDR1) reader and writer and [`DecodeError`];
 //! * the messages, field for field as ROS 2 Jazzy defines them: [`std_msgs`] (Time, Header),
 //!   [`sensor_msgs`] (Image, CameraInfo, PointCloud2), [`geometry_msgs`] (PoseStamped,
-//!   TransformStamped), [`tf2_msgs`] (TFMessage, the `/tf` transforms), and the node's own
+//!   TransformStamped, PoseWithCovariance, TwistWithCovariance), [`tf2_msgs`] (TFMessage,
+//!   the `/tf` transforms), [`nav_msgs`] (Odometry, Path), and the node's own
 //!   [`latency`] messages (BinLatency, Diagnostics);
 //! * conversions to and from the project's types: [`image`] (RgbImage, Intrinsics),
 //!   [`pose`] (DAffine3), [`gaussians`] (GaussianSet as a PointCloud2 in the 3DGS PLY
@@ -22,6 +23,7 @@ pub mod image;
 pub mod kind;
 pub mod latency;
 pub mod map_update;
+pub mod nav_msgs;
 pub mod pose;
 pub mod schema;
 pub mod sensor_msgs;

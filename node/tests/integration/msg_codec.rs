@@ -362,7 +362,7 @@ fn malformed_clouds_are_typed_errors() {
 
 /// Jazzy's values, as `ros2 topic info -v` prints them and rosidl's golden-hash tests and
 /// client libraries list them (e.g. the image_publisher docs of image_pipeline for Image).
-const PUBLISHED: [(MessageKind, &str); 14] = [
+const PUBLISHED: [(MessageKind, &str); 19] = [
     (
         MessageKind::Time,
         "b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197",
@@ -415,6 +415,28 @@ const PUBLISHED: [(MessageKind, &str); 14] = [
     (
         MessageKind::Vector3,
         "cc12fe83e4c02719f1ce8070bfd14aecd40f75a96696a67a2a1f37f7dbb0765d",
+    ),
+    // The generated C headers of geometry_msgs and nav_msgs (`*__struct.h`, `*__TYPE_HASH`)
+    // as micro-ROS ships them for a distribution with type hashes.
+    (
+        MessageKind::PoseWithCovariance,
+        "9a7c0fd234b7f45c6098745ecccd773ca1085670e64107135397aee31c02e1bb",
+    ),
+    (
+        MessageKind::Twist,
+        "9c45bf16fe0983d80e3cfe750d6835843d265a9a6c46bd2e609fcddde6fb8d2a",
+    ),
+    (
+        MessageKind::TwistWithCovariance,
+        "49f574f033f095d8b6cd1beaca5ca7925e296e84af1716d16c89d38b059c8c18",
+    ),
+    (
+        MessageKind::Odometry,
+        "3cc97dc7fb7502f8714462c526d369e35b603cfc34d946e3f2eda2766dfec6e0",
+    ),
+    (
+        MessageKind::Path,
+        "1957a5bb3cee5da65c4e52e52b65a93df227efce4c20f8458b36e73066ca334b",
     ),
     // rmw_zenoh's tests key /tf with this hash.
     (

@@ -10,6 +10,7 @@ use node::msg::geometry_msgs::PoseStamped;
 use node::msg::image::camera_info;
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
 use node::msg::map_update::MapUpdate;
+use node::msg::nav_msgs::{Odometry, Path};
 use node::msg::pose::pose_from_affine;
 use node::msg::sensor_msgs::{CameraInfo, Image, PointCloud2};
 use node::msg::std_msgs::Header;
@@ -31,6 +32,8 @@ pub struct Samples {
     pub diagnostics: Diagnostics,
     pub map_update: MapUpdate,
     pub tf: TfMessage,
+    pub odometry: Odometry,
+    pub path: Path,
 }
 
 /// Three Gaussians with distinct values in every channel.
@@ -137,7 +140,32 @@ pub fn samples() -> Samples {
                 world_to("cam_left", &DAffine3::IDENTITY, -1),
             ],
         },
+        odometry: odometry(stamp),
+        path: Path {
+            header: Header::new(stamp, "map"),
+            poses: (0..3)
+                .map(|i| {
+                    let step = DAffine3::from_translation(DVec3::new(0.5 * i as f64, 0.0, 0.0));
+                    pose_from_affine(&(far_pose() * step), Header::new(stamp + i, "map"))
+                })
+                .collect(),
+        },
     }
+}
+
+/// `base_link` in `odom` at the far pose, moving, every covariance entry distinct.
+fn odometry(stamp: i64) -> Odometry {
+    let mut msg = Odometry {
+        header: Header::new(stamp, "odom"),
+        child_frame_id: "base_link".to_owned(),
+        ..Odometry::default()
+    };
+    msg.pose.pose = pose_from_affine(&far_pose(), Header::default()).pose;
+    msg.pose.covariance = std::array::from_fn(|i| 1e-3 * (i + 1) as f64);
+    msg.twist.twist.linear.x = 1.5;
+    msg.twist.twist.angular.z = -0.25;
+    msg.twist.covariance = std::array::from_fn(|i| -1e-2 * i as f64);
+    msg
 }
 
 /// A decoder that reports only whether it succeeded.
@@ -192,5 +220,11 @@ pub fn encoded() -> Vec<(&'static str, Vec<u8>, Decoder)> {
             s.tf.encode(),
             decoder::<TfMessage>(),
         ),
+        (
+            Odometry::KIND.ros_name(),
+            s.odometry.encode(),
+            decoder::<Odometry>(),
+        ),
+        (Path::KIND.ros_name(), s.path.encode(), decoder::<Path>()),
     ]
 }

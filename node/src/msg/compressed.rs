@@ -163,9 +163,9 @@ pub enum CompressedError {
         /// What is wrong.
         reason: &'static str,
     },
-    /// A JPEG file that does not end with its end-of-image marker (trailing zero bytes
-    /// aside): cut off, where the decoder would fill the missing rows in.
-    #[error("{codec} data of {len} bytes does not end with an end-of-image marker (cut off?)")]
+    /// A JPEG file whose marker structure does not reach its end-of-image marker: cut off,
+    /// where the decoder would fill the missing rows in.
+    #[error("{codec} data of {len} bytes ends before its end-of-image marker (cut off?)")]
     Unterminated {
         /// The codec.
         codec: Codec,
@@ -357,7 +357,7 @@ fn peek_png(data: &[u8]) -> Result<CompressedHeader, CompressedError> {
 
 /// The pixels of a JPEG or PNG compressed image as packed RGB8 (see the module
 /// documentation): its header's size checked against `limits` before decoding, then the
-/// decoder bounded by the same size. Empty, unknown, cut-off (for JPEG: not ending with its
+/// decoder bounded by the same size. Empty, unknown, cut-off (for JPEG: ending before its
 /// end-of-image marker, which the decoder alone would accept, filling the rows in) or
 /// corrupt data, and a size beyond the limits, are errors; none panics.
 pub fn rgb8_from_compressed(
@@ -370,7 +370,7 @@ pub fn rgb8_from_compressed(
     let header = peek_compressed(&msg.data)?;
     limits.check(&header)?;
     let codec = header.codec;
-    if codec == Codec::Jpeg && !ends_with_eoi(&msg.data) {
+    if codec == Codec::Jpeg && !reaches_eoi(&msg.data) {
         return Err(CompressedError::Unterminated {
             codec,
             len: msg.data.len(),
@@ -402,12 +402,44 @@ pub fn rgb8_from_compressed(
     })
 }
 
-/// Whether JPEG `data` ends with EOI (`FF D9`), after any zero bytes some cameras pad
-/// frames with. The entropy-coded data cannot hold `FF D9` (a data byte `FF` is followed by
-/// `00`), so a file cut inside its scan ends otherwise.
-fn ends_with_eoi(data: &[u8]) -> bool {
-    let end = data.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
-    data[..end].ends_with(&[0xff, 0xd9])
+/// Whether the marker structure of JPEG `data` reaches its end-of-image marker (EOI):
+/// segments skipped by their lengths, the entropy-coded data after each start of scan read
+/// up to the next marker (in it a byte `FF` is followed by `00`, or by `D0..D7` for a
+/// restart). A file cut off anywhere before EOI does not; what follows EOI (the zero
+/// padding some cameras add) does not matter. Allocates nothing.
+fn reaches_eoi(data: &[u8]) -> bool {
+    let mut at = 2;
+    while let Some(&[marker, code]) = data.get(at..at + 2) {
+        if marker != 0xff {
+            return false;
+        }
+        match code {
+            0xd9 => return true,
+            // Fill bytes before a marker, and markers without a segment.
+            0xff => {
+                at += 1;
+                continue;
+            }
+            0x01 | 0xd0..=0xd8 => {
+                at += 2;
+                continue;
+            }
+            _ => {}
+        }
+        let Some(len) = be16(data, at + 2) else {
+            return false;
+        };
+        at += 2 + len as usize;
+        if code == 0xda {
+            while let Some(&[byte, next]) = data.get(at..at + 2) {
+                if byte == 0xff && next != 0 && !(0xd0..=0xd7).contains(&next) {
+                    break;
+                }
+                at += 1;
+            }
+        }
+    }
+    false
 }
 
 /// How [`compressed_image`] encodes.

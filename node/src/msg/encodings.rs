@@ -120,7 +120,6 @@ impl Encoding {
 pub fn packed_rgb(msg: &Image, encoding: Encoding) -> Vec<u8> {
     // The high byte of a 16-bit value: the second of a little-endian pair.
     let hi = usize::from(msg.is_bigendian == 0);
-    let bpp = encoding.bytes_per_pixel() as usize;
     match encoding {
         Encoding::Bayer(pattern) => demosaic::bilinear(
             &msg.data,
@@ -129,35 +128,37 @@ pub fn packed_rgb(msg: &Image, encoding: Encoding) -> Vec<u8> {
             msg.step as usize,
             pattern,
         ),
-        Encoding::Rgb8 => rows(msg, bpp, |row, out| out.extend_from_slice(row)),
-        Encoding::Bgr8 | Encoding::Bgra8 => rows(msg, bpp, |row, out| {
-            row.chunks_exact(bpp)
-                .for_each(|p| out.extend([p[2], p[1], p[0]]))
+        Encoding::Rgb8 => rows(msg, encoding, |px, rgb| rgb.copy_from_slice(px)),
+        Encoding::Bgr8 | Encoding::Bgra8 => rows(msg, encoding, |px, rgb| {
+            rgb.copy_from_slice(&[px[2], px[1], px[0]])
         }),
-        Encoding::Rgba8 => rows(msg, bpp, |row, out| {
-            row.chunks_exact(bpp)
-                .for_each(|p| out.extend_from_slice(&p[..3]))
-        }),
-        Encoding::Mono8 => rows(msg, bpp, |row, out| {
-            row.iter().for_each(|&v| out.extend([v; 3]))
-        }),
-        Encoding::Mono16 => rows(msg, bpp, |row, out| {
-            row.chunks_exact(2).for_each(|p| out.extend([p[hi]; 3]))
-        }),
-        Encoding::Rgb16 => rows(msg, bpp, |row, out| {
-            row.chunks_exact(2).for_each(|p| out.push(p[hi]))
+        Encoding::Rgba8 => rows(msg, encoding, |px, rgb| rgb.copy_from_slice(&px[..3])),
+        Encoding::Mono8 => rows(msg, encoding, |px, rgb| rgb.fill(px[0])),
+        Encoding::Mono16 => rows(msg, encoding, |px, rgb| rgb.fill(px[hi])),
+        Encoding::Rgb16 => rows(msg, encoding, |px, rgb| {
+            rgb.copy_from_slice(&[px[hi], px[2 + hi], px[4 + hi]])
         }),
     }
 }
 
-/// Packed RGB made row by row: `f` appends the RGB of one row's pixels (the row without its
-/// padding, `width * bpp` bytes) for a message checked by [`Encoding::of`].
-fn rows(msg: &Image, bpp: usize, f: impl Fn(&[u8], &mut Vec<u8>)) -> Vec<u8> {
+/// Packed RGB made pixel by pixel: `f` writes the RGB of one pixel's bytes, for a message
+/// checked by [`Encoding::of`] (row padding skipped).
+fn rows(msg: &Image, encoding: Encoding, f: impl Fn(&[u8], &mut [u8])) -> Vec<u8> {
     let (width, height) = (msg.width as usize, msg.height as usize);
-    let mut rgb = Vec::with_capacity(3 * width * height);
+    let bpp = encoding.bytes_per_pixel() as usize;
+    let mut rgb = vec![0; 3 * width * height];
+    if width == 0 {
+        return rgb;
+    }
     // `step >= width * bpp` and `data = step * height` are checked, so every row is whole.
-    for row in msg.data.chunks_exact(msg.step.max(1) as usize).take(height) {
-        f(&row[..width * bpp], &mut rgb);
+    let src = msg.data.chunks_exact(msg.step.max(1) as usize);
+    for (row, out) in src.zip(rgb.chunks_exact_mut(3 * width)) {
+        for (px, dst) in row[..width * bpp]
+            .chunks_exact(bpp)
+            .zip(out.chunks_exact_mut(3))
+        {
+            f(px, dst);
+        }
     }
     rgb
 }

@@ -6,12 +6,14 @@
 //! * [`peek_compressed`] reads the size: for JPEG it walks the marker segments from SOI to
 //!   the first frame header (SOF0..SOF15 but DHT, JPG and DAC), for PNG it reads the IHDR
 //!   chunk, which must come first. It allocates nothing.
-//! * [`rgb8_from_compressed`] checks that size against [`PixelLimits`], then decodes with
-//!   the `image` crate under `image::Limits` of the same size (a decoder that found a larger
-//!   frame elsewhere in the file stops), checks that the decoded size is the peeked one and
-//!   converts grey, grey-alpha, RGBA and 16-bit images to packed RGB8 (alpha dropped,
-//!   16-bit values rounded to `round(v * 255 / 65535)`, the `image` crate's rule, which
-//!   gives back the byte `b` of a value `b * 257` as `v >> 8` would).
+//! * [`rgb8_from_compressed`] checks that size against [`PixelLimits`], refuses a JPEG
+//!   whose marker structure ends before its end-of-image marker (cut off: the decoder would
+//!   fill the missing rows in and succeed), decodes with the `image` crate under
+//!   `image::Limits` of the same size (a decoder that found a larger frame elsewhere in the
+//!   file stops), checks that the decoded size is the peeked one and converts grey,
+//!   grey-alpha, RGBA and 16-bit images to packed RGB8 (alpha dropped, 16-bit values
+//!   rounded to `round(v * 255 / 65535)`, the `image` crate's rule, which gives back the
+//!   byte `b` of a value `b * 257` as `v >> 8` would).
 //! * [`compressed_image`] encodes an RGB8 image as compressed_image_transport does, for
 //!   tests and the project's players.
 //!

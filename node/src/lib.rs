@@ -23,6 +23,8 @@
 //! - [`untrusted_input`]: every decoder of outside input as one entry point on raw bytes
 //!   (what the fuzz targets and the decoders' mutation test call).
 
+#[cfg(test)]
+mod alloc_probe;
 pub mod bag;
 #[cfg(feature = "runtime")]
 pub mod cli;

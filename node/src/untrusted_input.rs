@@ -33,6 +33,8 @@ use crate::fusion::{
     PagedTile, TileKey,
 };
 use crate::launch::Plan;
+use crate::msg::compressed::{peek_compressed, rgb8_from_compressed, PixelLimits};
+use crate::msg::encodings::{packed_rgb, Encoding};
 use crate::msg::gaussians::gaussians_from_cloud;
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::{intrinsics_from_camera_info, rgb8_from_image, rgb_from_image};
@@ -40,7 +42,7 @@ use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
 use crate::msg::nav_msgs::{odometry_pose, Odometry, Path as NavPath};
 use crate::msg::pose::affine_from_pose;
-use crate::msg::sensor_msgs::{CameraInfo, Image, PointCloud2};
+use crate::msg::sensor_msgs::{CameraInfo, CompressedImage, Image, PointCloud2};
 use crate::msg::tf2_msgs::TfMessage;
 use crate::msg::Message;
 use crate::tf::{camera_pose_from_odometry, odometry_transform, TfBuffer, TfConfig, LATEST};
@@ -57,6 +59,7 @@ pub const ENTRIES: &[(&str, Entry)] = &[
     #[cfg(feature = "runtime")]
     ("camera_calibration", live::camera_calibration),
     ("cdr_camera_info", cdr_camera_info),
+    ("cdr_compressed_image", cdr_compressed_image),
     ("cdr_image", cdr_image),
     ("cdr_latency", cdr_latency),
     ("cdr_map_update", cdr_map_update),
@@ -101,12 +104,37 @@ pub fn cdr_camera_info(data: &[u8]) {
     }
 }
 
-/// `sensor_msgs/Image`, its stamp and its pixels as RGB.
+/// `sensor_msgs/Image`, its stamp and its pixels as RGB: in the encoding it names, then
+/// read as every encoding (16-bit ones in both byte orders), so each pixel path meets the
+/// message's sizes and bytes.
 pub fn cdr_image(data: &[u8]) {
-    if let Ok(msg) = Image::decode(data) {
+    if let Ok(mut msg) = Image::decode(data) {
         let _ = msg.header.stamp.to_nanos();
         let _ = rgb_from_image(&msg);
+        let (named, order) = (std::mem::take(&mut msg.encoding), msg.is_bigendian);
+        for encoding in Encoding::ALL {
+            msg.encoding = encoding.name().to_owned();
+            for is_bigendian in [0, 1] {
+                msg.is_bigendian = is_bigendian;
+                if let Ok(encoding) = Encoding::of(&msg) {
+                    let _ = packed_rgb(&msg, encoding);
+                }
+            }
+        }
+        (msg.encoding, msg.is_bigendian) = (named, order);
         let _ = rgb8_from_image(msg);
+    }
+}
+
+/// `sensor_msgs/CompressedImage`, its stamp, the size its JPEG or PNG header declares,
+/// and its pixels decoded under the default limits, as the node's input path would. A
+/// small file may declare a large image: what is allocated for it is bounded by the limits
+/// (3840x2160 RGB), not by the input.
+pub fn cdr_compressed_image(data: &[u8]) {
+    if let Ok(msg) = CompressedImage::decode(data) {
+        let _ = msg.header.stamp.to_nanos();
+        let _ = peek_compressed(&msg.data);
+        let _ = rgb8_from_compressed(&msg, &PixelLimits::default());
     }
 }
 

@@ -1,9 +1,10 @@
 //! The seed inputs of the decoders' entry points (`node::untrusted_input`): for each entry, a
 //! few valid inputs made by the project's own encoders, so fuzzing and the mutation test
 //! start from what the decoders really see and mutate outward. Shared by the `fuzz_seeds`
-//! example (the fuzz corpus) and the test suite (`decoders_mutated`); the seeds of the
-//! entries that need the `runtime` feature are in `live_seeds.rs`, those of the robot-side
-//! pose sources (Odometry, Path, tf streams) in `robot_seeds.rs`.
+//! example (the fuzz corpus) and the test suite (`decoders_mutated`); the camera images'
+//! seeds are in `image_seeds.rs`, those of the robot-side pose sources (Odometry, Path, tf
+//! streams) in `robot_seeds.rs`, those of the entries that need the `runtime` feature in
+//! `live_seeds.rs`.
 
 use std::path::{Path, PathBuf};
 
@@ -17,7 +18,7 @@ use node::fusion::{
     segment_path, tile_path, write_tile, FusionConfig, GlobalMap, JournalWriter, PageEvent,
 };
 use node::msg::gaussians::cloud_from_gaussians;
-use node::msg::image::{camera_info, image_from_rgb};
+use node::msg::image::{camera_info, image_from_rgb, rgb8_from_image};
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
 use node::msg::map_update::MapUpdate;
 use node::msg::pose::pose_from_affine;
@@ -29,6 +30,8 @@ use node::untrusted_input::join_frames;
 use renderer::formats::{write_map, MapFormat};
 use renderer::{scene, GaussianSet, Intrinsics};
 
+#[path = "image_seeds.rs"]
+mod image_seeds;
 #[cfg(feature = "runtime")]
 #[path = "live_seeds.rs"]
 mod live_seeds;
@@ -56,14 +59,9 @@ pub fn write_all(out: &Path) -> anyhow::Result<()> {
         DQuat::from_axis_angle(DVec3::new(0.2, 1.0, -0.1).normalize(), 0.7),
         DVec3::new(1.0e5, -2.5e5, 31.25),
     );
-    let mut mono = image.clone();
-    mono.encoding = "mono8".into();
-    mono.step = k.width;
-    mono.data.truncate((k.width * k.height) as usize);
 
     let seeds = Seeds(out);
-    seeds.put("cdr_image", "rgb8", &image.encode())?;
-    seeds.put("cdr_image", "mono8", &mono.encode())?;
+    image_seeds::write(&seeds, &rgb8_from_image(image.clone())?)?;
     for (name, baseline) in [("left", 0.0), ("right", 0.6)] {
         let info = camera_info(&k, baseline, Header::new(STAMP, "cam"));
         seeds.put("cdr_camera_info", name, &info.encode())?;

@@ -1,9 +1,11 @@
-//! Camera images and calibration: [`RgbImage`] <-> `sensor_msgs/Image`, and
-//! `sensor_msgs/CameraInfo` <-> rectified [`Intrinsics`] plus stereo baseline.
+//! Camera images and calibration: [`RgbImage`] and [`Rgb8Image`] <-> `sensor_msgs/Image` in
+//! every encoding of [`super::encodings`], and `sensor_msgs/CameraInfo` <-> rectified
+//! [`Intrinsics`] plus stereo baseline.
 
 use model::frame::{Rgb8Image, RgbImage};
 use renderer::Intrinsics;
 
+use super::encodings::{encode_rows, packed_rgb, Encoding};
 use super::sensor_msgs::{CameraInfo, Image};
 use super::std_msgs::Header;
 use super::ConvertError;
@@ -34,71 +36,73 @@ pub fn image_from_rgb8(img: Rgb8Image, header: Header) -> Image {
     }
 }
 
-/// The image of an `rgb8`, `bgr8` or `mono8` message (grey copied to the three channels),
-/// values as bytes / 255. Any other encoding, a step shorter than a row, or data other than
-/// `step * height` bytes is an error.
+/// The message of `img` in `encoding` (a name [`Encoding::parse`] reads), rows packed and
+/// 16-bit values little endian: grey is the BT.601 luma, 16-bit values are `byte * 257`,
+/// Bayer keeps each pixel's filtered channel. What the project's players and tests publish
+/// for every encoding the node reads; an encoding not read is
+/// [`ConvertError::UnsupportedEncoding`], a row or image too large for the message's
+/// 32-bit sizes [`ConvertError::TooLarge`], an `img` whose data is not `3 * width * height`
+/// bytes [`ConvertError::ImageSize`].
+pub fn image_with_encoding(
+    img: &Rgb8Image,
+    encoding: &str,
+    header: Header,
+) -> Result<Image, ConvertError> {
+    let parsed = Encoding::parse(encoding)
+        .ok_or_else(|| ConvertError::UnsupportedEncoding(encoding.to_owned()))?;
+    let step = u32::try_from(img.width as u64 * parsed.bytes_per_pixel() as u64)
+        .map_err(|_| ConvertError::TooLarge("image row"))?;
+    if u32::try_from(step as u64 * img.height as u64).is_err() {
+        return Err(ConvertError::TooLarge("image"));
+    }
+    let rgb_step = 3 * img.width as u64;
+    if img.data.len() as u64 != rgb_step * img.height as u64 {
+        return Err(ConvertError::ImageSize {
+            width: img.width,
+            height: img.height,
+            encoding: "rgb8".to_owned(),
+            step: img.width.saturating_mul(3),
+            min_step: rgb_step,
+            len: img.data.len(),
+        });
+    }
+    Ok(Image {
+        header,
+        height: img.height,
+        width: img.width,
+        encoding: parsed.name().to_owned(),
+        is_bigendian: 0,
+        step,
+        data: encode_rows(img, parsed),
+    })
+}
+
+/// The image of a message in any encoding [`Encoding`] reads (see [`super::encodings`] for
+/// how each becomes RGB), values as bytes / 255. Any other encoding, a step shorter than a
+/// row, data other than `step * height` bytes, or a Bayer image 1 pixel wide or tall is an
+/// error.
 pub fn rgb_from_image(msg: &Image) -> Result<RgbImage, ConvertError> {
-    let channels = channels(msg)?;
+    let encoding = Encoding::of(msg)?;
     Ok(RgbImage::from_rgb8(
         msg.width,
         msg.height,
-        &packed(msg, channels),
+        &packed_rgb(msg, encoding),
     ))
 }
 
 /// [`rgb_from_image`] as packed bytes; an `rgb8` message without row padding gives its
 /// data as it is, without a copy. Same errors.
 pub fn rgb8_from_image(msg: Image) -> Result<Rgb8Image, ConvertError> {
-    let channels = channels(&msg)?;
-    let data = match msg.encoding == "rgb8" && msg.step as u64 == 3 * msg.width as u64 {
+    let encoding = Encoding::of(&msg)?;
+    let data = match encoding == Encoding::Rgb8 && msg.step as u64 == 3 * msg.width as u64 {
         true => msg.data,
-        false => packed(&msg, channels),
+        false => packed_rgb(&msg, encoding),
     };
     Ok(Rgb8Image {
         width: msg.width,
         height: msg.height,
         data,
     })
-}
-
-/// The bytes per pixel of a valid message's encoding, after checking its step and size.
-fn channels(msg: &Image) -> Result<usize, ConvertError> {
-    let channels: usize = match msg.encoding.as_str() {
-        "rgb8" | "bgr8" => 3,
-        "mono8" => 1,
-        other => return Err(ConvertError::UnsupportedEncoding(other.to_owned())),
-    };
-    let min_step = msg.width as u64 * channels as u64;
-    if (msg.step as u64) < min_step || msg.data.len() as u64 != msg.step as u64 * msg.height as u64
-    {
-        return Err(ConvertError::ImageSize {
-            width: msg.width,
-            height: msg.height,
-            encoding: msg.encoding.clone(),
-            step: msg.step,
-            min_step,
-            len: msg.data.len(),
-        });
-    }
-    Ok(channels)
-}
-
-/// A checked message's pixels as packed RGB bytes.
-fn packed(msg: &Image, channels: usize) -> Vec<u8> {
-    // Bounded by the data checked: width * height <= data.len().
-    let row_bytes = msg.width as usize * channels;
-    let mut rgb = Vec::with_capacity(3 * msg.width as usize * msg.height as usize);
-    let rows = msg.data.chunks_exact(msg.step.max(1) as usize);
-    for row in rows.take(msg.height as usize) {
-        for px in row[..row_bytes].chunks_exact(channels) {
-            match (msg.encoding.as_str(), px) {
-                ("bgr8", &[b, g, r]) => rgb.extend([r, g, b]),
-                (_, &[v]) => rgb.extend([v, v, v]),
-                _ => rgb.extend_from_slice(px),
-            }
-        }
-    }
-    rgb
 }
 
 /// The calibration message of one rectified camera of a stereo rig: no distortion
@@ -164,3 +168,7 @@ pub fn intrinsics_from_camera_info(msg: &CameraInfo) -> Result<(Intrinsics, f64)
     };
     Ok((k, -tx / fx))
 }
+
+#[cfg(test)]
+#[path = "image_tests.rs"]
+mod tests;

@@ -17,6 +17,8 @@ pub enum MessageKind {
     Image,
     /// `sensor_msgs/msg/RegionOfInterest`.
     RegionOfInterest,
+    /// `sensor_msgs/msg/CompressedImage`.
+    CompressedImage,
     /// `sensor_msgs/msg/CameraInfo`.
     CameraInfo,
     /// `sensor_msgs/msg/PointField`.
@@ -61,11 +63,12 @@ pub enum MessageKind {
 
 impl MessageKind {
     /// All kinds, in declaration order.
-    pub const ALL: [MessageKind; 24] = [
+    pub const ALL: [MessageKind; 25] = [
         Self::Time,
         Self::Header,
         Self::Image,
         Self::RegionOfInterest,
+        Self::CompressedImage,
         Self::CameraInfo,
         Self::PointField,
         Self::PointCloud2,
@@ -95,6 +98,7 @@ impl MessageKind {
             Self::Header => "std_msgs/msg/Header",
             Self::Image => "sensor_msgs/msg/Image",
             Self::RegionOfInterest => "sensor_msgs/msg/RegionOfInterest",
+            Self::CompressedImage => "sensor_msgs/msg/CompressedImage",
             Self::CameraInfo => "sensor_msgs/msg/CameraInfo",
             Self::PointField => "sensor_msgs/msg/PointField",
             Self::PointCloud2 => "sensor_msgs/msg/PointCloud2",
@@ -144,6 +148,7 @@ impl MessageKind {
             Self::RegionOfInterest => {
                 "uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n"
             }
+            Self::CompressedImage => "std_msgs/Header header\nstring format\nuint8[] data\n",
             Self::CameraInfo => {
                 "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\n\
                  float64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\n\

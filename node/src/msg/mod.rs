@@ -3,13 +3,15 @@
 //!
 //! * [`cdr`]: the plain-CDR (XCDR1) reader and writer and [`DecodeError`];
 //! * the messages, field for field as ROS 2 Jazzy defines them: [`std_msgs`] (Time, Header),
-//!   [`sensor_msgs`] (Image, CameraInfo, PointCloud2), [`geometry_msgs`] (PoseStamped,
-//!   TransformStamped, PoseWithCovariance, TwistWithCovariance), [`tf2_msgs`] (TFMessage,
-//!   the `/tf` transforms), [`nav_msgs`] (Odometry, Path), and the node's own
+//!   [`sensor_msgs`] (Image, CompressedImage, CameraInfo, PointCloud2), [`geometry_msgs`]
+//!   (PoseStamped, TransformStamped, PoseWithCovariance, TwistWithCovariance), [`tf2_msgs`]
+//!   (TFMessage, the `/tf` transforms), [`nav_msgs`] (Odometry, Path), and the node's own
 //!   [`latency`] messages (BinLatency, Diagnostics);
-//! * conversions to and from the project's types: [`image`] (RgbImage, Intrinsics),
-//!   [`pose`] (DAffine3), [`gaussians`] (GaussianSet as a PointCloud2 in the 3DGS PLY
-//!   convention), failing with [`ConvertError`];
+//! * conversions to and from the project's types: [`image`] (RgbImage, Intrinsics; the
+//!   pixel encodings in [`encodings`], Bayer demosaicing in [`demosaic`]), [`compressed`]
+//!   (JPEG and PNG CompressedImage, their size read before they are decoded), [`pose`]
+//!   (DAffine3), [`gaussians`] (GaussianSet as a PointCloud2 in the 3DGS PLY convention),
+//!   failing with [`ConvertError`] (or [`compressed::CompressedError`]);
 //! * names and REP 2011 type hashes for rmw_zenoh: [`MessageKind`], [`mod@type_hash`]; complete
 //!   definitions as MCAP schemas: [`schema`].
 //!
@@ -17,6 +19,9 @@
 //! payload is a [`DecodeError`] naming the field and byte offset.
 
 pub mod cdr;
+pub mod compressed;
+pub mod demosaic;
+pub mod encodings;
 pub mod gaussians;
 pub mod geometry_msgs;
 pub mod image;
@@ -28,6 +33,8 @@ pub mod pose;
 pub mod schema;
 pub mod sensor_msgs;
 pub mod std_msgs;
+#[cfg(test)]
+mod test_frames;
 pub mod tf2_msgs;
 pub mod type_hash;
 
@@ -68,9 +75,17 @@ pub trait Message: Sized {
 /// Why a decoded message could not become one of the project's types (or the reverse).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ConvertError {
-    /// An image encoding other than `rgb8`, `bgr8` or `mono8`.
-    #[error("unsupported image encoding `{0}` (rgb8, bgr8 and mono8 are read)")]
+    /// An image encoding not in [`encodings::Encoding::ALL`].
+    #[error("unsupported image encoding `{0}` (read: rgb8, bgr8, rgba8, bgra8, mono8, mono16, rgb16, bayer_rggb8, bayer_bggr8, bayer_gbrg8, bayer_grbg8)")]
     UnsupportedEncoding(String),
+    /// A Bayer image 1 pixel wide or tall: some channel has no sample to interpolate from.
+    #[error("bayer image {width}x{height} is too small to demosaic (needs at least 2x2 pixels)")]
+    BayerTooSmall {
+        /// Columns.
+        width: u32,
+        /// Rows.
+        height: u32,
+    },
     /// The image's step or data length disagree with its size.
     #[error("image {width}x{height} {encoding}: step {step} and {len} data bytes (need step >= {min_step} and data = step * height)")]
     ImageSize {

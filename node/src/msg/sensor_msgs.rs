@@ -1,5 +1,5 @@
-//! `sensor_msgs`: Image, CameraInfo (with RegionOfInterest) and PointCloud2 (with
-//! PointField), field for field as the ROS 2 Jazzy `.msg` definitions.
+//! `sensor_msgs`: Image, CompressedImage, CameraInfo (with RegionOfInterest) and
+//! PointCloud2 (with PointField), field for field as the ROS 2 Jazzy `.msg` definitions.
 
 use super::cdr::{CdrReader, CdrWriter, DecodeError};
 use super::std_msgs::Header;
@@ -81,6 +81,42 @@ impl ImageLayout {
             height,
             step,
             data_len,
+        })
+    }
+}
+
+/// `sensor_msgs/msg/CompressedImage`: an encoded image file, as `image_transport`'s
+/// `compressed` transport publishes it on `<image topic>/compressed`.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct CompressedImage {
+    /// Capture time and the camera's optical frame.
+    pub header: Header,
+    /// What `data` holds: `jpeg` or `png`, or as compressed_image_transport writes it,
+    /// `ORIG_PIXFMT; CODEC compressed [COMPRESSED_PIXFMT]` (`rgb8; jpeg compressed bgr8`).
+    pub format: String,
+    /// The encoded file's bytes.
+    pub data: Vec<u8>,
+}
+
+impl Message for CompressedImage {
+    const KIND: MessageKind = MessageKind::CompressedImage;
+
+    fn write(&self, w: &mut CdrWriter) {
+        self.header.write(w);
+        w.string(&self.format);
+        w.bytes(&self.data);
+    }
+
+    /// The data and room for the header and format.
+    fn size_hint(&self) -> usize {
+        self.data.len() + self.format.len() + self.header.frame_id.len() + 32
+    }
+
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, DecodeError> {
+        Ok(Self {
+            header: Header::read(r)?,
+            format: r.string("format")?,
+            data: r.bytes("data")?,
         })
     }
 }

@@ -362,7 +362,7 @@ fn malformed_clouds_are_typed_errors() {
 
 /// Jazzy's values, as `ros2 topic info -v` prints them and rosidl's golden-hash tests and
 /// client libraries list them (e.g. the image_publisher docs of image_pipeline for Image).
-const PUBLISHED: [(MessageKind, &str); 19] = [
+const PUBLISHED: [(MessageKind, &str); 20] = [
     (
         MessageKind::Time,
         "b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197",
@@ -378,6 +378,11 @@ const PUBLISHED: [(MessageKind, &str); 19] = [
     (
         MessageKind::CameraInfo,
         "b3dfd68ff46c9d56c80fd3bd4ed22c7a4ddce8c8348f2f59c299e73118e7e275",
+    ),
+    // rosidl_generator_c's sensor_msgs__msg__CompressedImage__TYPE_HASH.
+    (
+        MessageKind::CompressedImage,
+        "15640771531571185e2efc8a100baf923961a4d15d5569652e6cb6691e8e371a",
     ),
     (
         MessageKind::RegionOfInterest,

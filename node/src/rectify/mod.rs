@@ -67,15 +67,7 @@ impl Rectifier {
         match &self.table {
             Some(table) => table.remap(raw).map(Cow::Owned),
             None => {
-                let (w, h) = (self.camera.width(), self.camera.height());
-                if (raw.width, raw.height) != (w, h) {
-                    return Err(RemapError::Size {
-                        expected_width: w,
-                        expected_height: h,
-                        width: raw.width,
-                        height: raw.height,
-                    });
-                }
+                table::check_image(self.camera.width(), self.camera.height(), raw)?;
                 Ok(Cow::Borrowed(raw))
             }
         }

@@ -106,22 +106,8 @@ impl RemapTable {
     /// `src` sampled through the table, bilinear, black outside `src`; `src` must be the
     /// calibration's size.
     pub fn remap(&self, src: &Rgb8Image) -> Result<Rgb8Image, RemapError> {
-        if (src.width, src.height) != (self.width, self.height) {
-            return Err(RemapError::Size {
-                expected_width: self.width,
-                expected_height: self.height,
-                width: src.width,
-                height: src.height,
-            });
-        }
+        check_image(self.width, self.height, src)?;
         let (w, h) = (src.width as usize, src.height as usize);
-        if src.data.len() != 3 * w * h {
-            return Err(RemapError::Data {
-                width: src.width,
-                height: src.height,
-                len: src.data.len(),
-            });
-        }
         let mut data = vec![0u8; 3 * w * h];
         data.par_chunks_mut(3 * w)
             .zip(self.map.par_chunks(w))
@@ -138,17 +124,38 @@ impl RemapTable {
     }
 }
 
+/// `image` must be `width` x `height` with 3 bytes a pixel.
+pub(super) fn check_image(width: u32, height: u32, image: &Rgb8Image) -> Result<(), RemapError> {
+    if (image.width, image.height) != (width, height) {
+        return Err(RemapError::Size {
+            expected_width: width,
+            expected_height: height,
+            width: image.width,
+            height: image.height,
+        });
+    }
+    if image.data.len() != 3 * width as usize * height as usize {
+        return Err(RemapError::Data {
+            width,
+            height,
+            len: image.data.len(),
+        });
+    }
+    Ok(())
+}
+
 /// Bilinear sample of the packed RGB `src` (`w` x `h`) at `(x, y)` into `out`, taps outside
-/// `src` black, the result rounded to nearest (ties to even).
+/// `src` black, the result rounded to nearest (ties to even, as `cv::remap`). Written
+/// without `floor` and `round`, which are library calls on x86-64's baseline instruction set
+/// and took half the time.
 fn sample(src: &[u8], w: usize, h: usize, x: f32, y: f32, out: &mut [u8]) {
     // Also false for NaN.
     if !(x > -1.0 && y > -1.0 && x < w as f32 && y < h as f32) {
         out.fill(0);
         return;
     }
-    let (xf, yf) = (x.floor(), y.floor());
-    let (ax, ay) = (x - xf, y - yf);
-    let (x0, y0) = (xf as isize, yf as isize);
+    let (x0, y0) = (floor(x), floor(y));
+    let (ax, ay) = (x - x0 as f32, y - y0 as f32);
     let weights = [
         (1.0 - ax) * (1.0 - ay),
         ax * (1.0 - ay),
@@ -158,16 +165,16 @@ fn sample(src: &[u8], w: usize, h: usize, x: f32, y: f32, out: &mut [u8]) {
     let mut acc = [0.0f32; 3];
     if x0 >= 0 && y0 >= 0 && (x0 as usize) + 1 < w && (y0 as usize) + 1 < h {
         let i = 3 * (y0 as usize * w + x0 as usize);
-        let below = i + 3 * w;
+        let (top, bottom) = (&src[i..i + 6], &src[i + 3 * w..i + 3 * w + 6]);
         for (c, a) in acc.iter_mut().enumerate() {
-            *a = weights[0] * src[i + c] as f32
-                + weights[1] * src[i + 3 + c] as f32
-                + weights[2] * src[below + c] as f32
-                + weights[3] * src[below + 3 + c] as f32;
+            *a = weights[0] * top[c] as f32
+                + weights[1] * top[3 + c] as f32
+                + weights[2] * bottom[c] as f32
+                + weights[3] * bottom[3 + c] as f32;
         }
     } else {
         for (tap, weight) in weights.iter().enumerate() {
-            let (tx, ty) = (x0 + (tap & 1) as isize, y0 + (tap >> 1) as isize);
+            let (tx, ty) = (x0 + (tap & 1) as i32, y0 + (tap >> 1) as i32);
             if tx < 0 || ty < 0 || tx as usize >= w || ty as usize >= h {
                 continue;
             }
@@ -178,8 +185,22 @@ fn sample(src: &[u8], w: usize, h: usize, x: f32, y: f32, out: &mut [u8]) {
         }
     }
     for (o, a) in out.iter_mut().zip(acc) {
-        *o = a.round_ties_even().clamp(0.0, 255.0) as u8;
+        // `as` saturates to 0..=255.
+        *o = round_ties_even(a) as u8;
     }
+}
+
+/// `v.floor()` for `v` in (-1, 2³¹): truncation, one less for negatives with a fraction.
+fn floor(v: f32) -> i32 {
+    let t = v as i32;
+    t - ((t as f32) > v) as i32
+}
+
+/// `v.round_ties_even()` for `|v|` below 2²²: adding and taking away 1.5 * 2²³ leaves `v`
+/// rounded in the current (nearest-even) rounding mode.
+fn round_ties_even(v: f32) -> f32 {
+    const SHIFT: f32 = 12_582_912.0;
+    (v + SHIFT) - SHIFT
 }
 
 #[cfg(test)]

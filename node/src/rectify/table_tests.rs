@@ -297,3 +297,25 @@ fn images_of_another_size_or_length_are_refused() {
     short.data.pop();
     assert!(matches!(table.remap(&short), Err(RemapError::Data { .. })));
 }
+
+#[test]
+fn the_sampler_floors_and_rounds_as_the_standard_library() {
+    let values = [
+        -0.999_999_9f32,
+        -0.5,
+        -1e-30,
+        0.0,
+        1e-30,
+        0.5,
+        1.5,
+        2.5,
+        2.999_999_8,
+        254.5,
+        255.49,
+        16383.999,
+    ];
+    for v in values {
+        assert_eq!(super::floor(v), v.floor() as i32, "floor {v}");
+        assert_eq!(super::round_ties_even(v), v.round_ties_even(), "round {v}");
+    }
+}

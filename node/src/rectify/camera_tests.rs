@@ -305,6 +305,20 @@ fn a_stereo_pair_shares_p_and_has_a_horizontal_baseline() {
     let (l, r) = pair();
     let rig = StereoRig::from_camera_infos(&l, &r).unwrap();
     assert!((rig.baseline() - 0.12).abs() < 1e-12);
+    let (k, baseline) = rig.intrinsics();
+    assert_eq!(
+        (k.fx, k.cx, k.cy, k.width, k.height),
+        (480.0, 322.0, 241.0, 640, 480)
+    );
+    assert_eq!(baseline, rig.baseline());
+    let (mut l2, mut r2) = pair();
+    for i in [&mut l2, &mut r2] {
+        (i.binning_x, i.binning_y) = (2, 2);
+    }
+    let binned = StereoRig::from_camera_infos(&l2, &r2).unwrap();
+    let (k, b) = binned.intrinsics();
+    assert_eq!((k.fx, k.cx, k.width, k.height), (240.0, 161.0, 320, 240));
+    assert!((b - 0.12).abs() < 1e-12, "{b}");
     let mut rectifier = crate::rectify::StereoRectifier::new(rig.clone());
     assert!(!rectifier.update(rig));
 

@@ -2,6 +2,7 @@
 //! must be one pinhole camera (the same fx', fy', cx', cy') displaced along x, as
 //! `stereo_image_proc` and the node's reconstruction assume.
 
+use renderer::Intrinsics;
 use thiserror::Error;
 
 use super::camera::{CalibrationError, CameraModel};
@@ -102,6 +103,22 @@ impl StereoRig {
             });
         }
         Ok(Self { left, right })
+    }
+
+    /// The rectified images' intrinsics (P at the published size, binning applied) and the
+    /// baseline: what `msg::image::intrinsics_from_camera_info` reads from a rectified
+    /// stream, here right for binned streams too.
+    pub fn intrinsics(&self) -> (Intrinsics, f64) {
+        let p = self.left.p();
+        let k = Intrinsics {
+            fx: p.fx as f32,
+            fy: p.fy as f32,
+            cx: p.cx as f32,
+            cy: p.cy as f32,
+            width: self.left.width(),
+            height: self.left.height(),
+        };
+        (k, self.baseline())
     }
 
     /// The baseline in the units of P's Tx over pixels (metres for a ROS calibration):

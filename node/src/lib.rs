@@ -12,6 +12,8 @@
 //!   monitoring of its topics.
 //! - [`fusion`]: the fused global map in the f64 world frame; [`map_eval`]: its own quality
 //!   on a drive (`stereosplat eval-map`).
+//! - [`rectify`]: raw camera images rectified from their `CameraInfo` (K, D, R, P), as
+//!   ROS's `stereo_image_proc` does.
 //! - [`pair`]: one stereo pair from files reconstructed, checked and scored
 //!   (`stereosplat reconstruct`).
 //! - [`view`]: the live page on loopback (splats, renders, latency charts); [`foxglove`]:
@@ -41,6 +43,7 @@ pub mod pair;
 pub mod pareto;
 #[cfg(feature = "runtime")]
 pub mod pipeline;
+pub mod rectify;
 #[cfg(feature = "runtime")]
 pub mod remote;
 #[cfg(feature = "runtime")]

@@ -60,6 +60,7 @@ mod node_workers;
 mod node_workers_rogue;
 mod python_subscriber;
 mod record;
+mod rectify_opencv;
 mod ros2_bridge;
 mod ros2_transport;
 mod transport;

@@ -99,6 +99,19 @@ impl<F: Clone> Binner<F> {
         self.open.take().map(|b| b.id)
     }
 
+    /// Whether the next frame, at `left_to_world`, opens a bin (the first frame, or one that
+    /// closes the open bin), so a caller can prepare what only an opening frame needs; a
+    /// pose that is not finite opens none.
+    pub fn opens(&self, left_to_world: &DAffine3) -> bool {
+        let position = left_to_world.translation;
+        if !(position.is_finite() && left_to_world.matrix3.is_finite()) {
+            return false;
+        }
+        self.open
+            .as_ref()
+            .is_none_or(|open| position.distance(open.origin) >= self.config.length_m)
+    }
+
     /// Adds the next frame with its left camera pose.
     pub fn push(&mut self, frame: F, left_to_world: DAffine3) -> BinEvent<F> {
         let position = left_to_world.translation;
@@ -181,7 +194,10 @@ mod tests {
         let mut firsts = Vec::new();
         let mut got = Vec::new();
         for (i, pose) in poses.iter().enumerate() {
-            match binner.push(i, *pose) {
+            let opens = binner.opens(pose);
+            let event = binner.push(i, *pose);
+            assert_eq!(opens, !matches!(event, BinEvent::Inside), "frame {i}");
+            match event {
                 BinEvent::Opened { bin_id, first } => firsts.push((bin_id, first)),
                 BinEvent::Closed {
                     bin_id,
@@ -208,6 +224,12 @@ mod tests {
         let mut binner = Binner::new(BinnerConfig::default());
         let at = |x: f64| DAffine3::from_translation(DVec3::new(x, 0.0, 0.0));
         assert_eq!(binner.reset(), None, "nothing open yet");
+        let nan = DAffine3::from_translation(DVec3::new(f64::NAN, 0.0, 0.0));
+        assert!(
+            !binner.opens(&nan),
+            "a pose that is not finite opens nothing"
+        );
+        assert!(binner.opens(&at(100.0)), "the first frame opens a bin");
         binner.push(0, at(100.0));
         assert_eq!(binner.push(1, at(104.0)), BinEvent::Inside);
         assert_eq!(binner.reset(), Some(0));

@@ -2,26 +2,36 @@
 //! for the camera infos, and binning; what comes out are steps for the worker and the
 //! outputs. Bad input is counted per key (`bad_message/<key>`) and changes nothing else;
 //! input outside the [`InputLimits`] is refused before it is decoded further and counted
-//! under its reason as well (`refused/<reason>`). Images are kept as the bytes that came in
+//! under its reason as well (`refused/<reason>`). Images are kept as the messages that came
+//! in ([`InputImage`]: raw in any encoding read, or JPEG/PNG on the `compressed` topics)
 //! until a frame opens a bin: only those frames are converted to floats and, when larger
 //! than the working size, area-averaged down to it (every such image is counted as
-//! `input/downscaled` when it arrives); the rig's intrinsics are scaled alike.
+//! `input/downscaled` when it arrives); the rig's intrinsics are scaled alike. A frame
+//! whose image turns out undecodable then (a cut-off JPEG) is counted against its image's
+//! key and skipped before it opens a bin, so the next frame opens it instead.
+//!
+//! Each camera's images come raw (`left/image`) or compressed (`left/image/compressed`,
+//! image_transport's convention): the first valid image of a camera chooses its transport,
+//! and images of the other one are then ignored and counted (`ignored/second_transport`),
+//! so a driver publishing both does not give every frame twice.
 
 use std::collections::VecDeque;
 
 use glam::DAffine3;
-use model::frame::{Rgb8Image, StereoFrame, StereoRig};
+use model::frame::{RgbImage, StereoFrame, StereoRig};
 use model::kitti360::resample::resample_area;
 use zenoh::bytes::ZBytes;
 
 use super::counters::Counters;
+use super::input_image::{ImageProblem, InputImage};
 use super::keys::{self, Topic};
 use super::limits::{InputLimits, Refusal};
 use crate::msg::cdr::DecodeError;
+use crate::msg::compressed::CompressedError;
 use crate::msg::geometry_msgs::PoseStamped;
-use crate::msg::image::{intrinsics_from_camera_info, rgb8_from_image};
+use crate::msg::image::intrinsics_from_camera_info;
 use crate::msg::pose::affine_from_pose;
-use crate::msg::sensor_msgs::{CameraInfo, Image, ImageLayout};
+use crate::msg::sensor_msgs::CameraInfo;
 use crate::msg::{ConvertError, Message};
 use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
 use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
@@ -55,14 +65,14 @@ pub(super) struct CameraPose {
 
 /// A left image as the synchroniser holds it: the image, when it arrived (ns, the node's
 /// clock) and its `header.frame_id`.
-type Left = (Rgb8Image, i64, String);
+type Left = (InputImage, i64, String);
 
 /// A synchronised frame as the binner holds it: its images as they came in.
 #[derive(Clone, Debug)]
 struct RawFrame {
     index: u32,
-    left: Rgb8Image,
-    right: Rgb8Image,
+    left: InputImage,
+    right: InputImage,
     left_to_world: DAffine3,
 }
 
@@ -70,7 +80,7 @@ type Frame = (RawFrame, Stamps);
 
 /// What the synchroniser emits: the left image with its arrival time and frame name, the
 /// right image, the pose.
-type SyncedFrame = Synced<Left, Rgb8Image, DAffine3>;
+type SyncedFrame = Synced<Left, InputImage, DAffine3>;
 
 /// Why an input sample was not used.
 #[derive(Debug, thiserror::Error)]
@@ -81,14 +91,39 @@ enum Unusable {
     /// Well-formed, but its content cannot become the node's types.
     #[error(transparent)]
     Convert(#[from] ConvertError),
+    /// A compressed image the node cannot read.
+    #[error(transparent)]
+    Compressed(#[from] CompressedError),
     /// Outside the input limits.
     #[error(transparent)]
     Refused(#[from] Refusal),
 }
 
+impl From<ImageProblem> for Unusable {
+    fn from(p: ImageProblem) -> Self {
+        match p {
+            ImageProblem::Decode(e) => e.into(),
+            ImageProblem::Convert(e) => e.into(),
+            ImageProblem::Compressed(e) => e.into(),
+            ImageProblem::Refused(e) => e.into(),
+        }
+    }
+}
+
+/// How a camera's images arrive.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Transport {
+    /// `sensor_msgs/Image`.
+    Raw,
+    /// `sensor_msgs/CompressedImage`.
+    Compressed,
+}
+
 /// Decoders, synchroniser, camera model and binner.
 pub(super) struct Inputs {
-    sync: Synchronizer<Left, Rgb8Image, DAffine3>,
+    sync: Synchronizer<Left, InputImage, DAffine3>,
+    /// Each camera's transport (left, right), chosen by its first valid image.
+    transports: [Option<Transport>; 2],
     binner: Binner<Frame>,
     left_info: Option<CameraInfo>,
     right_info: Option<CameraInfo>,
@@ -105,6 +140,7 @@ impl Inputs {
     pub fn new(sync: SyncConfig, binner: BinnerConfig, limits: InputLimits) -> Self {
         Self {
             sync: Synchronizer::new(sync),
+            transports: [None; 2],
             binner: Binner::new(binner),
             left_info: None,
             right_info: None,
@@ -134,10 +170,7 @@ impl Inputs {
         let synced = match synced {
             Ok(synced) => synced,
             Err(e) => {
-                counters.add(&format!("bad_message/{}", topic.name.replace('/', "_")), 1);
-                if let Unusable::Refused(r) = e {
-                    counters.add(r.counter(), 1);
-                }
+                count_unusable(topic, &e, counters);
                 return Vec::new();
             }
         };
@@ -175,16 +208,26 @@ impl Inputs {
                 continue;
             }
             let pose = frame.0.left_to_world;
+            // Only a frame that opens a bin is converted, before it does.
+            let mut working = None;
+            if self.binner.opens(&pose) {
+                match working_frame(&frame.0, &self.limits) {
+                    Ok(f) => working = Some(f),
+                    Err((topic, e)) => {
+                        count_unusable(topic, &e.into(), counters);
+                        continue;
+                    }
+                }
+            }
             steps.push(Step::Camera(CameraPose {
                 stamp_ns: frame.1.source_ns,
                 frame_id,
                 left_to_world: pose,
             }));
-            let limits = self.limits;
-            let job = |bin_id: u64, (frame, stamps): Frame| {
+            let mut job = |bin_id: u64, (_, stamps): Frame| {
                 Box::new(Job {
                     bin_id,
-                    frame: working_frame(frame, &limits),
+                    frame: working.take().expect("converted: the frame opens a bin"),
                     rig,
                     stamps,
                     point: 0,
@@ -215,13 +258,29 @@ impl Inputs {
         counters: &mut Counters,
     ) -> Result<Vec<SyncedFrame>, Unusable> {
         let limits = self.limits;
+        let camera = match topic {
+            keys::LEFT_IMAGE | keys::LEFT_COMPRESSED => Some(0),
+            keys::RIGHT_IMAGE | keys::RIGHT_COMPRESSED => Some(1),
+            _ => None,
+        };
+        if let Some(camera) = camera {
+            let transport = match topic {
+                keys::LEFT_COMPRESSED | keys::RIGHT_COMPRESSED => Transport::Compressed,
+                _ => Transport::Raw,
+            };
+            if self.transports[camera].is_some_and(|t| t != transport) {
+                counters.add("ignored/second_transport", 1);
+                return Ok(Vec::new());
+            }
+            let (t, img, frame_id) = image(payload, transport, &limits, counters)?;
+            self.transports[camera] = Some(transport);
+            let weight = img.bytes();
+            return Ok(match camera {
+                0 => self.sync.push_left(t, weight, (img, arrival_ns, frame_id)),
+                _ => self.sync.push_right(t, weight, img),
+            });
+        }
         match topic {
-            keys::LEFT_IMAGE => image(payload, &limits, counters).map(|(t, img, frame_id)| {
-                self.sync
-                    .push_left(t, weight(&img), (img, arrival_ns, frame_id))
-            }),
-            keys::RIGHT_IMAGE => image(payload, &limits, counters)
-                .map(|(t, img, _)| self.sync.push_right(t, weight(&img), img)),
             keys::POSE => pose(payload, &limits)
                 .map(|(t, p)| self.sync.push_pose(t, std::mem::size_of::<DAffine3>(), p)),
             keys::LEFT_INFO | keys::RIGHT_INFO => {
@@ -270,47 +329,67 @@ impl Inputs {
     }
 }
 
-/// A stamped image as it came in (packed RGB bytes), with its frame name. Its declared size
-/// is checked against the limits before anything is copied; one larger than the working
-/// size is counted as `input/downscaled` (it is brought to that size if its frame opens a
-/// bin, [`working_frame`]).
+/// A stamped image as it came in, checked, with its frame name. Its declared size is
+/// checked against the limits before anything is copied (for a compressed image, the size
+/// its file's header declares); one larger than the working size is counted as
+/// `input/downscaled` (it is brought to that size if its frame opens a bin,
+/// [`working_frame`]).
 fn image(
     payload: &[u8],
+    transport: Transport,
     limits: &InputLimits,
     counters: &mut Counters,
-) -> Result<(i64, Rgb8Image, String), Unusable> {
-    limits.check_image(&ImageLayout::peek(payload)?)?;
-    let mut msg = Image::decode(payload)?;
-    let stamp = msg.header.stamp.to_nanos();
-    let frame_id = std::mem::take(&mut msg.header.frame_id);
-    let rgb = rgb8_from_image(msg)?;
-    if limits.working_size(rgb.width, rgb.height) != (rgb.width, rgb.height) {
+) -> Result<(i64, InputImage, String), ImageProblem> {
+    let taken = match transport {
+        Transport::Raw => InputImage::raw(payload, limits)?,
+        Transport::Compressed => InputImage::compressed(payload, limits)?,
+    };
+    let (w, h) = taken.1.size();
+    if limits.working_size(w, h) != (w, h) {
         counters.add("input/downscaled", 1);
     }
-    Ok((stamp, rgb, frame_id))
+    Ok(taken)
 }
 
-/// A frame's images as [0, 1] floats at the working size (area-averaged down when larger):
-/// what the worker is given.
-fn working_frame(frame: RawFrame, limits: &InputLimits) -> StereoFrame {
-    let working = |img: &Rgb8Image| {
-        let rgb = img.to_rgb();
-        match limits.working_size(img.width, img.height) {
-            (w, h) if (w, h) == (img.width, img.height) => rgb,
+/// A frame's images as [0, 1] floats at the working size (converted from their encoding or
+/// decoded, then area-averaged down when larger): what the worker is given. An image that
+/// cannot be converted is an error with the key it came on.
+fn working_frame(
+    frame: &RawFrame,
+    limits: &InputLimits,
+) -> Result<StereoFrame, (Topic, ImageProblem)> {
+    let working = |img: &InputImage, topic: Topic| -> Result<RgbImage, (Topic, ImageProblem)> {
+        let rgb = img.to_rgb8(limits).map_err(|e| (topic, e))?.to_rgb();
+        Ok(match limits.working_size(rgb.width, rgb.height) {
+            (w, h) if (w, h) == (rgb.width, rgb.height) => rgb,
             (w, h) => resample_area(&rgb, w, h),
-        }
+        })
     };
-    StereoFrame {
+    let key = |img: &InputImage, raw: Topic, compressed: Topic| match img {
+        InputImage::Raw(_) => raw,
+        InputImage::Compressed { .. } => compressed,
+    };
+    Ok(StereoFrame {
         index: frame.index,
-        left: working(&frame.left),
-        right: working(&frame.right),
+        left: working(
+            &frame.left,
+            key(&frame.left, keys::LEFT_IMAGE, keys::LEFT_COMPRESSED),
+        )?,
+        right: working(
+            &frame.right,
+            key(&frame.right, keys::RIGHT_IMAGE, keys::RIGHT_COMPRESSED),
+        )?,
         left_to_world: frame.left_to_world,
-    }
+    })
 }
 
-/// The bytes an image holds (what the synchroniser's byte budget counts).
-fn weight(img: &Rgb8Image) -> usize {
-    img.data.len()
+/// Counts an unusable sample of `topic`: `bad_message/<topic>`, and a refusal under its
+/// reason too.
+fn count_unusable(topic: Topic, e: &Unusable, counters: &mut Counters) {
+    counters.add(&format!("bad_message/{}", topic.name.replace('/', "_")), 1);
+    if let Unusable::Refused(r) = e {
+        counters.add(r.counter(), 1);
+    }
 }
 
 /// A stamped camera-to-world pose: it must decode, be rigid and lie within the limits.
@@ -347,7 +426,8 @@ fn rig_of(
 fn fits_rig(frame: &RawFrame, rig: &StereoRig, limits: &InputLimits) -> Result<(), Refusal> {
     let camera = (rig.intrinsics.width, rig.intrinsics.height);
     for image in [&frame.left, &frame.right] {
-        let working = limits.working_size(image.width, image.height);
+        let (w, h) = image.size();
+        let working = limits.working_size(w, h);
         if working != camera {
             return Err(Refusal::SizeMismatch {
                 image: working,
@@ -359,12 +439,14 @@ fn fits_rig(frame: &RawFrame, rig: &StereoRig, limits: &InputLimits) -> Result<(
 }
 
 /// The input topics, in the order [`feed`]'s callers number them.
-pub(crate) const INPUT_TOPICS: [Topic; 5] = [
+pub(crate) const INPUT_TOPICS: [Topic; 7] = [
     keys::LEFT_IMAGE,
     keys::RIGHT_IMAGE,
     keys::LEFT_INFO,
     keys::RIGHT_INFO,
     keys::POSE,
+    keys::LEFT_COMPRESSED,
+    keys::RIGHT_COMPRESSED,
 ];
 
 /// Runs `samples` (topic and payload) through a fresh input side with the default

@@ -51,6 +51,19 @@ const fn topic(name: &'static str, kind: MessageKind, direction: Direction) -> T
 pub const LEFT_IMAGE: Topic = topic("left/image", MessageKind::Image, Direction::Input);
 /// sensor_msgs/Image, the rectified right image (input).
 pub const RIGHT_IMAGE: Topic = topic("right/image", MessageKind::Image, Direction::Input);
+/// sensor_msgs/CompressedImage, the left image as JPEG or PNG (input; image_transport's
+/// `compressed` transport of [`LEFT_IMAGE`]).
+pub const LEFT_COMPRESSED: Topic = topic(
+    "left/image/compressed",
+    MessageKind::CompressedImage,
+    Direction::Input,
+);
+/// sensor_msgs/CompressedImage, the right image as JPEG or PNG (input).
+pub const RIGHT_COMPRESSED: Topic = topic(
+    "right/image/compressed",
+    MessageKind::CompressedImage,
+    Direction::Input,
+);
 /// sensor_msgs/CameraInfo of the left camera (input).
 pub const LEFT_INFO: Topic = topic(
     "left/camera_info",
@@ -107,12 +120,14 @@ pub const TF_STATIC: Topic = Topic {
 };
 
 /// Every topic of the node, inputs first.
-pub const TOPICS: [Topic; 14] = [
+pub const TOPICS: [Topic; 16] = [
     LEFT_IMAGE,
     RIGHT_IMAGE,
     LEFT_INFO,
     RIGHT_INFO,
     POSE,
+    LEFT_COMPRESSED,
+    RIGHT_COMPRESSED,
     BIN_MAP,
     BIN_POSE,
     BIN_RENDER,
@@ -204,6 +219,16 @@ impl Keys {
     /// sensor_msgs/Image, the rectified right image (input).
     pub fn right_image(&self) -> String {
         self.key(RIGHT_IMAGE)
+    }
+
+    /// sensor_msgs/CompressedImage, the left image as JPEG or PNG (input).
+    pub fn left_compressed(&self) -> String {
+        self.key(LEFT_COMPRESSED)
+    }
+
+    /// sensor_msgs/CompressedImage, the right image as JPEG or PNG (input).
+    pub fn right_compressed(&self) -> String {
+        self.key(RIGHT_COMPRESSED)
     }
 
     /// sensor_msgs/CameraInfo of the left camera (input).

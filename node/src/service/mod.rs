@@ -12,6 +12,7 @@
 pub mod counters;
 pub mod error;
 mod held;
+mod input_image;
 mod input_thread;
 pub(crate) mod inputs;
 pub mod keys;

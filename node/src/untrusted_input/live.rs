@@ -134,7 +134,8 @@ fn reply_job() -> &'static Job {
 /// The node's whole input path (`Inputs::on_sample_at`, default limits and settings, fresh
 /// counters): the input as one sample on each input topic, then as a stream of samples
 /// ([`frames`]: each part's first byte picks the topic, left image, right image, left and
-/// right camera info, pose, modulo 5; the rest is the payload).
+/// right camera info, pose, left and right compressed image, modulo 7; the rest is the
+/// payload).
 pub fn node_inputs(data: &[u8]) {
     let _ = feed(INPUT_TOPICS.iter().map(|&t| (t, data)));
     let samples = frames(data, MAX_FRAMES).into_iter().filter_map(|part| {

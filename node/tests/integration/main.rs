@@ -49,6 +49,7 @@ mod node_budget;
 mod node_crash;
 mod node_disk_full;
 mod node_far;
+mod node_image_transports;
 mod node_oversize;
 mod node_region;
 mod node_replay;

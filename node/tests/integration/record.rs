@@ -14,7 +14,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
+use model::frame::Rgb8Image;
 use node::bag::{BagReader, BagWriter, Rate};
+use node::msg::compressed::{compressed_image, Compression};
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
 use node::msg::schema::ros2msg;
 use node::msg::sensor_msgs::Image;
@@ -71,6 +73,18 @@ fn payload(kind: MessageKind, i: usize, rng: &mut ChaCha8Rng) -> Vec<u8> {
             }],
         }
         .encode(),
+        MessageKind::CompressedImage => {
+            let (width, height) = (rng.random_range(1..64u32), rng.random_range(1..32u32));
+            let img = Rgb8Image {
+                width,
+                height,
+                data: (0..3 * width * height).map(|_| rng.random()).collect(),
+            };
+            let header = Header::new(stamp, format!("frame_{i}"));
+            compressed_image(&img, Compression::Jpeg { quality: 90 }, header)
+                .expect("encodes")
+                .encode()
+        }
         MessageKind::CameraInfo => samples.camera_info.encode(),
         MessageKind::PoseStamped => samples.pose.encode(),
         MessageKind::PointCloud2 => samples.cloud.encode(),

@@ -97,6 +97,16 @@ impl StereoRectifier {
         &self.rig
     }
 
+    /// The left camera's rectifier.
+    pub fn left(&self) -> &Rectifier {
+        &self.left
+    }
+
+    /// The right camera's rectifier.
+    pub fn right(&self) -> &Rectifier {
+        &self.right
+    }
+
     /// Takes `rig` as the calibration, rebuilding each camera's table only when that
     /// camera's model changed; whether any table was rebuilt.
     pub fn update(&mut self, rig: StereoRig) -> bool {

@@ -15,6 +15,7 @@ use crate::msg::encodings::Encoding;
 use crate::msg::image::rgb8_from_image;
 use crate::msg::sensor_msgs::{CompressedImage, Image, ImageLayout};
 use crate::msg::{ConvertError, DecodeError, Message};
+use crate::rectify::RemapError;
 
 /// Why an image message cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -31,6 +32,9 @@ pub enum ImageProblem {
     /// Outside the input limits.
     #[error(transparent)]
     Refused(#[from] Refusal),
+    /// Not of the size its camera's rectification was built for.
+    #[error("rectifying: {0}")]
+    Rectify(#[from] RemapError),
 }
 
 /// An input image as it came in, checked.

@@ -10,11 +10,17 @@
 //! whose image turns out undecodable then (a cut-off JPEG) is counted against its image's
 //! key and skipped before it opens a bin, so the next frame opens it instead.
 //!
+//! Raw camera images are rectified here, as `stereo_image_proc` does: the camera infos' K,
+//! D, R and P ([`crate::rectify`]) give one remap table per camera, built when a calibration
+//! first arrives or changes, and the node works in the rectified frame P gives. Images of
+//! cameras already rectified (D zero, R identity, P's 3x3 equal to K) pass through.
+//!
 //! Each camera's images come raw (`left/image`) or compressed (`left/image/compressed`,
 //! image_transport's convention): the first valid image of a camera chooses its transport,
 //! and images of the other one are then ignored and counted (`ignored/second_transport`),
 //! so a driver publishing both does not give every frame twice.
 
+use std::borrow::Cow;
 use std::collections::VecDeque;
 
 use glam::DAffine3;
@@ -36,6 +42,7 @@ use crate::msg::{ConvertError, Message};
 use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
 use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
 use crate::pipeline::worker::{now_ns, Job, Stamps};
+use crate::rectify::{self, CameraModel, Rectifier, RemapError, StereoRectifier};
 
 /// Frames kept while no valid pair of camera infos has arrived yet (the oldest is dropped
 /// beyond this and counted as `dropped/no_camera_info`).
@@ -97,6 +104,9 @@ enum Unusable {
     /// Outside the input limits.
     #[error(transparent)]
     Refused(#[from] Refusal),
+    /// An image its camera's rectification does not fit.
+    #[error("rectifying: {0}")]
+    Rectify(RemapError),
 }
 
 impl From<ImageProblem> for Unusable {
@@ -106,6 +116,7 @@ impl From<ImageProblem> for Unusable {
             ImageProblem::Convert(e) => e.into(),
             ImageProblem::Compressed(e) => e.into(),
             ImageProblem::Refused(e) => e.into(),
+            ImageProblem::Rectify(e) => Self::Rectify(e),
         }
     }
 }
@@ -128,6 +139,8 @@ pub(super) struct Inputs {
     left_info: Option<CameraInfo>,
     right_info: Option<CameraInfo>,
     rig: Option<StereoRig>,
+    /// The rig's rectification tables (none built for cameras already rectified).
+    rectifier: Option<StereoRectifier>,
     /// Synchronised frames (with their reset marks and left camera frame names) waiting for
     /// the camera infos.
     waiting_for_rig: VecDeque<(Frame, bool, String)>,
@@ -145,6 +158,7 @@ impl Inputs {
             left_info: None,
             right_info: None,
             rig: None,
+            rectifier: None,
             waiting_for_rig: VecDeque::new(),
             next_index: 0,
             limits,
@@ -211,7 +225,8 @@ impl Inputs {
             // Only a frame that opens a bin is converted, before it does.
             let mut working = None;
             if self.binner.opens(&pose) {
-                match working_frame(&frame.0, &self.limits) {
+                let rectifier = self.rectifier.as_ref().expect("with the rig");
+                match working_frame(&frame.0, rectifier, &self.limits) {
                     Ok(f) => working = Some(f),
                     Err((topic, e)) => {
                         count_unusable(topic, &e.into(), counters);
@@ -290,22 +305,43 @@ impl Inputs {
         }
     }
 
-    /// Keeps a usable, sane camera info and updates the rig.
+    /// Keeps a usable, sane camera info and, once both cameras' are in, updates the rig and
+    /// its rectification (tables rebuilt only when a calibration changed). Two infos that
+    /// no rectified rig can come from are refused as a pair (`refused/stereo_rig`) and the
+    /// rig in force stays; each info is kept, so a recalibration that changes both takes
+    /// effect once both new infos are in.
     fn camera_info(&mut self, topic: Topic, payload: &[u8]) -> Result<(), Unusable> {
         let msg = CameraInfo::decode(payload)?;
         let (k, baseline) = intrinsics_from_camera_info(&msg)?;
         // The right camera's P[3] = -fx * baseline: a rig needs a positive baseline.
         let right = topic == keys::RIGHT_INFO;
         self.limits.check_camera(&k, right.then_some(baseline))?;
+        CameraModel::from_camera_info(&msg).map_err(|e| Refusal::CameraInfo(chain(&e)))?;
         match right {
             true => self.right_info = Some(msg),
             false => self.left_info = Some(msg),
         }
-        self.rig = rig_of(
-            self.left_info.as_ref(),
-            self.right_info.as_ref(),
-            &self.limits,
-        );
+        let (Some(left), Some(right)) = (&self.left_info, &self.right_info) else {
+            return Ok(());
+        };
+        let stereo = rectify::StereoRig::from_camera_infos(left, right)
+            .map_err(|e| Refusal::StereoRig(chain(&e)))?;
+        let (intrinsics, baseline) = stereo.intrinsics();
+        let (w, h) = self
+            .limits
+            .working_size(intrinsics.width, intrinsics.height);
+        let intrinsics = match (w, h) == (intrinsics.width, intrinsics.height) {
+            true => intrinsics,
+            false => intrinsics.scaled(w, h),
+        };
+        self.rig = Some(StereoRig {
+            intrinsics,
+            baseline,
+        });
+        match &mut self.rectifier {
+            Some(r) => _ = r.update(stereo),
+            None => self.rectifier = Some(StereoRectifier::new(stereo)),
+        }
         Ok(())
     }
 
@@ -352,14 +388,25 @@ fn image(
 }
 
 /// A frame's images as [0, 1] floats at the working size (converted from their encoding or
-/// decoded, then area-averaged down when larger): what the worker is given. An image that
-/// cannot be converted is an error with the key it came on.
+/// decoded, rectified unless their cameras are rectified already, then area-averaged down
+/// when larger): what the worker is given. An image that cannot be converted is an error
+/// with the key it came on.
 fn working_frame(
     frame: &RawFrame,
+    rectifier: &StereoRectifier,
     limits: &InputLimits,
 ) -> Result<StereoFrame, (Topic, ImageProblem)> {
-    let working = |img: &InputImage, topic: Topic| -> Result<RgbImage, (Topic, ImageProblem)> {
-        let rgb = img.to_rgb8(limits).map_err(|e| (topic, e))?.to_rgb();
+    let working = |img: &InputImage,
+                   camera: &Rectifier,
+                   topic: Topic|
+     -> Result<RgbImage, (Topic, ImageProblem)> {
+        let fail = |e: ImageProblem| (topic, e);
+        let raw = img.to_rgb8(limits).map_err(fail)?;
+        let rectified = match camera.rectify(&raw).map_err(|e| fail(e.into()))? {
+            Cow::Owned(rectified) => Some(rectified),
+            Cow::Borrowed(_) => None,
+        };
+        let rgb = rectified.unwrap_or(raw).to_rgb();
         Ok(match limits.working_size(rgb.width, rgb.height) {
             (w, h) if (w, h) == (rgb.width, rgb.height) => rgb,
             (w, h) => resample_area(&rgb, w, h),
@@ -373,14 +420,28 @@ fn working_frame(
         index: frame.index,
         left: working(
             &frame.left,
+            rectifier.left(),
             key(&frame.left, keys::LEFT_IMAGE, keys::LEFT_COMPRESSED),
         )?,
         right: working(
             &frame.right,
+            rectifier.right(),
             key(&frame.right, keys::RIGHT_IMAGE, keys::RIGHT_COMPRESSED),
         )?,
         left_to_world: frame.left_to_world,
     })
+}
+
+/// An error with its causes, `: `-separated.
+fn chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
 }
 
 /// Counts an unusable sample of `topic`: `bad_message/<topic>`, and a refusal under its
@@ -398,26 +459,6 @@ fn pose(payload: &[u8], limits: &InputLimits) -> Result<(i64, DAffine3), Unusabl
     let pose = affine_from_pose(&msg)?;
     limits.check_pose(&pose)?;
     Ok((msg.header.stamp.to_nanos(), pose))
-}
-
-/// The rig once both camera infos are known, its intrinsics scaled to the working size of
-/// their image size (the size the images are brought to by [`image`]).
-fn rig_of(
-    left: Option<&CameraInfo>,
-    right: Option<&CameraInfo>,
-    limits: &InputLimits,
-) -> Option<StereoRig> {
-    let (intrinsics, _) = intrinsics_from_camera_info(left?).ok()?;
-    let (_, baseline) = intrinsics_from_camera_info(right?).ok()?;
-    let (w, h) = limits.working_size(intrinsics.width, intrinsics.height);
-    let intrinsics = match (w, h) == (intrinsics.width, intrinsics.height) {
-        true => intrinsics,
-        false => intrinsics.scaled(w, h),
-    };
-    Some(StereoRig {
-        intrinsics,
-        baseline,
-    })
 }
 
 /// Whether a frame's images, at their working size, have the size of the rig's cameras; a

@@ -117,6 +117,10 @@ pub enum Refusal {
     /// A camera calibration that no real camera has.
     #[error("camera info refused: {0}")]
     CameraInfo(String),
+    /// Two camera infos that no rectified stereo rig can come from (the rig in force, if
+    /// any, stays).
+    #[error("camera infos refused as a stereo rig: {0}")]
+    StereoRig(String),
     /// A frame whose images do not have the size of the camera infos in force.
     #[error("frame of {image:?} pixels does not match the camera's {camera:?}")]
     SizeMismatch {
@@ -136,6 +140,7 @@ impl Refusal {
             Refusal::EmptyImage { .. } => "refused/image_empty",
             Refusal::PoseOutOfRange { .. } => "refused/pose_out_of_range",
             Refusal::CameraInfo(_) => "refused/camera_info",
+            Refusal::StereoRig(_) => "refused/stereo_rig",
             Refusal::SizeMismatch { .. } => "refused/image_size_mismatch",
         }
     }

@@ -47,6 +47,7 @@
 mod cache;
 mod error;
 mod odometry;
+mod pose_source;
 
 use std::collections::HashMap;
 
@@ -58,6 +59,10 @@ use cache::{At, Refused, Sample, TimeCache};
 
 pub use error::TfError;
 pub use odometry::{camera_pose_from_odometry, odometry_transform, CameraPose};
+pub use pose_source::{
+    GiveUp, Mount, PoseSource, PoseSourceConfig, PoseSourceError, PoseSourceKind,
+    DEFAULT_MAX_PENDING, DEFAULT_WAIT_NS,
+};
 
 /// The stamp that asks [`TfBuffer::lookup`] for the latest common time (tf2's
 /// `TimePointZero`).

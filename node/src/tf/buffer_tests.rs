@@ -14,7 +14,13 @@ const PERIOD: i64 = 100_000_000;
 /// The first odometry stamp (2023).
 const T0: i64 = 1_700_000_000_000_000_000;
 
-fn transform(parent: &str, child: &str, stamp_ns: i64, q: DQuat, t: DVec3) -> TransformStamped {
+pub(super) fn transform(
+    parent: &str,
+    child: &str,
+    stamp_ns: i64,
+    q: DQuat,
+    t: DVec3,
+) -> TransformStamped {
     TransformStamped {
         header: Header::new(stamp_ns, parent),
         child_frame_id: child.into(),
@@ -36,7 +42,7 @@ fn transform(parent: &str, child: &str, stamp_ns: i64, q: DQuat, t: DVec3) -> Tr
 
 /// REP 103's optical frame in its camera's body frame: optical x right (body -y), y down
 /// (body -z), z forward (body x).
-fn optical() -> DQuat {
+pub(super) fn optical() -> DQuat {
     DQuat::from_mat3(&DMat3::from_cols(
         DVec3::new(0.0, -1.0, 0.0),
         DVec3::new(0.0, 0.0, -1.0),
@@ -97,7 +103,7 @@ fn robot(n: i64) -> TfBuffer {
 }
 
 /// The largest difference between the images of a few points under `a` and `b`.
-fn distance(a: &DAffine3, b: &DAffine3) -> f64 {
+pub(super) fn distance(a: &DAffine3, b: &DAffine3) -> f64 {
     [DVec3::ZERO, DVec3::X, DVec3::new(-2.0, 3.0, 10.0)]
         .into_iter()
         .map(|p| (a.transform_point3(p) - b.transform_point3(p)).length())
@@ -571,4 +577,36 @@ fn latest_is_the_newest_time_every_dynamic_edge_has() {
     // A static path has no latest time; a lookup there holds at any stamp.
     assert_eq!(tf.latest_common("base_link", "camera_optical"), Ok(None));
     assert!(tf.lookup("base_link", "camera_optical", LATEST).is_ok());
+}
+
+#[test]
+fn a_leading_slash_names_the_same_frame_as_tf2_strips_it() {
+    let mut tf = robot(2);
+    let t = transform("/base_link", "/lidar", T0, DQuat::IDENTITY, DVec3::Z);
+    tf.insert(&t, true).unwrap();
+    assert_eq!(tf.parent("lidar"), Some("base_link"));
+    assert_eq!(tf.parent("/lidar"), Some("base_link"));
+    assert_eq!(tf.frames().filter(|f| f.starts_with('/')).count(), 0);
+    let plain = tf.lookup("world", "lidar", T0 + PERIOD).unwrap();
+    let slashed = tf.lookup("/world", "/lidar", T0 + PERIOD).unwrap();
+    assert_eq!(plain, slashed);
+    assert_eq!(tf.lookup("/lidar", "lidar", T0), Ok(DAffine3::IDENTITY));
+    assert_eq!(
+        tf.latest_common("/world", "lidar"),
+        Ok(Some(T0 + 2 * PERIOD))
+    );
+    // One slash only, as tf2: `/` alone is empty, `//a` is the frame `/a`.
+    let bare = transform("/", "a", T0, DQuat::IDENTITY, DVec3::Z);
+    assert_eq!(
+        tf.insert(&bare, true),
+        Err(TfError::EmptyFrameName("header.frame_id"))
+    );
+    tf.insert(
+        &transform("world", "//a", T0, DQuat::IDENTITY, DVec3::Z),
+        true,
+    )
+    .unwrap();
+    assert_eq!(tf.parent("//a"), Some("world"));
+    assert!(tf.frames().any(|f| f == "/a"));
+    assert_eq!(tf.parent("a"), None);
 }

@@ -31,8 +31,10 @@
 //!   A transform really stamped 0 ns is stored as any other, but a lookup at exactly 0 ns
 //!   always means the latest common time.
 //! - Looking a frame up against itself is the identity, known or not (as tf2).
-//! - Frame names are taken as they are (no leading `/` stripped); they must be non-empty,
-//!   distinct and at most [`TfConfig::max_name_bytes`]. Non-finite values and quaternions
+//! - One leading `/` of a frame name is dropped (tf2 strips it on insert, as ROS 1's tf
+//!   names had it; tf2 refuses it on lookup, here it is dropped there too), so `/odom` and
+//!   `odom` are one frame; names must then be non-empty, distinct and at most
+//!   [`TfConfig::max_name_bytes`]. Non-finite values and quaternions
 //!   more than [`UNIT_TOLERANCE`](crate::msg::pose::UNIT_TOLERANCE) from unit norm are
 //!   refused; the rest are normalised.
 //!
@@ -45,6 +47,7 @@
 mod cache;
 mod error;
 mod odometry;
+mod pose_source;
 
 use std::collections::HashMap;
 
@@ -56,6 +59,10 @@ use cache::{At, Refused, Sample, TimeCache};
 
 pub use error::TfError;
 pub use odometry::{camera_pose_from_odometry, odometry_transform, CameraPose};
+pub use pose_source::{
+    GiveUp, Mount, PoseSource, PoseSourceConfig, PoseSourceError, PoseSourceKind,
+    DEFAULT_MAX_PENDING, DEFAULT_WAIT_NS,
+};
 
 /// The stamp that asks [`TfBuffer::lookup`] for the latest common time (tf2's
 /// `TimePointZero`).
@@ -203,7 +210,9 @@ impl TfBuffer {
 
     /// The parent of `frame`, if it is known and has one.
     pub fn parent(&self, frame: &str) -> Option<&str> {
-        let (parent, _) = self.frames[*self.ids.get(frame)?].edge.as_ref()?;
+        let (parent, _) = self.frames[*self.ids.get(strip_slash(frame))?]
+            .edge
+            .as_ref()?;
         Some(&self.frames[*parent].name)
     }
 
@@ -237,8 +246,8 @@ impl TfBuffer {
     }
 
     fn try_insert(&mut self, transform: &TransformStamped, is_static: bool) -> Result<(), TfError> {
-        let parent = transform.header.frame_id.as_str();
-        let child = transform.child_frame_id.as_str();
+        let parent = strip_slash(&transform.header.frame_id);
+        let child = strip_slash(&transform.child_frame_id);
         self.check_names(parent, child)?;
         let (rotation, translation) =
             checked_transform(&transform.transform).map_err(|source| TfError::Invalid {
@@ -372,10 +381,10 @@ impl TfBuffer {
         true
     }
 
-    /// The id of a known frame.
+    /// The id of a known frame (a leading `/` dropped).
     fn id(&self, name: &str) -> Result<usize, TfError> {
         self.ids
-            .get(name)
+            .get(strip_slash(name))
             .copied()
             .ok_or_else(|| TfError::UnknownFrame(name.to_owned()))
     }
@@ -498,7 +507,7 @@ impl TfBuffer {
     /// The latest stamp every dynamic edge between the two frames has (tf2's
     /// `getLatestCommonTime`), `None` when the path is static only (any stamp then).
     pub fn latest_common(&self, target: &str, source: &str) -> Result<Option<i64>, TfError> {
-        if target == source {
+        if strip_slash(target) == strip_slash(source) {
             return Ok(None);
         }
         let (t, s) = (self.id(target)?, self.id(source)?);
@@ -519,7 +528,7 @@ impl TfBuffer {
     /// The transform that takes points in `source` to `target` at `stamp_ns` (or, at
     /// [`LATEST`], at [`TfBuffer::latest_common`]): `target <- common ancestor <- source`.
     pub fn lookup(&self, target: &str, source: &str, stamp_ns: i64) -> Result<DAffine3, TfError> {
-        if target == source {
+        if strip_slash(target) == strip_slash(source) {
             return Ok(DAffine3::IDENTITY);
         }
         let (t, s) = (self.id(target)?, self.id(source)?);
@@ -535,7 +544,7 @@ impl TfBuffer {
     /// `base_link` <- `camera_optical_frame`); a dynamic edge on the path is
     /// [`TfError::NotStatic`].
     pub fn lookup_static(&self, target: &str, source: &str) -> Result<DAffine3, TfError> {
-        if target == source {
+        if strip_slash(target) == strip_slash(source) {
             return Ok(DAffine3::IDENTITY);
         }
         let (t, s) = (self.id(target)?, self.id(source)?);
@@ -555,6 +564,11 @@ impl TfBuffer {
         let r = target_up.inverse().then_after(source_up);
         Ok(DAffine3::from_rotation_translation(r.q.normalize(), r.t))
     }
+}
+
+/// `name` without one leading `/` (tf2's `stripSlash`).
+fn strip_slash(name: &str) -> &str {
+    name.strip_prefix('/').unwrap_or(name)
 }
 
 #[cfg(test)]

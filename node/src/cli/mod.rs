@@ -23,6 +23,7 @@ pub mod launch;
 pub mod logs;
 pub mod method_args;
 pub mod operating_args;
+pub mod pose_args;
 pub mod progress;
 pub mod reconstruct;
 pub mod render;

@@ -20,6 +20,7 @@ use renderer::formats::MapFormat;
 use super::logs::{self, BagReplayArgs};
 use super::method_args::MethodArgs;
 use super::operating_args::OperatingArgs;
+use super::pose_args::PoseArgs;
 use super::progress;
 use super::shutdown::shutdown_signal;
 use super::view::{self, ViewFlags};
@@ -174,6 +175,8 @@ pub struct RunArgs {
     #[command(flatten)]
     limits: LimitsArgs,
     #[command(flatten)]
+    poses: PoseArgs,
+    #[command(flatten)]
     view: ViewFlags,
     /// Stream the outputs to Foxglove through a WebSocket server made with Foxglove's SDK
     /// (docs/foxglove.md), on this address (loopback by default; another prints a warning;
@@ -246,6 +249,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             ..BinnerConfig::default()
         },
         queue_capacity: args.queue,
+        pose_source: args.poses.config()?,
         on_check_fail: args.on_check_fail.into(),
         fusion: FusionConfig {
             keep: Keep {

@@ -34,6 +34,9 @@ pub enum ServiceError {
     /// The Foxglove server did not start (`run --foxglove`).
     #[error(transparent)]
     Foxglove(#[from] crate::foxglove::FoxgloveError),
+    /// The pose source's settings (`run --pose-source`).
+    #[error(transparent)]
+    PoseSource(#[from] crate::tf::PoseSourceError),
     /// The thread that returns freed memory to the system did not start.
     #[error("starting the memory-release thread: {0}")]
     MemoryRelease(#[source] std::io::Error),

@@ -15,6 +15,12 @@
 //! first arrives or changes, and the node works in the rectified frame P gives. Images of
 //! cameras already rectified (D zero, R identity, P's 3x3 equal to K) pass through.
 //!
+//! Poses come from the `pose` topic (a PoseStamped of the left camera), or from a pose
+//! source ([`crate::tf::PoseSource`], `run --pose-source tf|odometry`): each left image's
+//! stamp then waits for the `/tf` tree (or the odometry and the camera's mount on
+//! `/tf_static`) to reach it, and the pose looked up there is paired like a PoseStamped one
+//! (`pose` samples are then ignored and counted, `ignored/pose_topic`).
+//!
 //! Each camera's images come raw (`left/image`) or compressed (`left/image/compressed`,
 //! image_transport's convention): the first valid image of a camera chooses its transport,
 //! and images of the other one are then ignored and counted (`ignored/second_transport`),
@@ -36,13 +42,16 @@ use crate::msg::cdr::DecodeError;
 use crate::msg::compressed::CompressedError;
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::intrinsics_from_camera_info;
+use crate::msg::nav_msgs::Odometry;
 use crate::msg::pose::affine_from_pose;
 use crate::msg::sensor_msgs::CameraInfo;
+use crate::msg::tf2_msgs::TfMessage;
 use crate::msg::{ConvertError, Message};
 use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
 use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
 use crate::pipeline::worker::{now_ns, Job, Stamps};
 use crate::rectify::{self, CameraModel, Rectifier, RemapError, StereoRectifier};
+use crate::tf::PoseSource;
 
 /// Frames kept while no valid pair of camera infos has arrived yet (the oldest is dropped
 /// beyond this and counted as `dropped/no_camera_info`).
@@ -133,6 +142,8 @@ enum Transport {
 /// Decoders, synchroniser, camera model and binner.
 pub(super) struct Inputs {
     sync: Synchronizer<Left, InputImage, DAffine3>,
+    /// Where poses come from when not the `pose` topic.
+    pose_source: Option<PoseSource>,
     /// Each camera's transport (left, right), chosen by its first valid image.
     transports: [Option<Transport>; 2],
     binner: Binner<Frame>,
@@ -149,9 +160,16 @@ pub(super) struct Inputs {
 }
 
 impl Inputs {
-    /// Nothing received yet; inputs are checked against `limits`.
-    pub fn new(sync: SyncConfig, binner: BinnerConfig, limits: InputLimits) -> Self {
+    /// Nothing received yet; inputs are checked against `limits`; poses come from the
+    /// `pose` topic, or from `pose_source` (`/tf` or odometry) when given.
+    pub fn new(
+        sync: SyncConfig,
+        binner: BinnerConfig,
+        limits: InputLimits,
+        pose_source: Option<PoseSource>,
+    ) -> Self {
         Self {
+            pose_source,
             sync: Synchronizer::new(sync),
             transports: [None; 2],
             binner: Binner::new(binner),
@@ -290,14 +308,33 @@ impl Inputs {
             let (t, img, frame_id) = image(payload, transport, &limits, counters)?;
             self.transports[camera] = Some(transport);
             let weight = img.bytes();
-            return Ok(match camera {
-                0 => self.sync.push_left(t, weight, (img, arrival_ns, frame_id)),
-                _ => self.sync.push_right(t, weight, img),
-            });
+            if camera == 1 {
+                return Ok(self.sync.push_right(t, weight, img));
+            }
+            if let Some(source) = &mut self.pose_source {
+                source.on_image(t, &frame_id, arrival_ns);
+            }
+            let mut frames = self.sync.push_left(t, weight, (img, arrival_ns, frame_id));
+            frames.extend(self.ready_poses(counters));
+            return Ok(frames);
         }
         match topic {
+            keys::POSE if self.pose_source.is_some() => {
+                counters.add("ignored/pose_topic", 1);
+                Ok(Vec::new())
+            }
             keys::POSE => pose(payload, &limits)
                 .map(|(t, p)| self.sync.push_pose(t, std::mem::size_of::<DAffine3>(), p)),
+            keys::TF | keys::TF_STATIC | keys::ODOMETRY => {
+                let Some(source) = &mut self.pose_source else {
+                    return Ok(Vec::new());
+                };
+                match topic {
+                    keys::ODOMETRY => source.on_odometry(&Odometry::decode(payload)?),
+                    _ => source.on_tf(&TfMessage::decode(payload)?, topic == keys::TF_STATIC),
+                }
+                Ok(self.ready_poses(counters))
+            }
             keys::LEFT_INFO | keys::RIGHT_INFO => {
                 self.camera_info(topic, payload).map(|()| Vec::new())
             }
@@ -343,6 +380,30 @@ impl Inputs {
             None => self.rectifier = Some(StereoRectifier::new(stereo)),
         }
         Ok(())
+    }
+
+    /// The poses the pose source has for waiting image stamps, checked against the limits
+    /// and paired like PoseStamped poses: the frames they complete. Sets the pose source's
+    /// counters.
+    fn ready_poses(&mut self, counters: &mut Counters) -> Vec<SyncedFrame> {
+        let Some(source) = &mut self.pose_source else {
+            return Vec::new();
+        };
+        let ready = source.take_ready(now_ns());
+        for (name, value) in source.counts() {
+            counters.set(name, value);
+        }
+        let mut frames = Vec::new();
+        for (t, pose) in ready {
+            match self.limits.check_pose(&pose) {
+                Ok(()) => {
+                    let weight = std::mem::size_of::<DAffine3>();
+                    frames.extend(self.sync.push_pose(t, weight, pose));
+                }
+                Err(r) => counters.add(r.counter(), 1),
+            }
+        }
+        frames
     }
 
     /// A synchronised frame with its stamps, and its left camera's frame name.
@@ -447,7 +508,8 @@ fn chain(e: &dyn std::error::Error) -> String {
 /// Counts an unusable sample of `topic`: `bad_message/<topic>`, and a refusal under its
 /// reason too.
 fn count_unusable(topic: Topic, e: &Unusable, counters: &mut Counters) {
-    counters.add(&format!("bad_message/{}", topic.name.replace('/', "_")), 1);
+    let name = topic.name.trim_start_matches('/').replace('/', "_");
+    counters.add(&format!("bad_message/{name}"), 1);
     if let Unusable::Refused(r) = e {
         counters.add(r.counter(), 1);
     }
@@ -500,6 +562,7 @@ pub(crate) fn feed<'a>(samples: impl IntoIterator<Item = (Topic, &'a [u8])>) -> 
         SyncConfig::default(),
         BinnerConfig::default(),
         InputLimits::default(),
+        None,
     );
     let mut counters = Counters::default();
     let mut jobs = 0;

@@ -78,6 +78,9 @@ pub const RIGHT_INFO: Topic = topic(
 );
 /// geometry_msgs/PoseStamped, left camera to world (input).
 pub const POSE: Topic = topic("pose", MessageKind::PoseStamped, Direction::Input);
+/// nav_msgs/Odometry of the robot's body, the pose source of `--pose-source odometry`
+/// (input).
+pub const ODOMETRY: Topic = topic("odometry", MessageKind::Odometry, Direction::Input);
 /// sensor_msgs/PointCloud2, each bin's Gaussian map in the bin frame (output).
 pub const BIN_MAP: Topic = topic("bin/map", MessageKind::PointCloud2, Direction::Output);
 /// geometry_msgs/PoseStamped, each bin frame's pose in the world, f64 (output).
@@ -120,7 +123,7 @@ pub const TF_STATIC: Topic = Topic {
 };
 
 /// Every topic of the node, inputs first.
-pub const TOPICS: [Topic; 16] = [
+pub const TOPICS: [Topic; 17] = [
     LEFT_IMAGE,
     RIGHT_IMAGE,
     LEFT_INFO,
@@ -128,6 +131,7 @@ pub const TOPICS: [Topic; 16] = [
     POSE,
     LEFT_COMPRESSED,
     RIGHT_COMPRESSED,
+    ODOMETRY,
     BIN_MAP,
     BIN_POSE,
     BIN_RENDER,
@@ -219,6 +223,11 @@ impl Keys {
     /// sensor_msgs/Image, the rectified right image (input).
     pub fn right_image(&self) -> String {
         self.key(RIGHT_IMAGE)
+    }
+
+    /// nav_msgs/Odometry of the robot's body (input, `--pose-source odometry`).
+    pub fn odometry(&self) -> String {
+        self.key(ODOMETRY)
     }
 
     /// sensor_msgs/CompressedImage, the left image as JPEG or PNG (input).

@@ -26,6 +26,7 @@ pub mod monitor;
 pub mod node;
 mod outputs;
 mod pace;
+mod pose_topics;
 pub mod record;
 pub mod region;
 pub mod replay;

@@ -19,6 +19,7 @@ use super::map_store::{Compaction, MapStore, Paging};
 use super::memory::{limit_arenas_to_cores, Releaser};
 use super::outputs::{NodeSummary, Outputs, RegionPages};
 use super::pace::Pace;
+use super::pose_topics::PoseTopics;
 use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
 use super::workers::{publish_released, workers_event, STALL_CHECK};
@@ -31,6 +32,7 @@ use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::{RenderWith, Worker, WorkerEvent};
 use crate::remote::{Dispatch, Fingerprint, Pool, PoolConfig, Slot};
+use crate::tf::{PoseSource, PoseSourceConfig};
 use crate::transport::{open, Outlet, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
@@ -96,6 +98,9 @@ pub struct NodeConfig {
     pub operating: Option<OperatingConfig>,
     /// Who makes the bins' maps: the node's own worker thread, worker processes, or both.
     pub workers: WorkersConfig,
+    /// Where the left camera's poses come from: the `pose` topic (`None`), or `/tf` or the
+    /// odometry topic through a tf buffer.
+    pub pose_source: Option<PoseSourceConfig>,
     /// The memory the allocator keeps after it is freed goes back to the system this often,
     /// and its arenas are capped at one per core ([`super::memory`]), so resident memory
     /// follows the map in memory on a long drive (zero: neither, the allocator's defaults).
@@ -220,6 +225,7 @@ impl Default for NodeConfig {
             foxglove: None,
             operating: None,
             workers: WorkersConfig::default(),
+            pose_source: None,
             release_memory_every: std::time::Duration::from_secs(5),
         }
     }
@@ -350,8 +356,16 @@ pub async fn run_with(
             let _ = out_tx.send(o);
         },
     );
+    let pose_source = match config.pose_source.clone() {
+        Some(c) => Some(PoseSource::new(c)?),
+        None => None,
+    };
+    let pose_topics = match pose_source {
+        Some(_) => Some(PoseTopics::declare(&session, keys).await?),
+        None => None,
+    };
     let (mut input_thread, mut batches) =
-        InputThread::spawn(Inputs::new(config.sync, binner, config.limits));
+        InputThread::spawn(Inputs::new(config.sync, binner, config.limits, pose_source));
     let mut snapshot_gate =
         SnapshotGate::new(keys.snapshot_request(), config.limits.snapshot_interval);
     let bev = config.renders != RenderWith::Off;
@@ -420,6 +434,9 @@ pub async fn run_with(
                     Some(&t) => input_thread.send(t, s.payload().clone()).await,
                     None => outputs.counters.add("ignored/unknown_key", 1),
                 }
+            },
+            (t, s) = PoseTopics::next(pose_topics.as_ref()), if stopping.is_none() => {
+                input_thread.send(t, s.payload().clone()).await;
             },
             batch = batches.recv(), if inputs_open => match batch {
                 Some(batch) => {

@@ -51,6 +51,7 @@ mod node_disk_full;
 mod node_far;
 mod node_image_transports;
 mod node_oversize;
+mod node_pose_sources;
 mod node_region;
 mod node_replay;
 mod node_ros2;

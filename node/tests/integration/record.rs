@@ -86,6 +86,7 @@ fn payload(kind: MessageKind, i: usize, rng: &mut ChaCha8Rng) -> Vec<u8> {
                 .encode()
         }
         MessageKind::CameraInfo => samples.camera_info.encode(),
+        MessageKind::Odometry => samples.odometry.encode(),
         MessageKind::PoseStamped => samples.pose.encode(),
         MessageKind::PointCloud2 => samples.cloud.encode(),
         MessageKind::MapUpdate => samples.map_update.encode(),

@@ -12,6 +12,7 @@ use super::shutdown::shutdown_signal;
 use super::zenoh_args::ZenohArgs;
 use crate::bag::{BagReader, Rate};
 use crate::msg::latency::BinLatency;
+use crate::service::keys::{Direction, Topic, TOPICS};
 use crate::service::latency_stats::bin_stages_ms;
 use crate::service::{self, BagReplayOptions, LatencyStats, MonitorEvent, RecordLimits};
 use crate::transport::open;
@@ -83,6 +84,65 @@ pub struct BagReplayArgs {
     /// published under `--namespace`).
     #[arg(long, conflicts_with = "data")]
     bag_namespace: Option<String>,
+    /// A recorded topic replayed as one of the node's: `NODE_TOPIC=RECORDED_TOPIC`, e.g.
+    /// `left/image/compressed=/camera/left/image_raw/compressed` or `/tf=/tf` (repeat it;
+    /// the node's topics are listed in docs/node.md).
+    #[arg(
+        long = "topic",
+        value_name = "NODE_TOPIC=RECORDED_TOPIC",
+        conflicts_with = "data"
+    )]
+    topics: Vec<String>,
+    /// A TOML file of such pairs, one `"NODE_TOPIC" = "RECORDED_TOPIC"` a line (`--topic`
+    /// flags come after it and win).
+    #[arg(long, conflicts_with = "data")]
+    topic_map: Option<PathBuf>,
+}
+
+impl BagReplayArgs {
+    /// The topic map of `--topic-map` and `--topic`.
+    fn topic_map(&self) -> Result<Vec<(String, Topic)>> {
+        let mut pairs: Vec<(String, String)> = Vec::new();
+        if let Some(path) = &self.topic_map {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading the topic map {}", path.display()))?;
+            let table: toml::Table = text
+                .parse()
+                .with_context(|| format!("the topic map {}", path.display()))?;
+            for (node, recorded) in table {
+                let recorded = recorded.as_str().with_context(|| {
+                    format!(
+                        "{}: `{node}` must name a recorded topic (a string)",
+                        path.display()
+                    )
+                })?;
+                pairs.push((node, recorded.to_string()));
+            }
+        }
+        for flag in &self.topics {
+            let (node, recorded) = flag
+                .split_once('=')
+                .with_context(|| format!("--topic {flag}: give NODE_TOPIC=RECORDED_TOPIC"))?;
+            pairs.push((node.to_string(), recorded.to_string()));
+        }
+        let mut map: Vec<(String, Topic)> = Vec::new();
+        for (node, recorded) in pairs {
+            let topic = TOPICS
+                .into_iter()
+                .find(|t| t.name.trim_start_matches('/') == node.trim().trim_start_matches('/'))
+                .with_context(|| {
+                    let names: Vec<&str> = TOPICS
+                        .iter()
+                        .filter(|t| t.direction == Direction::Input || t.name.starts_with('/'))
+                        .map(|t| t.name)
+                        .collect();
+                    format!("`{node}` is not a topic of the node ({})", names.join(", "))
+                })?;
+            map.retain(|(r, _)| r != recorded.trim());
+            map.push((recorded.trim().to_string(), topic));
+        }
+        Ok(map)
+    }
 }
 
 /// Replays the MCAP recording at `path` onto the node's keys, with a progress bar. A recording
@@ -103,6 +163,7 @@ pub fn replay_mcap(
         rate,
         inputs_only: args.inputs_only,
         recorded_namespace: args.bag_namespace.clone(),
+        topic_map: args.topic_map()?,
     };
     let keys = zenoh.keys();
     let runtime = tokio::runtime::Runtime::new()?;
@@ -125,6 +186,9 @@ pub fn replay_mcap(
     );
     for (topic, count) in &summary.unknown_topics {
         println!("skipped {count} messages on {topic} (not a topic of the node)");
+    }
+    for (topic, count) in &summary.wrong_types {
+        eprintln!("skipped {count} messages on {topic}: not of the type of the node topic it is mapped to");
     }
     Ok(())
 }

@@ -1,5 +1,5 @@
 //! `run`'s flags for where the left camera's poses come from: the `pose` topic, `/tf`, or
-//! the odometry topic (docs/ros2.md, "Poses from /tf or odometry").
+//! the odometry topic (docs/robot-topics.md, "Poses").
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};

@@ -353,8 +353,10 @@ pub struct ReplayArgs {
     /// Sequence (default: the first under data_2d_raw).
     #[arg(long, conflicts_with = "mcap")]
     seq: Option<String>,
-    /// An MCAP recording of the node's topics (`stereosplat record`) to replay instead.
-    #[arg(long)]
+    /// An MCAP recording to replay instead: of the node's topics (`stereosplat record`), or
+    /// a robot's `ros2 bag record` with `--topic` or `--topic-map` saying which recorded
+    /// topic is which of the node's.
+    #[arg(long, visible_alias = "bag")]
     mcap: Option<PathBuf>,
     #[command(flatten)]
     bag: BagReplayArgs,

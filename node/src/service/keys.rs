@@ -47,9 +47,9 @@ const fn topic(name: &'static str, kind: MessageKind, direction: Direction) -> T
     }
 }
 
-/// sensor_msgs/Image, the rectified left image (input).
+/// sensor_msgs/Image, the left image, rectified or raw (input).
 pub const LEFT_IMAGE: Topic = topic("left/image", MessageKind::Image, Direction::Input);
-/// sensor_msgs/Image, the rectified right image (input).
+/// sensor_msgs/Image, the right image, rectified or raw (input).
 pub const RIGHT_IMAGE: Topic = topic("right/image", MessageKind::Image, Direction::Input);
 /// sensor_msgs/CompressedImage, the left image as JPEG or PNG (input; image_transport's
 /// `compressed` transport of [`LEFT_IMAGE`]).
@@ -215,12 +215,12 @@ impl Keys {
         TOPICS.iter().copied().find(|&t| self.key(t) == key)
     }
 
-    /// sensor_msgs/Image, the rectified left image (input).
+    /// sensor_msgs/Image, the left image, rectified or raw (input).
     pub fn left_image(&self) -> String {
         self.key(LEFT_IMAGE)
     }
 
-    /// sensor_msgs/Image, the rectified right image (input).
+    /// sensor_msgs/Image, the right image, rectified or raw (input).
     pub fn right_image(&self) -> String {
         self.key(RIGHT_IMAGE)
     }

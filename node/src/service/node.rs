@@ -541,7 +541,10 @@ pub async fn run_with(
                     dispatch.submit(*job);
                 }
                 Step::Closed(bin_id) => outputs.bin_closed(bin_id, dispatch.drops()).await?,
-                Step::Camera(camera) => outputs.camera_moved(camera).await?,
+                Step::Camera(camera) => {
+                    let on_tf = config.pose_source.is_none();
+                    outputs.camera_moved(camera, on_tf).await?
+                }
             }
         }
         for a in dispatch.assign(Instant::now()) {

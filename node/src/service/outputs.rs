@@ -326,10 +326,19 @@ impl<'a> Outputs<'a> {
         Header::new(self.latest_source_ns, WORLD)
     }
 
-    /// Publishes world -> the left camera of a frame that entered the binner on `/tf`.
-    pub async fn camera_moved(&mut self, camera: CameraPose) -> Result<(), ServiceError> {
+    /// Publishes world -> the left camera of a frame that entered the binner on `/tf`, when
+    /// `on_tf` (not when the camera's pose came from the `/tf` tree itself: its frame has a
+    /// parent there already), and to Foxglove.
+    pub async fn camera_moved(
+        &mut self,
+        camera: CameraPose,
+        on_tf: bool,
+    ) -> Result<(), ServiceError> {
         if let Some(f) = self.foxglove {
             f.camera(&camera.frame_id, &camera.left_to_world, camera.stamp_ns);
+        }
+        if !on_tf {
+            return Ok(());
         }
         let msg = TfMessage {
             transforms: vec![world_to(

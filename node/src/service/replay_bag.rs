@@ -1,13 +1,17 @@
-//! Replaying an MCAP recording of the node's topics ([`super::record()`]) onto zenoh: each
-//! message's payload goes out verbatim on the key of its topic, at the recorded pace (or a
-//! multiple of it, or as fast as possible).
+//! Replaying an MCAP recording onto zenoh: each message's payload goes out verbatim on the
+//! key of its topic (so its header keeps the stamp it was recorded with), at the recorded
+//! pace (or a multiple of it, or as fast as possible). A recording of the node's own topics
+//! ([`super::record()`]) replays by their names; a robot's `ros2 bag record` MCAP replays
+//! through a topic map (which recorded topic is which of the node's inputs), each mapped
+//! channel's type checked against the topic's: a channel of another type is skipped and
+//! counted, never published as the wrong message.
 
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use zenoh::Session;
 
-use super::keys::{Direction, Keys, TOPICS};
+use super::keys::{Direction, Keys, Topic, TOPICS};
 use super::record::LogError;
 use crate::bag::{BagReader, Pacer, Rate};
 use crate::transport::Outlet;
@@ -22,6 +26,9 @@ pub struct BagReplayOptions {
     /// The namespace the recording was made under, when it is not the namespace of the keys
     /// the messages are published on (`None`: the same).
     pub recorded_namespace: Option<String>,
+    /// Recorded topics (as the bag names them, e.g. `/camera/left/image_raw/compressed`)
+    /// published as one of the node's topics; they take precedence over the names.
+    pub topic_map: Vec<(String, Topic)>,
 }
 
 /// What an MCAP replay did.
@@ -33,6 +40,8 @@ pub struct BagReplaySummary {
     pub skipped_outputs: u64,
     /// Messages on channels that are not one of the node's topics, per channel topic.
     pub unknown_topics: BTreeMap<String, u64>,
+    /// Messages on mapped channels whose type is not their node topic's, per channel topic.
+    pub wrong_types: BTreeMap<String, u64>,
 }
 
 /// Publishes every message of `bag` in log-time order on `session`: a channel whose topic
@@ -55,9 +64,11 @@ pub async fn replay_bag(
             .unwrap_or_else(|| keys.namespace.clone()),
         keys.mode,
     );
+    // A mapped topic is an input of this replay whatever its direction (a robot's `/tf`).
+    let is_mapped = |t: &Topic| options.topic_map.iter().any(|(_, m)| m == t);
     let published: Vec<_> = TOPICS
         .into_iter()
-        .filter(|t| !options.inputs_only || t.direction == Direction::Input)
+        .filter(|t| !options.inputs_only || t.direction == Direction::Input || is_mapped(t))
         .collect();
     let outlet = Outlet::declare(session, keys, "stereosplat_replay", &published, &[]).await?;
     let first_ns = bag.time_range().map_or(0, |(first, _)| first);
@@ -67,9 +78,21 @@ pub async fn replay_bag(
     for (done, message) in bag.messages().enumerate() {
         let message = message?;
         let topic_name = &message.channel.topic;
-        let topic = TOPICS
-            .into_iter()
-            .find(|&t| topic_name.strip_prefix('/') == Some(recorded.topic_name(t).as_str()));
+        let mapped = options
+            .topic_map
+            .iter()
+            .find(|(name, _)| name.trim_start_matches('/') == topic_name.trim_start_matches('/'))
+            .map(|&(_, t)| t);
+        if mapped.is_some_and(|t| message.channel.schema_name != t.kind.ros_name()) {
+            *summary.wrong_types.entry(topic_name.clone()).or_default() += 1;
+            progress(done as u64 + 1, total);
+            continue;
+        }
+        let topic = mapped.or_else(|| {
+            TOPICS
+                .into_iter()
+                .find(|&t| topic_name.strip_prefix('/') == Some(recorded.topic_name(t).as_str()))
+        });
         match topic {
             None => {
                 *summary
@@ -77,7 +100,9 @@ pub async fn replay_bag(
                     .entry(topic_name.clone())
                     .or_default() += 1
             }
-            Some(t) if options.inputs_only && t.direction == Direction::Output => {
+            Some(t)
+                if options.inputs_only && t.direction == Direction::Output && !is_mapped(&t) =>
+            {
                 summary.skipped_outputs += 1
             }
             Some(t) => {

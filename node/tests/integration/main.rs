@@ -55,6 +55,7 @@ mod node_pose_sources;
 mod node_region;
 mod node_replay;
 mod node_ros2;
+mod node_rosbag;
 mod node_self_check;
 mod node_stamps_tf;
 mod node_wedge;

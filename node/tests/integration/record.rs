@@ -224,6 +224,7 @@ async fn a_recording_replayed_as_fast_as_possible_records_again_bit_for_bit() {
         rate: Rate::AsFastAsPossible,
         inputs_only: false,
         recorded_namespace: None,
+        topic_map: Vec::new(),
     };
     let replay = async {
         let summary = replay_bag(&player, &keys, &bag, &options, &mut |_, _| {})
@@ -345,6 +346,7 @@ async fn replay_maps_the_recorded_namespace_skips_outputs_and_unknown_topics() {
         rate: Rate::Recorded,
         inputs_only: true,
         recorded_namespace: Some("old_ns".into()),
+        topic_map: Vec::new(),
     };
     let mut progress = Vec::new();
     let summary = replay_bag(&player, &new, &bag, &options, &mut |done, total| {

@@ -71,7 +71,13 @@ impl InputImage {
     ) -> Result<(i64, Self, String), ImageProblem> {
         let mut msg = CompressedImage::decode(payload)?;
         let header = peek_compressed(&msg.data)?;
-        pixel_limits(limits).check(&header)?;
+        // The decoded image's size, refused as a raw image of it would be.
+        limits.check_image(&ImageLayout {
+            width: header.width,
+            height: header.height,
+            step: header.width.saturating_mul(3),
+            data_len: 0,
+        })?;
         let frame_id = std::mem::take(&mut msg.header.frame_id);
         let size = (header.width, header.height);
         let stamp = msg.header.stamp.to_nanos();

@@ -17,6 +17,7 @@ use crate::drive_support;
 
 use drive_support::{Collector, Drive, Player, RunningNode};
 use glam::DVec3;
+use model::bins::{make_bins, BinConfig, BinLayout};
 use model::frame::{DepthMap, Rgb8Image, RgbImage, StereoFrame, StereoRig};
 use model::metrics::{depth_errors, DepthFilter};
 use node::msg::compressed::{compressed_image, Compression};
@@ -25,8 +26,8 @@ use node::msg::geometry_msgs::PoseStamped;
 use node::msg::image::camera_info;
 use node::msg::image::{image_from_rgb, image_with_encoding};
 use node::msg::pose::pose_from_affine;
-use node::msg::sensor_msgs::CameraInfo;
 use node::msg::sensor_msgs::PointCloud2;
+use node::msg::sensor_msgs::{CameraInfo, CompressedImage};
 use node::msg::std_msgs::Header;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
@@ -292,4 +293,114 @@ async fn raw_distorted_cameras_are_rectified_in_the_node() {
         "raw distorted drive rectified in the node: depth AbsRel against the drive sent rectified {mean:.4} mean, {worst:.4} worst ({opened} bins)"
     );
     assert!(worst < 0.1, "AbsRel {worst}");
+}
+
+/// `msg`'s JPEG frame header (SOF0) rewritten to claim `side` x `side` pixels.
+fn claiming(mut msg: CompressedImage, side: u16) -> CompressedImage {
+    let sof = msg
+        .data
+        .windows(2)
+        .position(|w| w == [0xff, 0xc0])
+        .expect("a baseline JPEG");
+    // Marker, length (2), precision (1), then height and width.
+    msg.data[sof + 5..sof + 9].copy_from_slice(&[side.to_be_bytes(), side.to_be_bytes()].concat());
+    msg
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn hostile_images_and_calibrations_are_counted_and_the_drive_still_comes_out() {
+    let drive = Drive::small("hostile_images");
+    let keys = Keys::new("hostile_images");
+    let node = RunningNode::start(NodeConfig {
+        keys: keys.clone(),
+        queue_capacity: 64,
+        renders: RenderWith::Off,
+        method: "sgm".into(),
+        ..NodeConfig::default()
+    })
+    .await;
+    let outputs = Collector::connect_truncated(&node, &[keys.bin_map()], 1 << 12).await;
+    let player = Player::connect(&node).await;
+    let (first, frame) = &drive.frames[0];
+    let header = |id: &str| Header::new(*first, id);
+    let jpeg = |img: &RgbImage, id: &str| {
+        compressed_image(&rgb8(img), Compression::Jpeg { quality: 95 }, header(id)).unwrap()
+    };
+    // A JPEG bomb on each camera: 60000x60000 claimed in a few kilobytes.
+    for (key, img) in [
+        (keys.left_compressed(), &frame.left),
+        (keys.right_compressed(), &frame.right),
+    ] {
+        player
+            .put(key, claiming(jpeg(img, "cam"), 60000).encode())
+            .await;
+    }
+    // A Bayer image one pixel tall.
+    let strip = Rgb8Image {
+        width: 5,
+        height: 1,
+        data: vec![128; 15],
+    };
+    let bayer = image_with_encoding(&strip, "bayer_rggb8", header("left")).unwrap();
+    player.put(keys.left_image(), bayer.encode()).await;
+    // A right camera info with a NaN distortion coefficient.
+    let mut nan = camera_info(&drive.rig.intrinsics, drive.rig.baseline, header("right"));
+    nan.d[1] = f64::NAN;
+    player.put(keys.right_info(), nan.encode()).await;
+    player.camera_infos(&drive.rig, *first).await;
+    // The drive as JPEG pairs, its first left image cut off before its end-of-image marker:
+    // its frame cannot open a bin, the next one does.
+    for (i, (stamp, frame)) in drive.frames.iter().enumerate() {
+        let header = |id: &str| Header::new(*stamp, id);
+        let mut left = jpeg(&frame.left, "left");
+        left.header = header("left");
+        if i == 0 {
+            left.data.truncate(left.data.len() / 2);
+        }
+        player.put(keys.left_compressed(), left.encode()).await;
+        put_image(
+            &player,
+            &keys,
+            Send::Jpeg(95),
+            header("right"),
+            &frame.right,
+            true,
+        )
+        .await;
+        let pose: PoseStamped = pose_from_affine(&frame.left_to_world, header("world"));
+        player.put(keys.pose(), pose.encode()).await;
+    }
+    let poses = &drive.poses()[1..];
+    let config = BinConfig {
+        length_m: 8.0,
+        layout: BinLayout::Consecutive,
+    };
+    let opened = make_bins(poses, &config).len() + 1;
+    assert!(
+        outputs.wait_count(&keys.bin_map(), opened).await,
+        "every bin of the drive"
+    );
+    assert!(node.is_running());
+    let summary = node.stop().await;
+    let c = &summary.counters;
+    println!("hostile inputs counted: {c:?}");
+    assert_eq!(summary.bins_published, opened as u64, "{c:?}");
+    assert_eq!(c.get("refused/image_too_large"), 2, "{c:?}");
+    assert_eq!(
+        c.get("bad_message/left_image_compressed"),
+        2,
+        "the bomb and the cut JPEG"
+    );
+    assert_eq!(c.get("bad_message/right_image_compressed"), 1, "the bomb");
+    assert_eq!(
+        c.get("bad_message/left_image"),
+        1,
+        "the one-row Bayer image"
+    );
+    assert_eq!(
+        c.get("bad_message/right_camera_info"),
+        1,
+        "the NaN distortion"
+    );
+    assert_eq!(c.get("refused/camera_info"), 1, "{c:?}");
 }

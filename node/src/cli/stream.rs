@@ -156,6 +156,11 @@ pub struct RunArgs {
     /// starts a new timeline (after 3 frames agree): a replay, a clock reset.
     #[arg(long, default_value_t = 2.0)]
     sync_jump: f64,
+    /// Milliseconds a right image or a pose may lie from the left image's stamp and still be
+    /// paired with it (approximate time; below half the frame period). Frames that never
+    /// complete are counted (`sync/unmatched`).
+    #[arg(long, default_value_t = 10.0)]
+    sync_slop_ms: f64,
     /// MiB of decoded images the synchroniser holds per stream at most.
     #[arg(long, default_value_t = 64)]
     sync_mib_per_stream: usize,
@@ -237,6 +242,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         keys: args.zenoh.keys(),
         sync: SyncConfig {
             jump_ns: seconds_ns(args.sync_jump, "--sync-jump")?,
+            slop_ns: slop_ns(args.sync_slop_ms)?,
             max_bytes_per_stream: args.sync_mib_per_stream.saturating_mul(1 << 20),
             ..SyncConfig::default()
         },
@@ -340,6 +346,15 @@ pub(super) fn seconds_ns(seconds: f64, flag: &str) -> Result<i64> {
         "{flag} must be a number of seconds from 0, not {seconds}"
     );
     Ok((seconds * 1e9) as i64)
+}
+
+/// `--sync-slop-ms` in nanoseconds.
+fn slop_ns(ms: f64) -> Result<i64> {
+    anyhow::ensure!(
+        ms.is_finite() && (0.0..1000.0).contains(&ms),
+        "--sync-slop-ms must be a number of milliseconds in [0, 1000), not {ms}"
+    );
+    Ok((ms * 1e6) as i64)
 }
 
 /// Flags of `replay`.

@@ -343,10 +343,12 @@ impl Inputs {
     }
 
     /// Keeps a usable, sane camera info and, once both cameras' are in, updates the rig and
-    /// its rectification (tables rebuilt only when a calibration changed). Two infos that
-    /// no rectified rig can come from are refused as a pair (`refused/stereo_rig`) and the
-    /// rig in force stays; each info is kept, so a recalibration that changes both takes
-    /// effect once both new infos are in.
+    /// its rectification (tables rebuilt only when a calibration changed). Two infos of the
+    /// same stamp that no rectified rig can come from are refused as a pair
+    /// (`refused/stereo_rig`) and the rig in force stays; infos of different stamps that
+    /// disagree are a change half through (a new size or calibration reaches one camera's
+    /// topic first) and wait, uncounted, for the other camera's. Each info is kept, so a
+    /// change of both takes effect once both new infos are in.
     fn camera_info(&mut self, topic: Topic, payload: &[u8]) -> Result<(), Unusable> {
         let msg = CameraInfo::decode(payload)?;
         let (k, baseline) = intrinsics_from_camera_info(&msg)?;
@@ -361,8 +363,16 @@ impl Inputs {
         let (Some(left), Some(right)) = (&self.left_info, &self.right_info) else {
             return Ok(());
         };
-        let stereo = rectify::StereoRig::from_camera_infos(left, right)
-            .map_err(|e| Refusal::StereoRig(chain(&e)))?;
+        let stereo = match rectify::StereoRig::from_camera_infos(left, right) {
+            Ok(stereo) => stereo,
+            // Infos of one moment that disagree: refused.
+            Err(e) if left.header.stamp == right.header.stamp => {
+                return Err(Refusal::StereoRig(chain(&e)).into())
+            }
+            // One camera's info is newer than the other's: a calibration or size change
+            // half through; the rig in force stays until the other camera's arrives.
+            Err(_) => return Ok(()),
+        };
         let (intrinsics, baseline) = stereo.intrinsics();
         let (w, h) = self
             .limits

@@ -2,7 +2,7 @@
 """Real ROS 2 (rclpy, Jazzy, Fast DDS) nodes that talk to the StereoSplat node through the
 zenoh ROS 2 bridge: node/tests/ros2_bridge.rs runs them. Run through scripts/ros2_env.sh.
 
-    ros2_drive_node.py publish --mcap DRIVE.mcap --namespace NS [--period S] [--match-timeout S]
+    ros2_drive_node.py publish --mcap DRIVE.mcap --namespace NS [--robot] [--period S] [--match-timeout S]
     ros2_drive_node.py listen --namespace NS --bins N [--timeout S] [--match-timeout S]
 
 `publish` (node `stereosplat_drive`): reads the node's input topics from an MCAP file (as
@@ -11,6 +11,10 @@ zenoh ROS 2 bridge: node/tests/ros2_bridge.rs runs them. Run through scripts/ros
 `deserialize_message`, waits until every publisher has a matched subscription (the bridge's
 DDS reader) and prints `{"matched": true}`, then publishes them in log-time order, `--period`
 seconds apart per frame (the camera infos first), and prints `{"published": {topic: count}}`.
+With `--robot` the inputs are a robot's instead: JPEG sensor_msgs/CompressedImage on
+/NS/left/image/compressed and /NS/right/image/compressed, the camera infos, the /tf and
+/tf_static tree (tf2_msgs/TFMessage) and nav_msgs/Odometry on /NS/odometry (the static
+transforms first with the camera infos).
 
 `listen` (node `stereosplat_listener`): subscribes to /NS/bin/map (sensor_msgs/PointCloud2),
 /NS/bin/pose (geometry_msgs/PoseStamped), /NS/latency (stereosplat_msgs/BinLatency) and
@@ -37,7 +41,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 
 from geometry_msgs.msg import PoseStamped
-from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, PointCloud2
+from tf2_msgs.msg import TFMessage
 from stereosplat_msgs.msg import BinLatency, Diagnostics
 
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
@@ -46,6 +52,13 @@ QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
 INPUTS = {
     'left/camera_info': CameraInfo, 'right/camera_info': CameraInfo,
     'left/image': Image, 'right/image': Image, 'pose': PoseStamped,
+}
+
+# A robot's graph: names under the namespace, or absolute (tf2's /tf and /tf_static).
+ROBOT_INPUTS = {
+    'left/camera_info': CameraInfo, 'right/camera_info': CameraInfo,
+    'left/image/compressed': CompressedImage, 'right/image/compressed': CompressedImage,
+    '/tf': TFMessage, '/tf_static': TFMessage, 'odometry': Odometry,
 }
 
 
@@ -65,15 +78,19 @@ def publish(args):
     from mcap.reader import make_reader
 
     ns = args.namespace.strip('/')
+    inputs = ROBOT_INPUTS if args.robot else INPUTS
     messages = []
     with open(args.mcap, 'rb') as f:
         for _schema, channel, message in make_reader(f).iter_messages(log_time_order=True):
-            topic = channel.topic[len(ns) + 2:]
-            if channel.topic.startswith(f'/{ns}/') and topic in INPUTS:
-                messages.append((topic, deserialize_message(message.data, INPUTS[topic])))
+            topic = channel.topic
+            if topic.startswith(f'/{ns}/'):
+                topic = topic[len(ns) + 2:]
+            if topic in inputs:
+                messages.append((topic, deserialize_message(message.data, inputs[topic])))
     rclpy.init()
     node = rclpy.create_node('stereosplat_drive')
-    pubs = {t: node.create_publisher(cls, f'/{ns}/{t}', QOS) for t, cls in INPUTS.items()}
+    name = lambda t: t if t.startswith('/') else f'/{ns}/{t}'
+    pubs = {t: node.create_publisher(cls, name(t), QOS) for t, cls in inputs.items()}
     matched = spin_until(node, lambda: all(p.get_subscription_count() > 0 for p in pubs.values()),
                          args.match_timeout)
     if not matched:
@@ -82,13 +99,15 @@ def publish(args):
     print(json.dumps({'matched': True}), flush=True)
     counts = {}
     infos = [(t, m) for t, m in messages if t.endswith('camera_info')][:2]
+    infos += [(t, m) for t, m in messages if t == '/tf_static']
     for topic, msg in infos:
         pubs[topic].publish(msg)
     spin_until(node, lambda: False, 1.0)
+    frame_end = 'right/image/compressed' if args.robot else 'pose'
     for topic, msg in messages:
         pubs[topic].publish(msg)
         counts[topic] = counts.get(topic, 0) + 1
-        if topic == 'pose':
+        if topic == frame_end:
             spin_until(node, lambda: False, args.period)
     spin_until(node, lambda: False, 1.0)
     print(json.dumps({'published': counts}), flush=True)
@@ -145,6 +164,7 @@ def main():
     p = sub.add_parser('publish')
     p.add_argument('--mcap', required=True)
     p.add_argument('--namespace', default='stereosplat')
+    p.add_argument('--robot', action='store_true')
     p.add_argument('--period', type=float, default=0.1)
     p.add_argument('--match-timeout', type=float, default=60.0)
     p = sub.add_parser('listen')

@@ -65,6 +65,7 @@ mod python_subscriber;
 mod record;
 mod rectify_opencv;
 mod ros2_bridge;
+mod ros2_robot;
 mod ros2_transport;
 mod transport;
 mod transport_secure;

@@ -33,19 +33,24 @@ enum Poses {
 }
 
 /// `map -> odom`: where odometry started, in the map.
-fn map_to_odom() -> DAffine3 {
+pub(crate) fn map_to_odom() -> DAffine3 {
     DAffine3::from_rotation_translation(DQuat::from_rotation_z(0.3), DVec3::new(5.0, -3.0, 0.2))
 }
 
 /// `base_link -> camera_optical`: 1.2 m ahead, 1.5 m up, optical axes (z forward = the
 /// body's x, x right = the body's -y, y down = the body's -z).
-fn mount() -> DAffine3 {
+pub(crate) fn mount() -> DAffine3 {
     let optical = DMat3::from_cols(DVec3::NEG_Y, DVec3::NEG_Z, DVec3::X);
     DAffine3::from_mat3_translation(optical, DVec3::new(1.2, 0.0, 1.5))
 }
 
 /// A transform `parent -> child` at `stamp_ns`.
-fn edge(parent: &str, child: &str, child_to_parent: &DAffine3, stamp_ns: i64) -> TfMessage {
+pub(crate) fn edge(
+    parent: &str,
+    child: &str,
+    child_to_parent: &DAffine3,
+    stamp_ns: i64,
+) -> TfMessage {
     let mut t = world_to(child, child_to_parent, stamp_ns);
     t.header.frame_id = parent.into();
     TfMessage {

@@ -63,7 +63,7 @@ const FIELDS: [&str; 16] = [
 ];
 
 /// A child process killed (and reaped) when dropped, so a failing test leaves none behind.
-struct Running {
+pub(crate) struct Running {
     child: Child,
     /// Its stdout when piped (`None` when the command sent it elsewhere).
     stdout: Option<BufReader<ChildStdout>>,
@@ -73,7 +73,7 @@ struct Running {
 impl Running {
     /// Starts `command` with stderr to a file under `logs` and stdout piped unless the
     /// command already sends it elsewhere.
-    fn start(mut command: Command, what: &'static str, logs: &Path) -> Self {
+    pub(crate) fn start(mut command: Command, what: &'static str, logs: &Path) -> Self {
         let stderr = std::fs::File::create(logs.join(format!("{what}.stderr"))).unwrap();
         let mut child = command
             .stderr(stderr)
@@ -89,7 +89,7 @@ impl Running {
     }
 
     /// The next line it prints (blocking); panics with its stderr when it ends instead.
-    fn line(&mut self, logs: &Path) -> String {
+    pub(crate) fn line(&mut self, logs: &Path) -> String {
         let mut line = String::new();
         let stdout = self.stdout.as_mut().expect("a piped stdout");
         stdout.read_line(&mut line).expect("reading stdout");
@@ -199,7 +199,7 @@ fn write_inputs(drive: &Drive, keys: &Keys, path: &Path) {
 /// with the loopback-only Fast DDS profile. (Not `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`:
 /// with it, Jazzy's rmw_fastrtps binds 0.0.0.0 and opens a socket on the machine's other
 /// interface, seen here; the profile alone keeps every socket on 127.0.0.1.)
-fn rclpy_node(domain: u32, args: &[&str]) -> Command {
+pub(crate) fn rclpy_node(domain: u32, args: &[&str]) -> Command {
     let mut c = Command::new("bash");
     c.arg(python_support::ROS2_ENV)
         .stdout(Stdio::piped())
@@ -214,15 +214,52 @@ fn rclpy_node(domain: u32, args: &[&str]) -> Command {
     c
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
-    python_support::require_ros2("rclpy, sensor_msgs.msg, stereosplat_msgs.msg, mcap");
+/// The zenoh ROS 2 bridge between `node` and ROS domain `domain` (loopback only), started
+/// and ready.
+pub(crate) async fn start_bridge(
+    node: &RunningNode,
+    domain: u32,
+    drive: &Drive,
+    logs: &Path,
+) -> Running {
     let bridge = PathBuf::from(format!("{ROOT}/target/release/stereosplat-ros2-bridge"));
     assert!(
         bridge.exists(),
         "{} is missing: run `cargo test --workspace` or `bash scripts/ros2_bridge.sh`",
         bridge.display()
     );
+    let config = drive.dir("bridge.json5");
+    let template = std::fs::read_to_string(format!("{ROOT}/launch/ros2_bridge.json5")).unwrap();
+    let text = template
+        .replace("tcp/127.0.0.1:7447", &node.endpoint)
+        .replace("domain: 0,", &format!("domain: {domain},"));
+    std::fs::write(&config, text).unwrap();
+    let cyclone =
+        std::fs::read_to_string(format!("{ROOT}/launch/cyclonedds_localhost.xml")).unwrap();
+    let mut command = Command::new(&bridge);
+    command
+        .arg(&config)
+        .env("CYCLONEDDS_URI", cyclone.trim())
+        .env("ROS_DISTRO", "jazzy");
+    // The bridge logs to stdout too: into a file (never a full pipe), read until ready.
+    let out = logs.join("bridge.stdout");
+    command.stdout(std::fs::File::create(&out).unwrap());
+    let bridge = Running::start(command, "bridge", logs);
+    let ready = drive_support::wait_for(std::time::Duration::from_secs(60), || {
+        std::fs::read_to_string(&out).is_ok_and(|t| t.lines().any(|l| l == "bridge ready"))
+    })
+    .await;
+    assert!(
+        ready,
+        "the bridge did not start: {}",
+        std::fs::read_to_string(&out).unwrap()
+    );
+    bridge
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
+    python_support::require_ros2("rclpy, sensor_msgs.msg, stereosplat_msgs.msg, mcap");
     let drive = Drive::generate(
         "ros2bridge",
         &SynthConfig {
@@ -251,32 +288,7 @@ async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
     .await;
     let zenoh_maps = Collector::connect(&node, &[keys.bin_map()]).await;
 
-    let config = drive.dir("bridge.json5");
-    let template = std::fs::read_to_string(format!("{ROOT}/launch/ros2_bridge.json5")).unwrap();
-    let text = template
-        .replace("tcp/127.0.0.1:7447", &node.endpoint)
-        .replace("domain: 0,", &format!("domain: {domain},"));
-    std::fs::write(&config, text).unwrap();
-    let cyclone =
-        std::fs::read_to_string(format!("{ROOT}/launch/cyclonedds_localhost.xml")).unwrap();
-    let mut command = Command::new(&bridge);
-    command
-        .arg(&config)
-        .env("CYCLONEDDS_URI", cyclone.trim())
-        .env("ROS_DISTRO", "jazzy");
-    // The bridge logs to stdout too: into a file (never a full pipe), read until ready.
-    let out = logs.join("bridge.stdout");
-    command.stdout(std::fs::File::create(&out).unwrap());
-    let bridge = Running::start(command, "bridge", &logs);
-    let ready = drive_support::wait_for(std::time::Duration::from_secs(60), || {
-        std::fs::read_to_string(&out).is_ok_and(|t| t.lines().any(|l| l == "bridge ready"))
-    })
-    .await;
-    assert!(
-        ready,
-        "the bridge did not start: {}",
-        std::fs::read_to_string(&out).unwrap()
-    );
+    let bridge = start_bridge(&node, domain, &drive, &logs).await;
 
     let bins_arg = bins.to_string();
     let mut listener = Running::start(

@@ -4,10 +4,10 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use node::cli::{
-    bench, bench_check, bench_drive, bench_export, bench_fusion, bench_keep_up, bench_model,
-    bench_node, bench_pareto, bench_view, bench_workers, demo, enhancer_data, eval, eval_enhancer,
-    eval_map, export, interpolate_weights, launch, logs, reconstruct, render, stream, synth, train,
-    train_enhancer, view, worker,
+    bench, bench_check, bench_drive, bench_export, bench_fusion, bench_inputs, bench_keep_up,
+    bench_model, bench_node, bench_pareto, bench_view, bench_workers, demo, enhancer_data, eval,
+    eval_enhancer, eval_map, export, interpolate_weights, launch, logs, reconstruct, render,
+    stream, synth, train, train_enhancer, view, worker,
 };
 
 /// StereoSplat: stereo frames in, 3D Gaussian splatting maps out.
@@ -93,6 +93,9 @@ enum BenchCommand {
     Model(bench_model::BenchModelArgs),
     /// The per-bin self-check on generated drives and bad pairs: scores, verdicts, cost.
     Check(bench_check::BenchCheckArgs),
+    /// What a robot's camera images cost per image: JPEG and PNG decoding, pixel encodings,
+    /// rectification of a raw camera.
+    Inputs(bench_inputs::BenchInputsArgs),
     /// Each map format (PLY, SPZ, glTF binary) on one map: bytes, write and read time.
     Export(bench_export::BenchExportArgs),
     /// The live view's page on a large saved map in headless Chromium: frame times when it
@@ -160,6 +163,7 @@ fn main() -> Result<()> {
         Command::Bench(BenchCommand::Fusion(args)) => bench_fusion::run(&args),
         Command::Bench(BenchCommand::Model(args)) => bench_model::run(&args),
         Command::Bench(BenchCommand::Check(args)) => bench_check::run(&args),
+        Command::Bench(BenchCommand::Inputs(args)) => bench_inputs::run(&args),
         Command::Bench(BenchCommand::Pareto(args)) => bench_pareto::run(&args),
         Command::Bench(BenchCommand::Export(args)) => bench_export::run(&args),
         Command::Bench(BenchCommand::View(args)) => bench_view::run(&args),

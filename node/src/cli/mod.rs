@@ -5,6 +5,7 @@ pub mod bench_check;
 pub mod bench_drive;
 pub mod bench_export;
 pub mod bench_fusion;
+pub mod bench_inputs;
 pub mod bench_keep_up;
 pub mod bench_model;
 pub mod bench_node;

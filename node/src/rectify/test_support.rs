@@ -5,23 +5,13 @@ use model::frame::Rgb8Image;
 
 use crate::msg::sensor_msgs::CameraInfo;
 
-/// A row-major rotation of `degrees` about the unit axis `axis` (Rodrigues).
+/// A row-major rotation of `degrees` about `axis` (normalised first).
 pub fn rotation(axis: [f64; 3], degrees: f64) -> [f64; 9] {
-    let n = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
-    let [x, y, z] = axis.map(|a| a / n);
-    let (s, c) = degrees.to_radians().sin_cos();
-    let t = 1.0 - c;
-    [
-        t * x * x + c,
-        t * x * y - s * z,
-        t * x * z + s * y,
-        t * x * y + s * z,
-        t * y * y + c,
-        t * y * z - s * x,
-        t * x * z - s * y,
-        t * y * z + s * x,
-        t * z * z + c,
-    ]
+    let axis = glam::DVec3::from(axis).normalize();
+    // glam is column major: its transpose's columns are the rows.
+    glam::DMat3::from_axis_angle(axis, degrees.to_radians())
+        .transpose()
+        .to_cols_array()
 }
 
 /// Row-major `[fx 0 cx; 0 fy cy; 0 0 1]`.

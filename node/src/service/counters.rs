@@ -11,19 +11,26 @@ pub struct Counters(BTreeMap<String, u64>);
 impl Counters {
     /// Adds `n` to counter `kind`.
     pub fn add(&mut self, kind: &str, n: u64) {
-        *self.0.entry(kind.to_string()).or_default() += n;
+        match self.0.get_mut(kind) {
+            Some(v) => *v += n,
+            None => _ = self.0.insert(kind.to_string(), n),
+        }
     }
 
     /// Sets counter `kind` (for counters kept elsewhere, such as the synchroniser's).
     pub fn set(&mut self, kind: &str, n: u64) {
-        self.0.insert(kind.to_string(), n);
+        // A counter set again (most are, once per sample) costs no allocation.
+        match self.0.get_mut(kind) {
+            Some(v) => *v = n,
+            None => _ = self.0.insert(kind.to_string(), n),
+        }
     }
 
     /// Sets every counter of `other` to its value there (counters kept by another part of
     /// the node, such as the input thread's).
     pub fn set_all(&mut self, other: &Counters) {
         for (k, v) in &other.0 {
-            self.0.insert(k.clone(), *v);
+            self.set(k, *v);
         }
     }
 

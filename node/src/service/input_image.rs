@@ -9,33 +9,13 @@
 
 use model::frame::Rgb8Image;
 
-use super::limits::{InputLimits, Refusal};
-use crate::msg::compressed::{peek_compressed, rgb8_from_compressed, CompressedError, PixelLimits};
+use super::limits::InputLimits;
+use super::unusable::Unusable;
+use crate::msg::compressed::{peek_compressed, rgb8_from_compressed, PixelLimits};
 use crate::msg::encodings::Encoding;
 use crate::msg::image::rgb8_from_image;
 use crate::msg::sensor_msgs::{CompressedImage, Image, ImageLayout};
-use crate::msg::{ConvertError, DecodeError, Message};
-use crate::rectify::RemapError;
-
-/// Why an image message cannot be used.
-#[derive(Debug, thiserror::Error)]
-pub enum ImageProblem {
-    /// Not a CDR payload of the type.
-    #[error(transparent)]
-    Decode(#[from] DecodeError),
-    /// An encoding the node does not read, or data that disagrees with the size.
-    #[error(transparent)]
-    Convert(#[from] ConvertError),
-    /// A compressed image that is not a JPEG or PNG the node can read.
-    #[error(transparent)]
-    Compressed(#[from] CompressedError),
-    /// Outside the input limits.
-    #[error(transparent)]
-    Refused(#[from] Refusal),
-    /// Not of the size its camera's rectification was built for.
-    #[error("rectifying: {0}")]
-    Rectify(#[from] RemapError),
-}
+use crate::msg::Message;
 
 /// An input image as it came in, checked.
 #[derive(Clone, Debug)]
@@ -55,7 +35,7 @@ impl InputImage {
     /// A `sensor_msgs/Image` payload: its declared size checked against `limits` before
     /// its pixels are copied, then its encoding and layout. Returns the stamp (ns), the
     /// image and its `header.frame_id`.
-    pub fn raw(payload: &[u8], limits: &InputLimits) -> Result<(i64, Self, String), ImageProblem> {
+    pub fn raw(payload: &[u8], limits: &InputLimits) -> Result<(i64, Self, String), Unusable> {
         limits.check_image(&ImageLayout::peek(payload)?)?;
         let mut msg = Image::decode(payload)?;
         Encoding::of(&msg)?;
@@ -68,7 +48,7 @@ impl InputImage {
     pub fn compressed(
         payload: &[u8],
         limits: &InputLimits,
-    ) -> Result<(i64, Self, String), ImageProblem> {
+    ) -> Result<(i64, Self, String), Unusable> {
         let mut msg = CompressedImage::decode(payload)?;
         let header = peek_compressed(&msg.data)?;
         // The decoded image's size, refused as a raw image of it would be.
@@ -102,7 +82,7 @@ impl InputImage {
 
     /// The image as packed RGB: converted from its encoding, or decoded (within `limits`);
     /// a compressed file that turns out cut off or corrupt is an error.
-    pub fn to_rgb8(&self, limits: &InputLimits) -> Result<Rgb8Image, ImageProblem> {
+    pub fn to_rgb8(&self, limits: &InputLimits) -> Result<Rgb8Image, Unusable> {
         match self {
             Self::Raw(msg) => Ok(rgb8_from_image(msg.clone())?),
             Self::Compressed { msg, .. } => Ok(rgb8_from_compressed(msg, &pixel_limits(limits))?),

@@ -18,13 +18,15 @@ use crate::pipeline::worker::now_ns;
 /// Samples handed to the input thread and not yet taken by it, at most.
 pub(super) const SAMPLE_BACKLOG: usize = 8;
 
-/// What one sample led to: its steps, and the input side's counters after it (every
-/// counter the input side keeps, by value: the node's counters take them as they are).
+/// What one sample led to: its steps, and the input side's counters after it when they
+/// changed (every counter the input side keeps, by value: the node's counters take them as
+/// they are).
 pub(super) struct Batch {
     /// The steps, in order.
     pub steps: Vec<Step>,
-    /// The input side's counters (`bad_message/`, `refused/`, `sync/`, ...).
-    pub counters: Counters,
+    /// The input side's counters (`bad_message/`, `refused/`, `sync/`, ...), when any
+    /// changed with this sample.
+    pub counters: Option<Counters>,
 }
 
 /// The input thread and the way samples reach it.
@@ -42,11 +44,16 @@ impl InputThread {
             .name("inputs".into())
             .spawn(move || {
                 let mut counters = Counters::default();
+                let mut sent = Counters::default();
                 while let Some((topic, payload, arrival_ns)) = rx.blocking_recv() {
                     let steps = inputs.on_sample_at(topic, &payload, arrival_ns, &mut counters);
+                    let changed = counters != sent;
+                    if changed {
+                        sent.set_all(&counters);
+                    }
                     let batch = Batch {
                         steps,
-                        counters: counters.clone(),
+                        counters: changed.then(|| counters.clone()),
                     };
                     if batches.send(batch).is_err() {
                         break;

@@ -35,22 +35,21 @@ use model::kitti360::resample::resample_area;
 use zenoh::bytes::ZBytes;
 
 use super::counters::Counters;
-use super::input_image::{ImageProblem, InputImage};
+use super::input_image::InputImage;
 use super::keys::{self, Topic};
 use super::limits::{InputLimits, Refusal};
-use crate::msg::cdr::DecodeError;
-use crate::msg::compressed::CompressedError;
+use super::unusable::Unusable;
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::intrinsics_from_camera_info;
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::pose::affine_from_pose;
 use crate::msg::sensor_msgs::CameraInfo;
 use crate::msg::tf2_msgs::TfMessage;
-use crate::msg::{ConvertError, Message};
+use crate::msg::Message;
 use crate::pipeline::binner::{BinEvent, Binner, BinnerConfig};
 use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
 use crate::pipeline::worker::{now_ns, Job, Stamps};
-use crate::rectify::{self, CameraModel, Rectifier, RemapError, StereoRectifier};
+use crate::rectify::{self, CameraModel, Rectifier, StereoRectifier};
 use crate::tf::PoseSource;
 
 /// Frames kept while no valid pair of camera infos has arrived yet (the oldest is dropped
@@ -97,38 +96,6 @@ type Frame = (RawFrame, Stamps);
 /// What the synchroniser emits: the left image with its arrival time and frame name, the
 /// right image, the pose.
 type SyncedFrame = Synced<Left, InputImage, DAffine3>;
-
-/// Why an input sample was not used.
-#[derive(Debug, thiserror::Error)]
-enum Unusable {
-    /// Not a CDR payload of the key's type.
-    #[error(transparent)]
-    Decode(#[from] DecodeError),
-    /// Well-formed, but its content cannot become the node's types.
-    #[error(transparent)]
-    Convert(#[from] ConvertError),
-    /// A compressed image the node cannot read.
-    #[error(transparent)]
-    Compressed(#[from] CompressedError),
-    /// Outside the input limits.
-    #[error(transparent)]
-    Refused(#[from] Refusal),
-    /// An image its camera's rectification does not fit.
-    #[error("rectifying: {0}")]
-    Rectify(RemapError),
-}
-
-impl From<ImageProblem> for Unusable {
-    fn from(p: ImageProblem) -> Self {
-        match p {
-            ImageProblem::Decode(e) => e.into(),
-            ImageProblem::Convert(e) => e.into(),
-            ImageProblem::Compressed(e) => e.into(),
-            ImageProblem::Refused(e) => e.into(),
-            ImageProblem::Rectify(e) => Self::Rectify(e),
-        }
-    }
-}
 
 /// How a camera's images arrive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -247,7 +214,7 @@ impl Inputs {
                 match working_frame(&frame.0, rectifier, &self.limits) {
                     Ok(f) => working = Some(f),
                     Err((topic, e)) => {
-                        count_unusable(topic, &e.into(), counters);
+                        count_unusable(topic, &e, counters);
                         continue;
                     }
                 }
@@ -446,7 +413,7 @@ fn image(
     transport: Transport,
     limits: &InputLimits,
     counters: &mut Counters,
-) -> Result<(i64, InputImage, String), ImageProblem> {
+) -> Result<(i64, InputImage, String), Unusable> {
     let taken = match transport {
         Transport::Raw => InputImage::raw(payload, limits)?,
         Transport::Compressed => InputImage::compressed(payload, limits)?,
@@ -466,12 +433,12 @@ fn working_frame(
     frame: &RawFrame,
     rectifier: &StereoRectifier,
     limits: &InputLimits,
-) -> Result<StereoFrame, (Topic, ImageProblem)> {
+) -> Result<StereoFrame, (Topic, Unusable)> {
     let working = |img: &InputImage,
                    camera: &Rectifier,
                    topic: Topic|
-     -> Result<RgbImage, (Topic, ImageProblem)> {
-        let fail = |e: ImageProblem| (topic, e);
+     -> Result<RgbImage, (Topic, Unusable)> {
+        let fail = |e: Unusable| (topic, e);
         let raw = img.to_rgb8(limits).map_err(fail)?;
         let rectified = match camera.rectify(&raw).map_err(|e| fail(e.into()))? {
             Cow::Owned(rectified) => Some(rectified),

@@ -33,6 +33,7 @@ pub mod replay;
 pub mod replay_bag;
 pub mod snapshot_gate;
 pub mod static_frames;
+mod unusable;
 mod workers;
 
 pub use counters::Counters;

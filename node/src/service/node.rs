@@ -440,7 +440,9 @@ pub async fn run_with(
             },
             batch = batches.recv(), if inputs_open => match batch {
                 Some(batch) => {
-                    outputs.counters.set_all(&batch.counters);
+                    if let Some(counters) = &batch.counters {
+                        outputs.counters.set_all(counters);
+                    }
                     todo = batch.steps;
                 }
                 // Closed at stop, after the samples it held.

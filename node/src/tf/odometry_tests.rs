@@ -1,12 +1,13 @@
 //! An Odometry and the camera's mount: the camera's pose analytically, the mount from the
 //! buffer's static part, and the Odometry as a tf edge.
 
-use glam::{DAffine3, DMat3, DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 
 use super::*;
-use crate::msg::geometry_msgs::{Point, Pose, Quaternion, Transform, TransformStamped, Vector3};
+use crate::msg::geometry_msgs::{Point, Pose, Quaternion};
 use crate::msg::std_msgs::Header;
 use crate::msg::ConvertError;
+use crate::tf::tests::{optical, transform};
 use crate::tf::{TfBuffer, TfConfig};
 
 const STAMP: i64 = 1_700_000_000_700_000_000;
@@ -46,11 +47,6 @@ fn odometry() -> Odometry {
 /// camera_optical (REP 103).
 fn mounts() -> TfBuffer {
     let mut tf = TfBuffer::new(TfConfig::default());
-    let optical = DQuat::from_mat3(&DMat3::from_cols(
-        DVec3::new(0.0, -1.0, 0.0),
-        DVec3::new(0.0, 0.0, -1.0),
-        DVec3::new(1.0, 0.0, 0.0),
-    ));
     let edges = [
         (
             "base_link",
@@ -58,26 +54,10 @@ fn mounts() -> TfBuffer {
             DQuat::from_rotation_y(0.1),
             DVec3::new(0.3, 0.0, 1.2),
         ),
-        ("camera_link", "camera_optical", optical, DVec3::ZERO),
+        ("camera_link", "camera_optical", optical(), DVec3::ZERO),
     ];
     for (parent, child, q, t) in edges {
-        let transform = TransformStamped {
-            header: Header::new(STAMP, parent),
-            child_frame_id: child.into(),
-            transform: Transform {
-                translation: Vector3 {
-                    x: t.x,
-                    y: t.y,
-                    z: t.z,
-                },
-                rotation: Quaternion {
-                    x: q.x,
-                    y: q.y,
-                    z: q.z,
-                    w: q.w,
-                },
-            },
-        };
+        let transform = transform(parent, child, STAMP, q, t);
         tf.insert(&transform, true).unwrap();
     }
     tf

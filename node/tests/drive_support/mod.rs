@@ -22,6 +22,7 @@ use node::msg::image::{camera_info, image_from_rgb};
 use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
+use node::pipeline::worker::RenderWith;
 use node::service::{run, Keys, NodeConfig, NodeSummary, ServiceError};
 use node::transport::{open, TransportConfig};
 use zenoh::qos::CongestionControl;
@@ -124,6 +125,19 @@ impl Drive {
 impl Drop for Drive {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.root);
+    }
+}
+
+/// A node under `keys` that makes its bins with SGM (deterministic, fast), draws no
+/// renders and queues up to 64 bins (a drive sent as fast as possible loses none): what the
+/// input tests compare runs with.
+pub fn sgm_config(keys: &Keys) -> NodeConfig {
+    NodeConfig {
+        keys: keys.clone(),
+        queue_capacity: 64,
+        renders: RenderWith::Off,
+        method: "sgm".into(),
+        ..NodeConfig::default()
     }
 }
 

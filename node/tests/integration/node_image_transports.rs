@@ -15,7 +15,7 @@
 
 use crate::drive_support;
 
-use drive_support::{Collector, Drive, Player, RunningNode};
+use drive_support::{sgm_config, Collector, Drive, Player, RunningNode};
 use glam::DVec3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::frame::{DepthMap, Rgb8Image, RgbImage, StereoFrame, StereoRig};
@@ -30,9 +30,8 @@ use node::msg::sensor_msgs::PointCloud2;
 use node::msg::sensor_msgs::{CameraInfo, CompressedImage};
 use node::msg::std_msgs::Header;
 use node::msg::Message;
-use node::pipeline::worker::RenderWith;
 use node::rectify::{CameraModel, RemapTable};
-use node::service::{Keys, NodeConfig, NodeSummary};
+use node::service::{Keys, NodeSummary};
 use renderer::{Camera, GaussianSet, Intrinsics, Raster, RenderSettings};
 
 /// How the player sends each frame's images.
@@ -138,14 +137,7 @@ async fn run_maps(
     raw: Option<&RawRig>,
 ) -> (NodeSummary, Vec<GaussianSet>) {
     let keys = Keys::new(tag);
-    let node = RunningNode::start(NodeConfig {
-        keys: keys.clone(),
-        queue_capacity: 64,
-        renders: RenderWith::Off,
-        method: "sgm".into(),
-        ..NodeConfig::default()
-    })
-    .await;
+    let node = RunningNode::start(sgm_config(&keys)).await;
     let outputs = Collector::connect(&node, &[keys.bin_map()]).await;
     let player = Player::connect(&node).await;
     let put_infos = |stamp: i64| {
@@ -311,14 +303,7 @@ fn claiming(mut msg: CompressedImage, side: u16) -> CompressedImage {
 async fn hostile_images_and_calibrations_are_counted_and_the_drive_still_comes_out() {
     let drive = Drive::small("hostile_images");
     let keys = Keys::new("hostile_images");
-    let node = RunningNode::start(NodeConfig {
-        keys: keys.clone(),
-        queue_capacity: 64,
-        renders: RenderWith::Off,
-        method: "sgm".into(),
-        ..NodeConfig::default()
-    })
-    .await;
+    let node = RunningNode::start(sgm_config(&keys)).await;
     let outputs = Collector::connect_truncated(&node, &[keys.bin_map()], 1 << 12).await;
     let player = Player::connect(&node).await;
     let (first, frame) = &drive.frames[0];

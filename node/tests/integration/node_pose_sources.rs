@@ -7,7 +7,7 @@
 
 use crate::drive_support;
 
-use drive_support::{Collector, Drive, Player, RunningNode};
+use drive_support::{sgm_config, Collector, Drive, Player, RunningNode};
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use node::msg::geometry_msgs::{PoseStamped, PoseWithCovariance};
 use node::msg::image::image_from_rgb;
@@ -16,7 +16,6 @@ use node::msg::pose::{affine_from_pose, pose_from_affine};
 use node::msg::std_msgs::Header;
 use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::Message;
-use node::pipeline::worker::RenderWith;
 use node::service::keys::{TF, TF_STATIC};
 use node::service::{Keys, NodeConfig, NodeSummary};
 use node::tf::{Mount, PoseSourceConfig, PoseSourceKind};
@@ -76,12 +75,8 @@ async fn run(tag: &str, drive: &Drive, poses: Poses) -> (NodeSummary, Vec<DAffin
         )),
     };
     let node = RunningNode::start(NodeConfig {
-        keys: keys.clone(),
-        queue_capacity: 64,
-        renders: RenderWith::Off,
-        method: "sgm".into(),
         pose_source,
-        ..NodeConfig::default()
+        ..sgm_config(&keys)
     })
     .await;
     let outputs = Collector::connect(&node, &[keys.bin_pose()]).await;

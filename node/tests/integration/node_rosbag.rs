@@ -13,7 +13,7 @@ use crate::python_support;
 
 use std::path::Path;
 
-use drive_support::{Collector, Drive, RunningNode};
+use drive_support::{sgm_config, Collector, Drive, RunningNode};
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use model::bins::{make_bins, BinConfig, BinLayout};
 use model::frame::{Rgb8Image, RgbImage};
@@ -24,7 +24,6 @@ use node::msg::image::camera_info;
 use node::msg::std_msgs::Header;
 use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::{Message, MessageKind};
-use node::pipeline::worker::RenderWith;
 use node::service::keys::{self, Topic};
 use node::service::{
     replay_bag, BagReplayOptions, BagReplaySummary, Keys, NodeConfig, NodeSummary,
@@ -178,15 +177,11 @@ async fn replay_into_node(
 ) -> (BagReplaySummary, NodeSummary, Vec<i64>) {
     let keys = Keys::new(tag);
     let node = RunningNode::start(NodeConfig {
-        keys: keys.clone(),
-        queue_capacity: 64,
-        renders: RenderWith::Off,
-        method: "sgm".into(),
         pose_source: Some(PoseSourceConfig::new(
             PoseSourceKind::Tf,
             Some("map".into()),
         )),
-        ..NodeConfig::default()
+        ..sgm_config(&keys)
     })
     .await;
     let outputs = Collector::connect_truncated(&node, &[keys.bin_map()], 1 << 12).await;

@@ -23,23 +23,13 @@ const SCRIPT: &str = concat!(
     "/../scripts/rectify_vs_opencv.py"
 );
 
-/// A row-major rotation of `degrees` about the unit axis `axis` (Rodrigues).
+/// A row-major rotation of `degrees` about `axis` (normalised first).
 fn rotation(axis: [f64; 3], degrees: f64) -> [f64; 9] {
-    let n = axis.iter().map(|a| a * a).sum::<f64>().sqrt();
-    let [x, y, z] = axis.map(|a| a / n);
-    let (s, c) = degrees.to_radians().sin_cos();
-    let t = 1.0 - c;
-    [
-        t * x * x + c,
-        t * x * y - s * z,
-        t * x * z + s * y,
-        t * x * y + s * z,
-        t * y * y + c,
-        t * y * z - s * x,
-        t * x * z - s * y,
-        t * y * z + s * x,
-        t * z * z + c,
-    ]
+    let axis = glam::DVec3::from(axis).normalize();
+    // glam is column major: its transpose's columns are the rows.
+    glam::DMat3::from_axis_angle(axis, degrees.to_radians())
+        .transpose()
+        .to_cols_array()
 }
 
 /// A calibration of the given parts.

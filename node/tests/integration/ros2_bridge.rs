@@ -214,6 +214,24 @@ pub(crate) fn rclpy_node(domain: u32, args: &[&str]) -> Command {
     c
 }
 
+/// A generated 30-frame drive at 136x40 of `seed` under a folder named after `tag`, with a
+/// `logs` folder for the processes' output.
+pub(crate) fn bridge_drive(tag: &str, seed: u64) -> (Drive, PathBuf) {
+    let drive = Drive::generate(
+        tag,
+        &SynthConfig {
+            seed,
+            frames: 30,
+            width: 136,
+            height: 40,
+            ..SynthConfig::default()
+        },
+    );
+    let logs = drive.dir("logs");
+    std::fs::create_dir_all(&logs).unwrap();
+    (drive, logs)
+}
+
 /// The zenoh ROS 2 bridge between `node` and ROS domain `domain` (loopback only), started
 /// and ready.
 pub(crate) async fn start_bridge(
@@ -260,18 +278,7 @@ pub(crate) async fn start_bridge(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_rclpy_node_gets_every_bin_through_the_zenoh_ros2_bridge() {
     python_support::require_ros2("rclpy, sensor_msgs.msg, stereosplat_msgs.msg, mcap");
-    let drive = Drive::generate(
-        "ros2bridge",
-        &SynthConfig {
-            seed: 6,
-            frames: 30,
-            width: 136,
-            height: 40,
-            ..SynthConfig::default()
-        },
-    );
-    let logs = drive.dir("logs");
-    std::fs::create_dir_all(&logs).unwrap();
+    let (drive, logs) = bridge_drive("ros2bridge", 6);
     let bins = drive.bins_opened(8.0);
     let keys = Keys::new("stereosplat");
     let inputs = drive.dir("inputs.mcap");

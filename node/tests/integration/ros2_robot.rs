@@ -8,11 +8,10 @@
 use crate::drive_support;
 use crate::node_pose_sources::{edge, map_to_odom, mount};
 use crate::python_support;
-use crate::ros2_bridge::{rclpy_node, start_bridge, Running};
+use crate::ros2_bridge::{bridge_drive, rclpy_node, start_bridge, Running};
 
-use drive_support::{Collector, Drive, RunningNode};
+use drive_support::{sgm_config, Collector, Drive, RunningNode};
 use model::frame::Rgb8Image;
-use model::synth::SynthConfig;
 use node::bag::BagWriter;
 use node::msg::compressed::{compressed_image, Compression};
 use node::msg::geometry_msgs::{PoseStamped, PoseWithCovariance};
@@ -21,7 +20,6 @@ use node::msg::nav_msgs::Odometry;
 use node::msg::pose::{affine_from_pose, pose_from_affine};
 use node::msg::std_msgs::Header;
 use node::msg::Message;
-use node::pipeline::worker::RenderWith;
 use node::service::keys::{self, Topic};
 use node::service::{channel_of, Keys, NodeConfig};
 use node::tf::{PoseSourceConfig, PoseSourceKind};
@@ -94,18 +92,7 @@ fn write_robot_inputs(drive: &Drive, keys: &Keys, path: &std::path::Path) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_rclpy_robot_with_jpeg_images_and_tf_drives_the_node_through_the_bridge() {
     python_support::require_ros2("rclpy, sensor_msgs.msg, nav_msgs.msg, tf2_msgs.msg, mcap");
-    let drive = Drive::generate(
-        "ros2robot",
-        &SynthConfig {
-            seed: 7,
-            frames: 30,
-            width: 136,
-            height: 40,
-            ..SynthConfig::default()
-        },
-    );
-    let logs = drive.dir("logs");
-    std::fs::create_dir_all(&logs).unwrap();
+    let (drive, logs) = bridge_drive("ros2robot", 7);
     let bins = drive.bins_opened(8.0);
     let keys = Keys::new("stereosplat");
     let inputs = drive.dir("robot.mcap");
@@ -113,15 +100,11 @@ async fn an_rclpy_robot_with_jpeg_images_and_tf_drives_the_node_through_the_brid
     // Apart from ros2_bridge.rs's 100-199; Fast DDS takes domain ids up to 232.
     let domain = 20 + std::process::id() % 80;
     let node = RunningNode::start(NodeConfig {
-        keys: keys.clone(),
-        method: "sgm".into(),
-        renders: RenderWith::Off,
-        queue_capacity: 64,
         pose_source: Some(PoseSourceConfig::new(
             PoseSourceKind::Tf,
             Some("map".into()),
         )),
-        ..NodeConfig::default()
+        ..sgm_config(&keys)
     })
     .await;
     let poses = Collector::connect(&node, &[keys.bin_pose()]).await;

@@ -22,6 +22,7 @@
 //! - [`bag`]: MCAP logs of the node's topics; [`launch`]: graphs of processes from TOML.
 //! - [`tf`]: a tf buffer of `/tf` and `/tf_static`, looked up between frames at a stamp, and
 //!   the camera's pose from a body's `nav_msgs/Odometry` and the camera mount.
+//! - [`error_text`]: an error and its causes as one line.
 //! - [`untrusted_input`]: every decoder of outside input as one entry point on raw bytes
 //!   (what the fuzz targets and the decoders' mutation test call).
 
@@ -30,6 +31,7 @@ mod alloc_probe;
 pub mod bag;
 #[cfg(feature = "runtime")]
 pub mod cli;
+pub mod error_text;
 #[cfg(feature = "runtime")]
 pub mod foxglove;
 pub mod fusion;

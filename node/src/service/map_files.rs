@@ -29,6 +29,7 @@ use glam::{DAffine3, DVec2, DVec3};
 
 use renderer::formats::MapFormat;
 
+use crate::error_text::error_chain;
 use crate::fusion::{
     bev_image, collect_garbage, create_dir_durably, local_set, save_bev_png, segments, AtTornTail,
     BevView, GaussianId, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
@@ -81,17 +82,6 @@ pub enum RestoreError {
 #[derive(Debug, thiserror::Error)]
 #[error("exporting the global map: {0}")]
 pub struct ExportError(String);
-
-/// `e` and its sources, joined by `: ` (the export error keeps only text).
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        text += &format!(": {s}");
-        source = s.source();
-    }
-    text
-}
 
 /// The map a node starts with, and where it came from.
 #[derive(Debug)]

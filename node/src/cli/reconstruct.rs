@@ -1,5 +1,6 @@
-//! `stereosplat reconstruct`: one rectified stereo pair of image files in (any size, grey
-//! or colour, PNG or JPEG), the calibration from flags or ROS camera-info YAML; a 3DGS PLY,
+//! `stereosplat reconstruct`: one stereo pair of image files in (any size, grey or colour,
+//! PNG or JPEG), the calibration from flags or ROS camera-info YAML (raw cameras' images
+//! rectified by the YAMLs' K, D, R and P, as the node rectifies `image_raw`); a 3DGS PLY,
 //! a 16-bit KITTI-convention depth PNG, the same depth as 32-bit floats (`depth.npy`, for
 //! scoring without the PNG's 1/256-m steps), a colour-mapped depth PNG, a render and a JSON
 //! summary out (see `node::pair::outputs`). With `--truth-disparity` it also scores the
@@ -22,7 +23,7 @@ use model::frame::DepthMap;
 /// Flags of `reconstruct`.
 #[derive(Args, Clone, Debug)]
 pub struct ReconstructArgs {
-    /// Left (reference) image of the rectified pair.
+    /// Left (reference) image: rectified, or raw with the raw cameras' --camera-info files.
     #[arg(long)]
     left: PathBuf,
     /// Right image, same size.
@@ -43,12 +44,18 @@ pub struct ReconstructArgs {
     /// Baseline in metres (or from --camera-info-right).
     #[arg(long)]
     baseline: Option<f64>,
-    /// The left camera's ROS camera_calibration YAML (rectified P is used).
+    /// The left camera's ROS camera_calibration YAML. The pair is reconstructed in the
+    /// rectified camera of its P; a file with a lens (D), a rotation (R) or a K other than
+    /// P's makes the images raw, rectified first (needs --camera-info-right).
     #[arg(long)]
     camera_info: Option<PathBuf>,
     /// The right camera's YAML: its P[0,3] = -fx * baseline gives the baseline.
     #[arg(long)]
     camera_info_right: Option<PathBuf>,
+    /// The images are rectified already (`image_rect`): only the YAMLs' P is used, never
+    /// their lens.
+    #[arg(long, requires = "camera_info")]
+    pre_rectified: bool,
     /// Output folder: gaussians.ply, depth.png (16-bit, metres x 256), depth.npy (the same
     /// z-depth as float32 metres, NumPy .npy, height x width, 0 = no depth), depth_color.png,
     /// render.png, the error maps and summary.json.
@@ -106,8 +113,7 @@ impl From<DepthRuleArg> for DepthRule {
 
 /// Runs the reconstruction and writes the outputs.
 pub fn run(args: &ReconstructArgs) -> Result<()> {
-    let (left, right) = images::load_pair(&args.left, &args.right)?;
-    let calib = CalibrationInput {
+    let input = CalibrationInput {
         fx: args.fx,
         fy: args.fy,
         cx: args.cx,
@@ -115,8 +121,11 @@ pub fn run(args: &ReconstructArgs) -> Result<()> {
         baseline: args.baseline,
         camera_info: args.camera_info.clone(),
         camera_info_right: args.camera_info_right.clone(),
-    }
-    .resolve((left.width, left.height))?;
+        pre_rectified: args.pre_rectified,
+    };
+    let rectifier = input.rectifier()?;
+    let (left, right) = images::load_pair(&args.left, &args.right, rectifier.as_ref())?;
+    let calib = input.resolve((left.width, left.height))?;
     let truth = args
         .truth_disparity
         .as_deref()

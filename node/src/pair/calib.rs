@@ -1,7 +1,15 @@
 //! A pair's calibration, from flags or from the ROS `camera_calibration` YAML files of the
 //! two cameras (what `cameracalibrator` writes and `camera_info_manager` reads). The
-//! rectified projection matrix `P` is what counts: intrinsics from the left file's `P`, the
-//! baseline from the right file's `P[0,3] = -fx * B`, or from `--baseline`.
+//! rectified projection matrix `P` gives the rig the pair is reconstructed in: intrinsics
+//! from the left file's `P`, the baseline from the right file's `P[0,3] = -fx * B`, or from
+//! `--baseline`.
+//!
+//! Files that describe raw cameras (a lens distortion, a rectification rotation, or a `K`
+//! other than `P`'s left 3x3) make the images raw: [`CalibrationInput::rectifier`] gives the
+//! two remap tables that bring them into that rig, as the node does for a driver's
+//! `image_raw` (`crate::rectify`), unless `pre_rectified` says the images are rectified
+//! already (only `P` is used then). A file with `P` alone (no `camera_matrix`) is a
+//! rectified camera.
 //!
 //! Checks: the calibration's image size is the images' size, the right camera's intrinsics
 //! equal the left's (a rectified pair shares them), both baselines agree when both are given,
@@ -15,8 +23,10 @@ use serde::Deserialize;
 
 use super::images::same_size;
 use super::PairError;
+use crate::error_text::error_chain as chain;
 use crate::msg::image::intrinsics_from_camera_info;
 use crate::msg::sensor_msgs::CameraInfo;
+use crate::rectify::{StereoRectifier, StereoRig};
 use crate::service::InputLimits;
 
 /// A rectified rig at the input image size.
@@ -52,6 +62,8 @@ pub struct CalibrationInput {
     pub camera_info: Option<PathBuf>,
     /// The right camera's camera-info YAML.
     pub camera_info_right: Option<PathBuf>,
+    /// The images are rectified already: only the files' `P` is used, never their lens.
+    pub pre_rectified: bool,
 }
 
 /// A matrix in a camera-info YAML (`rows`, `cols`, row-major `data`).
@@ -60,15 +72,36 @@ struct YamlMatrix {
     data: Vec<f64>,
 }
 
-/// The fields of a camera-info YAML that a rectified pair needs.
+/// The fields of a camera-info YAML: size and `P`, and the raw camera's `K`, lens and `R`
+/// where the file has them.
 #[derive(Deserialize)]
 struct CameraInfoYaml {
     image_width: u32,
     image_height: u32,
+    camera_matrix: Option<YamlMatrix>,
+    distortion_model: Option<String>,
+    distortion_coefficients: Option<YamlMatrix>,
+    rectification_matrix: Option<YamlMatrix>,
     projection_matrix: YamlMatrix,
 }
 
-/// Reads a camera-info YAML into a `CameraInfo` message (size and `P`; the rest unset).
+/// `matrix`'s values as `N` numbers, or a clear error naming the file and the field.
+fn values<const N: usize>(
+    path: &Path,
+    field: &str,
+    matrix: YamlMatrix,
+) -> Result<[f64; N], PairError> {
+    matrix.data.try_into().map_err(|d: Vec<f64>| {
+        PairError::InconsistentCalibration(format!(
+            "{}: {field} has {} values, {N} expected",
+            path.display(),
+            d.len()
+        ))
+    })
+}
+
+/// Reads a camera-info YAML into a `CameraInfo` message: size, `P`, and `K`, `D` and `R`
+/// (without `camera_matrix`: `P`'s left 3x3; without the others: no lens, `R` the identity).
 pub fn read_camera_info(path: &Path) -> Result<CameraInfo, PairError> {
     let text = std::fs::read_to_string(path).map_err(|source| PairError::Io {
         path: path.to_path_buf(),
@@ -79,20 +112,25 @@ pub fn read_camera_info(path: &Path) -> Result<CameraInfo, PairError> {
             path: path.to_path_buf(),
             source,
         })?;
-    let p: [f64; 12] = yaml
-        .projection_matrix
-        .data
-        .try_into()
-        .map_err(|d: Vec<f64>| {
-            PairError::InconsistentCalibration(format!(
-                "{}: projection_matrix has {} values, 12 expected",
-                path.display(),
-                d.len()
-            ))
-        })?;
+    let p: [f64; 12] = values(path, "projection_matrix", yaml.projection_matrix)?;
+    let k = match yaml.camera_matrix {
+        Some(m) => values(path, "camera_matrix", m)?,
+        None => [p[0], p[1], p[2], p[4], p[5], p[6], p[8], p[9], p[10]],
+    };
+    let r = match yaml.rectification_matrix {
+        Some(m) => values(path, "rectification_matrix", m)?,
+        None => [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+    };
     Ok(CameraInfo {
         width: yaml.image_width,
         height: yaml.image_height,
+        distortion_model: yaml.distortion_model.unwrap_or_else(|| "plumb_bob".into()),
+        d: yaml
+            .distortion_coefficients
+            .map(|m| m.data)
+            .unwrap_or_default(),
+        k,
+        r,
         p,
         ..CameraInfo::default()
     })
@@ -179,6 +217,35 @@ impl CalibrationInput {
             intrinsics,
             baseline,
         })
+    }
+
+    /// The remap tables that rectify the images, when the files describe raw cameras (see
+    /// the module documentation); `None` for rectified cameras, flags, or `pre_rectified`.
+    /// Raw cameras need both files: the rig is checked as the node checks a driver's two
+    /// camera infos ([`StereoRig::from_camera_infos`]).
+    pub fn rectifier(&self) -> Result<Option<StereoRectifier>, PairError> {
+        let Some(left) = self.camera_info.as_deref().filter(|_| !self.pre_rectified) else {
+            return Ok(None);
+        };
+        let left_info = read_camera_info(left)?;
+        let Some(right) = &self.camera_info_right else {
+            let model = crate::rectify::CameraModel::from_camera_info(&left_info).map_err(|e| {
+                PairError::InconsistentCalibration(format!("{}: {}", left.display(), chain(&e)))
+            })?;
+            return match model.is_rectified() {
+                true => Ok(None),
+                false => Err(PairError::MissingCalibration(format!(
+                    "{} describes a raw camera (a lens or a rectification): rectifying the pair \
+                     needs the right camera's --camera-info-right too (or --pre-rectified for \
+                     images rectified already)",
+                    left.display()
+                ))),
+            };
+        };
+        let rig = StereoRig::from_camera_infos(&left_info, &read_camera_info(right)?)
+            .map_err(|e| PairError::InconsistentCalibration(chain(&e)))?;
+        let rectified = rig.left.is_rectified() && rig.right.is_rectified();
+        Ok((!rectified).then(|| StereoRectifier::new(rig)))
     }
 
     /// Intrinsics from the left file and the baseline from the right file, if given.

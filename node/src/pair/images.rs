@@ -1,13 +1,14 @@
 //! Reading a pair's image files: PNG or JPEG of any size and channel layout; grey (and grey
 //! with alpha, RGBA, 16-bit) becomes 8-bit RGB with values / 255, as the rest of the project
-//! holds images.
+//! holds images. A raw pair is rectified on the way in.
 
 use std::path::Path;
 
 use image::DynamicImage;
-use model::frame::RgbImage;
+use model::frame::{Rgb8Image, RgbImage};
 
 use super::PairError;
+use crate::rectify::StereoRectifier;
 
 /// Decodes any image file the `image` crate reads (format guessed from the bytes).
 pub fn decode(path: &Path) -> Result<DynamicImage, PairError> {
@@ -27,15 +28,39 @@ pub fn load_rgb(path: &Path) -> Result<RgbImage, PairError> {
     Ok(RgbImage::from_rgb8(rgb.width(), rgb.height(), rgb.as_raw()))
 }
 
-/// The left and right images, which must have one size.
-pub fn load_pair(left: &Path, right: &Path) -> Result<(RgbImage, RgbImage), PairError> {
-    let (l, r) = (load_rgb(left)?, load_rgb(right)?);
+/// The left and right images, which must have one size, rectified by `rectifier` when the
+/// calibration describes raw cameras (8-bit RGB through each camera's remap table).
+pub fn load_pair(
+    left: &Path,
+    right: &Path,
+    rectifier: Option<&StereoRectifier>,
+) -> Result<(RgbImage, RgbImage), PairError> {
+    let (l, r) = (load_rgb8(left)?, load_rgb8(right)?);
     same_size(
         "left and right images",
         (l.width, l.height),
         (r.width, r.height),
     )?;
-    Ok((l, r))
+    let float = |i: &Rgb8Image| RgbImage::from_rgb8(i.width, i.height, &i.data);
+    let Some(rectifier) = rectifier else {
+        return Ok((float(&l), float(&r)));
+    };
+    let (w, h) = (rectifier.rig().left.width(), rectifier.rig().left.height());
+    same_size("calibration and images", (w, h), (l.width, l.height))?;
+    let (l, r) = rectifier
+        .rectify(&l, &r)
+        .map_err(|e| PairError::InconsistentCalibration(format!("rectifying the images: {e}")))?;
+    Ok((float(&l), float(&r)))
+}
+
+/// The image at `path` as 8-bit RGB.
+fn load_rgb8(path: &Path) -> Result<Rgb8Image, PairError> {
+    let rgb = decode(path)?.to_rgb8();
+    Ok(Rgb8Image {
+        width: rgb.width(),
+        height: rgb.height(),
+        data: rgb.into_raw(),
+    })
 }
 
 /// `a` and `b` are one size, else [`PairError::SizeMismatch`] naming `what`.

@@ -91,15 +91,16 @@ async fn put_image(
 
 /// A stereo rig of raw cameras: each camera's info and the table that makes its raw image
 /// from a rectified one.
-struct RawRig {
-    infos: [CameraInfo; 2],
+pub(crate) struct RawRig {
+    /// Each camera's info (K, D, R, P), left first.
+    pub(crate) infos: [CameraInfo; 2],
     distort: [RemapTable; 2],
 }
 
 impl RawRig {
     /// `rig`'s cameras behind `plumb_bob` lenses, rotated by +-0.5 degrees about y before
     /// rectification, their raw focal lengths 3% longer than the rectified ones.
-    fn behind_lenses(rig: &StereoRig) -> Self {
+    pub(crate) fn behind_lenses(rig: &StereoRig) -> Self {
         let k = &rig.intrinsics;
         let info = |side: f64, tx: f64| {
             let mut info = camera_info(k, 0.0, Header::new(0, "camera"));
@@ -120,7 +121,7 @@ impl RawRig {
     }
 
     /// `img` as camera `side` (0 left, 1 right) takes it.
-    fn raw(&self, side: usize, img: &RgbImage) -> RgbImage {
+    pub(crate) fn raw(&self, side: usize, img: &RgbImage) -> RgbImage {
         let raw = self.distort[side]
             .remap(&rgb8(img))
             .expect("the camera's size");

@@ -26,8 +26,9 @@ pub struct PoseArgs {
     /// Where the left camera's poses come from.
     #[arg(long, value_enum, default_value_t = PoseSourceArg::Pose)]
     pose_source: PoseSourceArg,
-    /// The frame the poses are in (`map`, `odom`, ...); needed with `--pose-source tf`.
-    /// With `odometry`, the odometry's own `header.frame_id` when not given.
+    /// The frame the poses are in (`map`, `odom`, ...), and the frame of the node's outputs
+    /// (maps, bin poses, transforms; `world` when not given). Needed with `--pose-source
+    /// tf`; with `odometry`, the odometry's own `header.frame_id` when not given.
     #[arg(long)]
     world_frame: Option<String>,
     /// The left camera's optical frame; by default each left image's `header.frame_id`.
@@ -40,6 +41,13 @@ pub struct PoseArgs {
 }
 
 impl PoseArgs {
+    /// The frame of the node's outputs: `--world-frame`, or `world`.
+    pub fn world_frame(&self) -> String {
+        self.world_frame
+            .clone()
+            .unwrap_or_else(|| crate::msg::tf2_msgs::WORLD.into())
+    }
+
     /// The node's pose source (`None`: the `pose` topic).
     pub fn config(&self) -> Result<Option<PoseSourceConfig>> {
         let kind = match self.pose_source {

@@ -256,6 +256,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
         },
         queue_capacity: args.queue,
         pose_source: args.poses.config()?,
+        world_frame: args.poses.world_frame(),
         on_check_fail: args.on_check_fail.into(),
         fusion: FusionConfig {
             keep: Keep {

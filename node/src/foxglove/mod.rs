@@ -29,7 +29,6 @@ use renderer::GaussianSet;
 use serde_json::Value;
 
 use crate::fusion::{GaussianId, WorldGaussian};
-use crate::msg::tf2_msgs::WORLD;
 use crate::service::Counters;
 
 /// How long [`Foxglove::stop`] waits for the clients' connections to close.
@@ -94,6 +93,8 @@ struct Channels {
     latency: Arc<RawChannel>,
     increment: Arc<RawChannel>,
     counters: Arc<RawChannel>,
+    /// The frame world clouds and transforms are in (the node's world frame).
+    world: String,
 }
 
 /// The topics under `/<namespace>/` (and `/tf`), as the docs and the layout name them.
@@ -132,7 +133,7 @@ impl Channels {
         }
     }
 
-    fn new(ctx: &Arc<Context>, namespace: &str) -> Result<Self, FoxgloveError> {
+    fn new(ctx: &Arc<Context>, namespace: &str, world: &str) -> Result<Self, FoxgloveError> {
         let topic = |t: &str| format!("/{namespace}/{t}");
         let json = |t: &str, title: &str, schema: &'static str| {
             ctx.channel_builder(topic(t))
@@ -165,6 +166,7 @@ impl Channels {
                 "stereosplat.Counters",
                 messages::COUNTERS_SCHEMA,
             )?,
+            world: world.into(),
         })
     }
 }
@@ -223,10 +225,14 @@ pub struct Foxglove {
 }
 
 impl Foxglove {
-    /// Binds `config.bind`, advertises the channels (topics under `/<namespace>/`) and
-    /// starts the server's thread. Must be called inside a tokio runtime (the SDK serves
+    /// Binds `config.bind`, advertises the channels (topics under `/<namespace>/`, world
+    /// clouds and transforms in `world_frame`) and starts the server's thread. Must be called inside a tokio runtime (the SDK serves
     /// clients on it). Prints a warning when the address is not loopback.
-    pub async fn start(config: &FoxgloveConfig, namespace: &str) -> Result<Self, FoxgloveError> {
+    pub async fn start(
+        config: &FoxgloveConfig,
+        namespace: &str,
+        world_frame: &str,
+    ) -> Result<Self, FoxgloveError> {
         if !config.bind.ip().is_loopback() {
             eprintln!(
                 "warning: the Foxglove server listens on {}, which other machines may reach",
@@ -235,7 +241,7 @@ impl Foxglove {
         }
         // A context of its own: two nodes in one process keep their channels apart.
         let context = Context::new();
-        let channels = Arc::new(Channels::new(&context, namespace)?);
+        let channels = Arc::new(Channels::new(&context, namespace, world_frame)?);
         let server = context
             .websocket_server()
             .name(format!("stereosplat ({namespace})"))
@@ -444,19 +450,25 @@ fn log(channels: &Channels, bin_frames: &mut Vec<FrameTransform>, item: Item) {
         Item::BinMap(frame, stamp, set) => channels
             .bin_map
             .log(&messages::bin_cloud(&set, frame, stamp)),
-        Item::NewPoints(added, origin, stamp) => {
-            channels
-                .new_points
-                .log(&messages::world_cloud(&added, WORLD.into(), origin, stamp))
-        }
+        Item::NewPoints(added, origin, stamp) => channels.new_points.log(&messages::world_cloud(
+            &added,
+            channels.world.clone(),
+            origin,
+            stamp,
+        )),
         Item::Image(kind, frame, stamp, img) => channels
             .image(kind)
             .log(&messages::raw_image(&img, frame, stamp)),
         Item::Camera(child, pose, stamp) => channels.tf.log(&FrameTransforms {
-            transforms: vec![messages::frame_transform(WORLD, child, &pose, stamp)],
+            transforms: vec![messages::frame_transform(
+                &channels.world,
+                child,
+                &pose,
+                stamp,
+            )],
         }),
         Item::BinFrame(child, pose, stamp) => {
-            let t = messages::frame_transform(WORLD, child, &pose, stamp);
+            let t = messages::frame_transform(&channels.world, child, &pose, stamp);
             bin_frames.push(t.clone());
             channels.tf.log(&FrameTransforms {
                 transforms: vec![t],

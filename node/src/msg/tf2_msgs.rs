@@ -11,7 +11,8 @@ use super::geometry_msgs::{
 use super::std_msgs::Header;
 use super::{Message, MessageKind};
 
-/// The frame every transform of the node is relative to (the poses' frame).
+/// The frame the node's outputs are in unless configured otherwise (`run --world-frame`):
+/// the poses' frame.
 pub const WORLD: &str = "world";
 
 /// `tf2_msgs/msg/TFMessage`: a list of transforms.
@@ -40,17 +41,28 @@ impl Message for TfMessage {
     }
 }
 
-/// The transform from `world` to `child` (the pose of `child` in the world) at `stamp_ns`:
-/// a rigid `child_to_world` (its rotation part is taken as a rotation and normalised).
+/// The transform from [`WORLD`] to `child` (the pose of `child` in the world) at
+/// `stamp_ns`: [`frame_to`] with `WORLD` as the parent.
 pub fn world_to(
     child: impl Into<String>,
     child_to_world: &DAffine3,
     stamp_ns: i64,
 ) -> TransformStamped {
-    let q = DQuat::from_mat3(&child_to_world.matrix3).normalize();
-    let p = child_to_world.translation;
+    frame_to(WORLD, child, child_to_world, stamp_ns)
+}
+
+/// The transform from `parent` to `child` (the pose of `child` in `parent`) at `stamp_ns`:
+/// a rigid `child_to_parent` (its rotation part is taken as a rotation and normalised).
+pub fn frame_to(
+    parent: &str,
+    child: impl Into<String>,
+    child_to_parent: &DAffine3,
+    stamp_ns: i64,
+) -> TransformStamped {
+    let q = DQuat::from_mat3(&child_to_parent.matrix3).normalize();
+    let p = child_to_parent.translation;
     TransformStamped {
-        header: Header::new(stamp_ns, WORLD),
+        header: Header::new(stamp_ns, parent),
         child_frame_id: child.into(),
         transform: Transform {
             translation: Vector3 {

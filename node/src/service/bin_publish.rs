@@ -13,7 +13,7 @@ use crate::fusion::increment_message;
 use crate::msg::gaussians::cloud_from_gaussians;
 use crate::msg::pose::pose_from_affine;
 use crate::msg::std_msgs::Header;
-use crate::msg::tf2_msgs::{world_to, WORLD};
+use crate::msg::tf2_msgs::frame_to;
 use crate::msg::Message;
 use crate::pipeline::self_check::CheckAction;
 use crate::pipeline::worker::{now_ns, Output};
@@ -30,7 +30,7 @@ impl Outputs<'_> {
             return Ok(());
         }
         if out.result.is_ok() && std::mem::take(&mut self.resume_pending) {
-            let header = Header::new(out.stamps.source_ns, WORLD);
+            let header = Header::new(out.stamps.source_ns, &self.world_frame);
             self.put_encoded_update(self.snapshot(header)).await?;
         }
         let bin = self.fuse(out);
@@ -127,6 +127,7 @@ impl Outputs<'_> {
         let FusedBin { out, fused, render } = bin;
         let mut stamps = out.stamps;
         let header = |frame: &str| Header::new(stamps.source_ns, frame);
+        let world = self.world_frame.clone();
         // Bins are published in bin order: an earlier one not published was dropped.
         let published = &self.published;
         self.closed_ns
@@ -142,11 +143,11 @@ impl Outputs<'_> {
                     f.bin_map(out.bin_id, stamps.source_ns, set);
                     f.bin_frame(out.bin_id, &out.bin_to_world, stamps.source_ns);
                 }
-                let placed = world_to(frame, &out.bin_to_world, stamps.source_ns);
+                let placed = frame_to(&world, frame, &out.bin_to_world, stamps.source_ns);
                 self.static_tf.push(placed);
                 self.put_static_tf().await?;
                 // The pose last: a subscriber holding map and pose has the whole bin.
-                let pose = pose_from_affine(&out.bin_to_world, header(WORLD));
+                let pose = pose_from_affine(&out.bin_to_world, header(&world));
                 self.put(keys::BIN_POSE, pose.encode()).await?;
                 stamps.publish_ns = now_ns();
                 self.summary.bins_published += 1;
@@ -163,7 +164,7 @@ impl Outputs<'_> {
                             let origin = out.bin_to_world.translation;
                             f.map_increment(summary, &inc.added, origin, stamps.source_ns);
                         }
-                        let msg = increment_message(&inc, sequence, header(WORLD));
+                        let msg = increment_message(&inc, sequence, header(&world));
                         self.put_update(msg).await?;
                         let due = self.snapshot_every > 0
                             && self
@@ -171,14 +172,14 @@ impl Outputs<'_> {
                                 .bins_published
                                 .is_multiple_of(self.snapshot_every);
                         if due {
-                            self.put_encoded_update(self.snapshot(header(WORLD)))
+                            self.put_encoded_update(self.snapshot(header(&world)))
                                 .await?;
                         }
                     }
                     _ => self.counters.add("error/fusion", 1),
                 }
                 if self.bev {
-                    self.put_bev(header(WORLD)).await?;
+                    self.put_bev(header(&world)).await?;
                 }
             }
             Err(_) => self.counters.add("error/reconstruct", 1),

@@ -39,6 +39,7 @@ use super::input_image::InputImage;
 use super::keys::{self, Topic};
 use super::limits::{InputLimits, Refusal};
 use super::unusable::Unusable;
+use crate::error_text::error_chain as chain;
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::intrinsics_from_camera_info;
 use crate::msg::nav_msgs::Odometry;
@@ -166,13 +167,31 @@ impl Inputs {
             Err(e) => Err(e.into()),
             Ok(()) => self.take(topic, &payload.to_bytes(), arrival_ns, counters),
         };
-        let synced = match synced {
-            Ok(synced) => synced,
+        match synced {
+            Ok(synced) => self.advance(synced, counters),
             Err(e) => {
                 count_unusable(topic, &e, counters);
-                return Vec::new();
+                Vec::new()
             }
-        };
+        }
+    }
+
+    /// The node's clock moved on with no sample: stamps waiting for the pose source past
+    /// their wait are given up (counted) and any pose it has now is paired, so a drive that
+    /// stops does not leave its last images waiting uncounted.
+    pub fn on_tick(&mut self, counters: &mut Counters) -> Vec<Step> {
+        match self.pose_source.is_some() {
+            true => {
+                let synced = self.ready_poses(counters);
+                self.advance(synced, counters)
+            }
+            false => Vec::new(),
+        }
+    }
+
+    /// Takes the frames the synchroniser completed: into the wait for the rig, then, with a
+    /// rig, through the binner. The steps they lead to.
+    fn advance(&mut self, synced: Vec<SyncedFrame>, counters: &mut Counters) -> Vec<Step> {
         let c = self.sync.counters();
         counters.set("sync/late", c.late);
         counters.set("sync/unmatched", c.unmatched);
@@ -470,18 +489,6 @@ fn working_frame(
     })
 }
 
-/// An error with its causes, `: `-separated.
-fn chain(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        text.push_str(": ");
-        text.push_str(&s.to_string());
-        source = s.source();
-    }
-    text
-}
-
 /// Counts an unusable sample of `topic`: `bad_message/<topic>`, and a refusal under its
 /// reason too.
 fn count_unusable(topic: Topic, e: &Unusable, counters: &mut Counters) {
@@ -529,27 +536,51 @@ pub(crate) const INPUT_TOPICS: [Topic; 7] = [
     keys::RIGHT_COMPRESSED,
 ];
 
+/// [`INPUT_TOPICS`] and the pose source's: what a node with `--pose-source` reads.
+pub(crate) const POSE_SOURCE_TOPICS: [Topic; 10] = [
+    keys::LEFT_IMAGE,
+    keys::RIGHT_IMAGE,
+    keys::LEFT_INFO,
+    keys::RIGHT_INFO,
+    keys::POSE,
+    keys::LEFT_COMPRESSED,
+    keys::RIGHT_COMPRESSED,
+    keys::TF,
+    keys::TF_STATIC,
+    keys::ODOMETRY,
+];
+
 /// Runs `samples` (topic and payload) through a fresh input side with the default
-/// synchroniser, binner and limits, as the node takes its inputs: what the fuzzing of the
-/// input path calls (`crate::untrusted_input::live::node_inputs`). Returns the jobs it
-/// submitted (each frame already brought to the working size, as the worker gets it) and
-/// the counters.
-pub(crate) fn feed<'a>(samples: impl IntoIterator<Item = (Topic, &'a [u8])>) -> (usize, Counters) {
+/// synchroniser, binner and limits and `pose_source` (`None`: the `pose` topic), then one
+/// tick, as the node takes its inputs: what the fuzzing of the input path calls
+/// (`crate::untrusted_input::live::node_inputs`). Returns the jobs it submitted (each frame
+/// already brought to the working size, as the worker gets it) and the counters.
+pub(crate) fn feed<'a>(
+    samples: impl IntoIterator<Item = (Topic, &'a [u8])>,
+    pose_source: Option<crate::tf::PoseSourceConfig>,
+) -> (usize, Counters) {
+    let pose_source = pose_source.and_then(|c| PoseSource::new(c).ok());
     let mut inputs = Inputs::new(
         SyncConfig::default(),
         BinnerConfig::default(),
         InputLimits::default(),
-        None,
+        pose_source,
     );
     let mut counters = Counters::default();
     let mut jobs = 0;
     for (topic, payload) in samples {
         let payload = ZBytes::from(payload.to_vec());
         let steps = inputs.on_sample_at(topic, &payload, now_ns(), &mut counters);
-        jobs += steps
-            .iter()
-            .filter(|s| matches!(s, Step::Submit(_)))
-            .count();
+        jobs += submitted(&steps);
     }
+    jobs += submitted(&inputs.on_tick(&mut counters));
     (jobs, counters)
+}
+
+/// Jobs among `steps`.
+fn submitted(steps: &[Step]) -> usize {
+    steps
+        .iter()
+        .filter(|s| matches!(s, Step::Submit(_)))
+        .count()
 }

@@ -32,6 +32,7 @@ pub mod region;
 pub mod replay;
 pub mod replay_bag;
 pub mod snapshot_gate;
+mod snapshot_reply;
 pub mod static_frames;
 mod unusable;
 mod workers;

@@ -14,14 +14,14 @@ use super::input_thread::InputThread;
 use super::inputs::{Inputs, Step};
 use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
-use super::map_files::{export, start_map, RegionReadError, StartMap};
+use super::map_files::{export, start_map, StartMap};
 use super::map_store::{Compaction, MapStore, Paging};
 use super::memory::{limit_arenas_to_cores, Releaser};
-use super::outputs::{NodeSummary, Outputs, RegionPages};
+use super::outputs::{NodeSummary, Outputs};
 use super::pace::Pace;
 use super::pose_topics::PoseTopics;
-use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
+use super::snapshot_reply::answer_snapshot;
 use super::workers::{publish_released, workers_event, STALL_CHECK};
 use crate::foxglove::{Foxglove, FoxgloveConfig};
 use crate::fusion::FusionConfig;
@@ -101,6 +101,10 @@ pub struct NodeConfig {
     /// Where the left camera's poses come from: the `pose` topic (`None`), or `/tf` or the
     /// odometry topic through a tf buffer.
     pub pose_source: Option<PoseSourceConfig>,
+    /// The frame the poses are in, and so the node's outputs (the map, bin poses, the
+    /// transforms it publishes): `world` by default, the pose source's world frame (`map`,
+    /// `odom`) when poses come from the robot's tree.
+    pub world_frame: String,
     /// The memory the allocator keeps after it is freed goes back to the system this often,
     /// and its arenas are capped at one per core ([`super::memory`]), so resident memory
     /// follows the map in memory on a long drive (zero: neither, the allocator's defaults).
@@ -226,6 +230,7 @@ impl Default for NodeConfig {
             operating: None,
             workers: WorkersConfig::default(),
             pose_source: None,
+            world_frame: crate::msg::tf2_msgs::WORLD.into(),
             release_memory_every: std::time::Duration::from_secs(5),
         }
     }
@@ -314,7 +319,7 @@ pub async fn run_with(
     // Bound before the zenoh session opens, so an address in use fails first.
     let foxglove = match &config.foxglove {
         Some(c) => {
-            let f = Foxglove::start(c, &config.keys.namespace).await?;
+            let f = Foxglove::start(c, &config.keys.namespace, &config.world_frame).await?;
             eprintln!("foxglove ready: {}", f.url());
             Some(f)
         }
@@ -388,6 +393,7 @@ pub async fn run_with(
     let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, store)
         .with_releaser(releaser)
         .with_foxglove(foxglove.as_ref())
+        .with_world_frame(&config.world_frame)
         .with_points(point_names.clone());
     if resumed {
         outputs.announce_resume();
@@ -449,62 +455,7 @@ pub async fn run_with(
                 None => inputs_open = false,
             },
             Ok(q) = snapshot_requests.recv_async() => {
-                if !outputs.durable() {
-                    // The map holds bins whose records are not durable: a crash could take
-                    // back what a snapshot would show.
-                    outputs.counters.add("refused/snapshot_not_durable", 1);
-                    let why = "the map's journal is not durable (disk full?): snapshots wait until it is";
-                    q.reply_err(why).await.map_err(zenoh_err)?;
-                    continue;
-                }
-                let region = match RegionQuery::parse(q.parameters().iter()) {
-                    Ok(region) => region,
-                    Err(refused) => {
-                        outputs.counters.add("refused/snapshot_region", 1);
-                        q.reply_err(refused.to_string()).await.map_err(zenoh_err)?;
-                        continue;
-                    }
-                };
-                if let Err(refused) = snapshot_gate.admit(q.key_expr().as_str(), Instant::now()) {
-                    outputs.counters.add(refused.counter(), 1);
-                    q.reply_err(refused.to_string()).await.map_err(zenoh_err)?;
-                    continue;
-                }
-                let Some(region) = region else {
-                    match outputs.snapshot(outputs.snapshot_header()) {
-                        Ok(bytes) => q
-                            .reply(q.key_expr().clone(), bytes)
-                            .attachment(outputs.snapshot_attachment())
-                            .await
-                            .map_err(zenoh_err)?,
-                        Err(_) => outputs.counters.add("error/encode_map_update", 1),
-                    }
-                    continue;
-                };
-                let RegionPages { pages, total } = match outputs.region_pages(&region) {
-                    Ok(pages) => pages,
-                    Err(e) => {
-                        let counter = match e {
-                            RegionReadError::TooLarge { .. } => "refused/snapshot_region",
-                            RegionReadError::Tile(_) => "error/region_tiles",
-                        };
-                        outputs.counters.add(counter, 1);
-                        q.reply_err(e.to_string()).await.map_err(zenoh_err)?;
-                        continue;
-                    }
-                };
-                let count = pages.len();
-                for (i, page) in pages.into_iter().enumerate() {
-                    let attachment = region.attachment(i, count, total);
-                    match outputs.region_page(page) {
-                        Ok(m) => q
-                            .reply(q.key_expr().clone(), m.encode())
-                            .attachment(attachment)
-                            .await
-                            .map_err(zenoh_err)?,
-                        Err(_) => outputs.counters.add("error/encode_map_update", 1),
-                    }
-                }
+                answer_snapshot(q, &mut outputs, &mut snapshot_gate).await?;
             },
             Some(event) = out_rx.recv() => {
                 dispatch.event(&Slot::Local, None, event);
@@ -513,6 +464,7 @@ pub async fn run_with(
                 workers_event(&mut dispatch, event, &mut outputs.counters);
             },
             _ = stall_check.tick() => {
+                input_thread.tick();
                 outputs.retry_held(dispatch.drops()).await?;
                 for id in dispatch.stalled(Instant::now(), config.workers.timeout) {
                     eprintln!(

@@ -53,7 +53,7 @@ use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
 use crate::msg::sensor_msgs::Image;
 use crate::msg::std_msgs::Header;
-use crate::msg::tf2_msgs::{world_to, TfMessage, WORLD};
+use crate::msg::tf2_msgs::{frame_to, TfMessage, WORLD};
 use crate::msg::Message;
 use crate::pipeline::self_check::{verdict_code, CheckAction, CheckOutcome};
 use crate::pipeline::worker::{now_ns, Rendered, Stamps, WorkerEvent};
@@ -122,6 +122,8 @@ pub(super) struct Outputs<'a> {
     /// The source stamp of the latest bin fused (what a snapshot of the map is stamped
     /// with; 0 before the first).
     latest_source_ns: i64,
+    /// The frame the map, the bin poses and the transforms are in (the poses' frame).
+    world_frame: String,
     /// Bad input, drops, errors.
     pub counters: Counters,
     /// What the run did.
@@ -156,6 +158,7 @@ impl<'a> Outputs<'a> {
             awaiting_render: BTreeSet::new(),
             static_tf: StaticFrames::default(),
             latest_source_ns: 0,
+            world_frame: WORLD.into(),
             counters,
             summary: NodeSummary::default(),
         }
@@ -170,6 +173,12 @@ impl<'a> Outputs<'a> {
     /// Keeps `releaser` running while the node does, its counters among the node's.
     pub fn with_releaser(mut self, releaser: Option<Releaser>) -> Self {
         self.releaser = releaser;
+        self
+    }
+
+    /// Publishes in `frame` (the poses' frame) instead of [`WORLD`].
+    pub fn with_world_frame(mut self, frame: &str) -> Self {
+        self.world_frame = frame.into();
         self
     }
 
@@ -323,7 +332,7 @@ impl<'a> Outputs<'a> {
     /// The header of a snapshot answering a query: the world frame at the latest fused
     /// bin's source stamp (0 before any).
     pub fn snapshot_header(&self) -> Header {
-        Header::new(self.latest_source_ns, WORLD)
+        Header::new(self.latest_source_ns, &self.world_frame)
     }
 
     /// Publishes world -> the left camera of a frame that entered the binner on `/tf`, when
@@ -341,7 +350,8 @@ impl<'a> Outputs<'a> {
             return Ok(());
         }
         let msg = TfMessage {
-            transforms: vec![world_to(
+            transforms: vec![frame_to(
+                &self.world_frame,
                 camera.frame_id,
                 &camera.left_to_world,
                 camera.stamp_ns,

@@ -18,8 +18,10 @@ use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::worker::{Job, Stamps};
 use crate::remote::admit::{admit_map, admit_render, Rules};
 use crate::remote::wire::{Reply, Request, REQUEST_PREFIX};
-use crate::service::inputs::{feed, INPUT_TOPICS};
+use crate::service::inputs::{feed, INPUT_TOPICS, POSE_SOURCE_TOPICS};
+use crate::service::keys::Topic;
 use crate::service::region::RegionQuery;
+use crate::tf::{Mount, PoseSourceConfig, PoseSourceKind};
 use crate::view::{
     fetch_batch, paged_tiles, take_sample, tile_query, tiles_query, ViewState, DEFAULT_BUDGET,
     MAX_RADIUS_M,
@@ -135,14 +137,30 @@ fn reply_job() -> &'static Job {
 /// counters): the input as one sample on each input topic, then as a stream of samples
 /// ([`frames`]: each part's first byte picks the topic, left image, right image, left and
 /// right camera info, pose, left and right compressed image, modulo 7; the rest is the
-/// payload).
+/// payload). Then both again with each pose source (`/tf` into `map`, and odometry with
+/// its mount on `/tf_static`), `/tf`, `/tf_static` and odometry numbered 7, 8 and 9
+/// (modulo 10).
 pub fn node_inputs(data: &[u8]) {
-    let _ = feed(INPUT_TOPICS.iter().map(|&t| (t, data)));
-    let samples = frames(data, MAX_FRAMES).into_iter().filter_map(|part| {
-        let (&topic, payload) = part.split_first()?;
-        Some((INPUT_TOPICS[topic as usize % INPUT_TOPICS.len()], payload))
-    });
-    let _ = feed(samples);
+    let tf = PoseSourceConfig::new(PoseSourceKind::Tf, Some("map".into()));
+    let odometry = PoseSourceConfig::new(
+        PoseSourceKind::Odometry {
+            mount: Mount::TfStatic,
+        },
+        None,
+    );
+    let runs: [(&[Topic], Option<PoseSourceConfig>); 3] = [
+        (&INPUT_TOPICS, None),
+        (&POSE_SOURCE_TOPICS, Some(tf)),
+        (&POSE_SOURCE_TOPICS, Some(odometry)),
+    ];
+    for (topics, source) in runs {
+        let _ = feed(topics.iter().map(|&t| (t, data)), source.clone());
+        let samples = frames(data, MAX_FRAMES).into_iter().filter_map(|part| {
+            let (&topic, payload) = part.split_first()?;
+            Some((topics[topic as usize % topics.len()], payload))
+        });
+        let _ = feed(samples, source);
+    }
 }
 
 /// A snapshot query's parameters (the part of a zenoh selector after `?`, `k=v;k=v`, read as
@@ -244,7 +262,8 @@ pub fn view_topics(data: &[u8]) {
 
 /// The left and right cameras' ROS `camera_calibration` YAML files (joined by a NUL, see
 /// [`split`]) as `stereosplat reconstruct --camera-info L --camera-info-right R` reads them
-/// for images of the size the left file names, and the left file alone with `--baseline`.
+/// for images of the size the left file names, and the left file alone with `--baseline`;
+/// then the remap tables that rectify raw cameras' images.
 pub fn camera_calibration(data: &[u8]) {
     let [left, right] = split::<2>(data);
     let left = scratch_file("left.yaml", left);
@@ -264,5 +283,13 @@ pub fn camera_calibration(data: &[u8]) {
         if let Ok(calibration) = input.resolve(size) {
             let _ = calibration.disparity_per_inverse_depth();
         }
+        // The remap tables of raw cameras, for sizes whose tables build quickly (the
+        // tables' cost is the image's size, bounded by the camera model's own limits).
+        if u64::from(size.0) * u64::from(size.1) <= RECTIFIED_PIXELS {
+            let _ = input.rectifier();
+        }
     }
 }
+
+/// Largest image, in pixels, whose raw cameras [`camera_calibration`] rectifies.
+const RECTIFIED_PIXELS: u64 = 1 << 16;

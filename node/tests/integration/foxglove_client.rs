@@ -462,6 +462,7 @@ async fn empty_and_extreme_maps_reach_the_client_and_an_address_in_use_is_a_clea
             ..FoxgloveConfig::default()
         },
         "edge",
+        "world",
     )
     .await
     .unwrap();
@@ -482,6 +483,7 @@ async fn empty_and_extreme_maps_reach_the_client_and_an_address_in_use_is_a_clea
             ..FoxgloveConfig::default()
         },
         "again",
+        "world",
     )
     .await;
     let err = match taken {
@@ -566,6 +568,7 @@ async fn a_client_that_stops_reading_gets_only_what_its_bounded_queue_held() {
             ..FoxgloveConfig::default()
         },
         "slow",
+        "world",
     )
     .await
     .unwrap();

@@ -90,7 +90,12 @@ def publish(args):
     rclpy.init()
     node = rclpy.create_node('stereosplat_drive')
     name = lambda t: t if t.startswith('/') else f'/{ns}/{t}'
-    pubs = {t: node.create_publisher(cls, name(t), QOS) for t, cls in inputs.items()}
+    # /tf_static latched, as tf2's static broadcaster publishes it.
+    latched = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    qos = lambda t: latched if t == '/tf_static' else QOS
+    pubs = {t: node.create_publisher(cls, name(t), qos(t)) for t, cls in inputs.items()}
     matched = spin_until(node, lambda: all(p.get_subscription_count() > 0 for p in pubs.values()),
                          args.match_timeout)
     if not matched:

@@ -4,14 +4,19 @@
 //! topic does lie in it. Samples the node publishes itself (its own bin frames) are not
 //! delivered.
 //!
-//! `/tf_static` is subscribed as samples arrive: a mount published once before the node
-//! started (a latched `robot_state_publisher`) is received only when it is published again,
-//! as tf2 broadcasters on zenoh without a publication cache do.
+//! `/tf_static` is latched in ROS 2 (a `TRANSIENT_LOCAL` writer: `robot_state_publisher`
+//! sends the mounts once, at its start, usually before the node's). The zenoh ROS 2 bridge
+//! routes such a writer through a zenoh-ext advanced publisher that caches its samples, so
+//! the node subscribes to `/tf_static` with an advanced subscriber that asks every such
+//! cache for its history when it starts and whenever a publisher appears later
+//! (`detect_late_publishers`): a mount published before the node started still arrives. A
+//! plain zenoh publisher has no cache; its statics arrive only when it sends them again.
 
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::{Locality, Sample};
 use zenoh::Session;
+use zenoh_ext::{AdvancedSubscriber, AdvancedSubscriberBuilderExt, HistoryConfig};
 
 use super::keys::{Keys, Topic, TF, TF_STATIC};
 use crate::transport::TransportError;
@@ -19,22 +24,25 @@ use crate::transport::TransportError;
 /// The two subscriptions.
 pub(super) struct PoseTopics {
     tf: Subscriber<FifoChannelHandler<Sample>>,
-    tf_static: Subscriber<FifoChannelHandler<Sample>>,
+    tf_static: AdvancedSubscriber<FifoChannelHandler<Sample>>,
 }
 
 impl PoseTopics {
-    /// Subscribes to `/tf` and `/tf_static` under `keys`' mode.
+    /// Subscribes to `/tf` and `/tf_static` (with the publishers' cached history) under
+    /// `keys`' mode.
     pub async fn declare(session: &Session, keys: &Keys) -> Result<Self, TransportError> {
-        let subscribe = |topic: Topic| {
-            session
-                .declare_subscriber(keys.key(topic))
-                .allowed_origin(Locality::Remote)
-        };
-        let err = |e: zenoh::Error| TransportError::Zenoh(e.to_string());
-        Ok(Self {
-            tf: subscribe(TF).await.map_err(err)?,
-            tf_static: subscribe(TF_STATIC).await.map_err(err)?,
-        })
+        let tf = session
+            .declare_subscriber(keys.key(TF))
+            .allowed_origin(Locality::Remote)
+            .await
+            .map_err(TransportError::from)?;
+        let tf_static = session
+            .declare_subscriber(keys.key(TF_STATIC))
+            .history(HistoryConfig::default().detect_late_publishers())
+            .allowed_origin(Locality::Remote)
+            .await
+            .map_err(TransportError::from)?;
+        Ok(Self { tf, tf_static })
     }
 
     /// The next sample on either topic, with its topic; pending for ever without `topics`

@@ -23,7 +23,7 @@ use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::{run, Keys, NodeConfig, NodeSummary, ServiceError};
+use node::service::{run_announced, Keys, NodeConfig, NodeSummary, ServiceError};
 use node::transport::{open, TransportConfig};
 use zenoh::qos::CongestionControl;
 use zenoh::Session;
@@ -152,21 +152,32 @@ pub struct RunningNode {
 }
 
 impl RunningNode {
-    /// Starts the node with `config` (its listen endpoints replaced by a free port) and waits
-    /// half a second for it to listen.
+    /// Starts the node with `config` (its listen endpoints replaced by a free port, the
+    /// endpoints it connects to kept) and waits until it says it is ready (bound and subscribed), two minutes at most.
     pub async fn start(mut config: NodeConfig) -> Self {
         let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
         config.transport = TransportConfig {
             listen: vec![endpoint.clone()],
+            connect: std::mem::take(&mut config.transport.connect),
             ..TransportConfig::default()
         };
         let keys = config.keys.clone();
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let task = tokio::spawn(run(config, async {
-            let _ = stop_rx.await;
-        }));
-        tokio::time::sleep(Duration::from_millis(500)).await;
-        assert!(!task.is_finished(), "the node stopped at start");
+        let (ready_tx, ready_rx) = tokio::sync::oneshot::channel::<()>();
+        let task = tokio::spawn(run_announced(
+            config,
+            async {
+                let _ = stop_rx.await;
+            },
+            move |_| {
+                let _ = ready_tx.send(());
+            },
+        ));
+        let ready = tokio::time::timeout(Duration::from_secs(120), ready_rx).await;
+        assert!(
+            matches!(ready, Ok(Ok(()))) && !task.is_finished(),
+            "the node stopped at start or was not ready in two minutes"
+        );
         Self {
             endpoint,
             keys,

@@ -2,8 +2,12 @@
 //! would publish it: no PoseStamped of the camera, but a `/tf` tree `map -> odom` (static)
 //! `-> base_link` (at each frame's stamp) `-> camera_optical` (the mount, static, REP 103's
 //! optical axes), and, for `--pose-source odometry`, `nav_msgs/Odometry` of `base_link` in
-//! `odom`. The node looks up the left camera at each image's stamp; its bin poses equal the
-//! drive's own (PoseStamped) run's within a micrometre, mapped into `odom` for odometry.
+//! `odom`. The node looks up the left camera at each image's stamp; its bins open on the
+//! same frames as the drive's own (PoseStamped) run's, their poses equal the drive's within
+//! a micrometre (mapped into `odom` for odometry), and the outputs are in the pose source's
+//! world frame (`map`, `odom`). A mount latched on `/tf_static` before the node started (a
+//! cached advanced publisher, as the ROS 2 bridge routes a `TRANSIENT_LOCAL` writer) still
+//! reaches it.
 
 use crate::drive_support;
 
@@ -19,6 +23,8 @@ use node::msg::Message;
 use node::service::keys::{TF, TF_STATIC};
 use node::service::{Keys, NodeConfig, NodeSummary};
 use node::tf::{Mount, PoseSourceConfig, PoseSourceKind};
+use node::transport::TransportConfig;
+use zenoh_ext::{AdvancedPublisherBuilderExt, CacheConfig};
 
 /// How the drive's poses are sent.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -30,6 +36,11 @@ enum Poses {
     /// Odometry of the body, the mount on `/tf_static`.
     Odometry,
 }
+
+/// Added to the drive's stamps (which start at 0): a robot's clock. A stamp of 0 is tf2's
+/// `TimePointZero`, the latest transform when the lookup happens, which depends on when
+/// `/tf` (a subscriber of its own) arrives beside the images.
+pub(crate) const CLOCK_NS: i64 = 1_700_000_000_000_000_000;
 
 /// `map -> odom`: where odometry started, in the map.
 pub(crate) fn map_to_odom() -> DAffine3 {
@@ -57,31 +68,41 @@ pub(crate) fn edge(
     }
 }
 
+/// A bin's pose as published: its stamp, frame and pose.
+type BinPose = (i64, String, DAffine3);
+
 /// Runs the drive through a fresh node with its poses sent as `poses`: the summary and the
 /// bin poses.
-async fn run(tag: &str, drive: &Drive, poses: Poses) -> (NodeSummary, Vec<DAffine3>) {
+async fn run(tag: &str, drive: &Drive, poses: Poses) -> (NodeSummary, Vec<BinPose>) {
     let keys = Keys::new(tag);
-    let pose_source = match poses {
-        Poses::Stamped => None,
-        Poses::Tf => Some(PoseSourceConfig::new(
-            PoseSourceKind::Tf,
-            Some("map".into()),
-        )),
-        Poses::Odometry => Some(PoseSourceConfig::new(
-            PoseSourceKind::Odometry {
-                mount: Mount::TfStatic,
-            },
-            None,
-        )),
+    let (pose_source, world) = match poses {
+        Poses::Stamped => (None, "world"),
+        Poses::Tf => (
+            Some(PoseSourceConfig::new(
+                PoseSourceKind::Tf,
+                Some("map".into()),
+            )),
+            "map",
+        ),
+        Poses::Odometry => (
+            Some(PoseSourceConfig::new(
+                PoseSourceKind::Odometry {
+                    mount: Mount::TfStatic,
+                },
+                None,
+            )),
+            "odom",
+        ),
     };
     let node = RunningNode::start(NodeConfig {
         pose_source,
+        world_frame: world.into(),
         ..sgm_config(&keys)
     })
     .await;
     let outputs = Collector::connect(&node, &[keys.bin_pose()]).await;
     let player = Player::connect(&node).await;
-    let first = drive.frames[0].0;
+    let first = drive.frames[0].0 + CLOCK_NS;
     player.camera_infos(&drive.rig, first).await;
     if poses != Poses::Stamped {
         let statics = [
@@ -95,6 +116,7 @@ async fn run(tag: &str, drive: &Drive, poses: Poses) -> (NodeSummary, Vec<DAffin
     let body =
         |camera_to_map: &DAffine3| map_to_odom().inverse() * *camera_to_map * mount().inverse();
     for (stamp, frame) in &drive.frames {
+        let stamp = &(stamp + CLOCK_NS);
         let header = |id: &str| Header::new(*stamp, id);
         match poses {
             Poses::Stamped => {
@@ -132,7 +154,10 @@ async fn run(tag: &str, drive: &Drive, poses: Poses) -> (NodeSummary, Vec<DAffin
     let bin_poses = outputs
         .decoded::<PoseStamped>(&keys.bin_pose())
         .iter()
-        .map(|p| affine_from_pose(p).expect("a rigid pose"))
+        .map(|p| {
+            let pose = affine_from_pose(p).expect("a rigid pose");
+            (p.header.stamp.to_nanos(), p.header.frame_id.clone(), pose)
+        })
         .collect();
     (summary, bin_poses)
 }
@@ -179,11 +204,110 @@ async fn poses_from_tf_and_from_odometry_equal_the_drives_own() {
         assert_eq!(s.counters.get("pose_source/timed_out"), 0);
         assert_eq!(s.counters.get("pose_source/failed"), 0);
     }
+    // The same frames open the bins: a frame lost on the way would show here, with the
+    // counters that say where.
+    let stamps = |poses: &[BinPose]| poses.iter().map(|p| p.0).collect::<Vec<_>>();
+    for (name, s, poses) in [
+        ("tf", &tf, &from_tf),
+        ("odometry", &odometry, &from_odometry),
+    ] {
+        assert_eq!(
+            stamps(poses),
+            stamps(&truth),
+            "{name}: bins opened on other frames; {:?} against {:?}",
+            s.counters,
+            stamped.counters
+        );
+    }
+    for (poses, world) in [
+        (&truth, "world"),
+        (&from_tf, "map"),
+        (&from_odometry, "odom"),
+    ] {
+        assert!(poses.iter().all(|p| p.1 == world), "{world}: {poses:?}");
+    }
     let in_odom = map_to_odom().inverse();
     let mut worst: f64 = 0.0;
     for ((t, a), b) in truth.iter().zip(&from_tf).zip(&from_odometry) {
-        worst = worst.max(apart(t, a)).max(apart(&(in_odom * *t), b));
+        worst = worst
+            .max(apart(&t.2, &a.2))
+            .max(apart(&(in_odom * t.2), &b.2));
     }
     println!("bin poses from /tf and odometry against PoseStamped: {worst:.2e} m apart at most");
     assert!(worst < 1e-6, "{worst}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_mount_latched_before_the_node_started_reaches_it() {
+    let drive = Drive::small("pose_latched");
+    let keys = Keys::new("ps_latched");
+    // The robot's side: a session of its own, and `/tf_static` sent once, before the node
+    // exists, through a cached publisher (what the bridge makes of a TRANSIENT_LOCAL
+    // writer). A plain put would reach no one: nothing subscribed yet.
+    let robot_endpoint = format!("tcp/127.0.0.1:{}", drive_support::free_port());
+    // Timestamps on, as the bridge has them: a cached publisher orders by them.
+    let mut config = TransportConfig {
+        listen: vec![robot_endpoint.clone()],
+        ..TransportConfig::default()
+    }
+    .zenoh_config()
+    .expect("a config");
+    config
+        .insert_json5("timestamping/enabled", "true")
+        .expect("timestamping");
+    let robot = zenoh::open(config).await.expect("the robot's session");
+    let statics = robot
+        .declare_publisher(keys.key(TF_STATIC))
+        .cache(CacheConfig::default().max_samples(8))
+        .publisher_detection()
+        .await
+        .expect("a cached publisher");
+    let first = drive.frames[0].0 + CLOCK_NS;
+    for msg in [
+        edge("map", "odom", &map_to_odom(), first),
+        edge("base_link", "camera_optical", &mount(), first),
+    ] {
+        statics.put(msg.encode()).await.expect("put");
+    }
+    let mut config = NodeConfig {
+        pose_source: Some(PoseSourceConfig::new(
+            PoseSourceKind::Tf,
+            Some("map".into()),
+        )),
+        world_frame: "map".into(),
+        ..sgm_config(&keys)
+    };
+    config.transport.connect = vec![robot_endpoint];
+    let node = RunningNode::start(config).await;
+    let outputs = Collector::connect(&node, &[keys.bin_pose()]).await;
+    let player = Player::connect(&node).await;
+    player.camera_infos(&drive.rig, first).await;
+    let body =
+        |camera_to_map: &DAffine3| map_to_odom().inverse() * *camera_to_map * mount().inverse();
+    for (stamp, frame) in &drive.frames {
+        let stamp = &(stamp + CLOCK_NS);
+        let header = |id: &str| Header::new(*stamp, id);
+        let msg = edge("odom", "base_link", &body(&frame.left_to_world), *stamp);
+        player.put(keys.key(TF), msg.encode()).await;
+        let left = image_from_rgb(&frame.left, header("camera_optical"));
+        player.put(keys.left_image(), left.encode()).await;
+        let right = image_from_rgb(&frame.right, header("camera_right_optical"));
+        player.put(keys.right_image(), right.encode()).await;
+    }
+    let opened = drive.bins_opened(8.0);
+    let all = outputs.wait_count(&keys.bin_pose(), opened).await;
+    let summary = node.stop().await;
+    let c = &summary.counters;
+    assert!(all, "{} of {opened} bins: {c:?}", summary.bins_published);
+    assert_eq!(
+        c.get("pose_source/ready"),
+        drive.frames.len() as u64,
+        "{c:?}"
+    );
+    assert_eq!(
+        c.get("pose_source/failed") + c.get("pose_source/timed_out"),
+        0
+    );
+    drop(statics);
+    robot.close().await.expect("the robot's session closes");
 }

@@ -9,6 +9,7 @@
 //! complete part; a channel mapped onto a topic of another type is skipped and counted.
 
 use crate::drive_support;
+use crate::node_pose_sources::CLOCK_NS;
 use crate::python_support;
 
 use std::path::Path;
@@ -65,7 +66,7 @@ fn jpeg(img: &RgbImage, header: Header) -> Vec<u8> {
 /// The drive as a robot records it: (topic, type, stamp, CDR payload), in time order.
 fn recording(drive: &Drive) -> Vec<(&'static str, MessageKind, i64, Vec<u8>)> {
     let rig = &drive.rig;
-    let first = drive.frames[0].0;
+    let first = drive.frames[0].0 + CLOCK_NS;
     let mut messages = vec![
         (
             "/tf_static",
@@ -81,6 +82,7 @@ fn recording(drive: &Drive) -> Vec<(&'static str, MessageKind, i64, Vec<u8>)> {
         ),
     ];
     for (stamp, frame) in &drive.frames {
+        let stamp = &(stamp + CLOCK_NS);
         let header = |id: &str| Header::new(*stamp, id);
         let body = map_to_odom().inverse() * frame.left_to_world * mount().inverse();
         let left_info = camera_info(&rig.intrinsics, 0.0, header("camera_left_optical_frame"));
@@ -245,7 +247,7 @@ async fn a_robots_rosbag2_recording_replays_through_a_topic_map() {
     );
     assert_eq!(summary.counters.get("pose_source/ready"), frames);
     // Each bin map carries the recorded stamp of the frame that opened it.
-    let recorded: Vec<i64> = drive.frames.iter().map(|(t, _)| *t).collect();
+    let recorded: Vec<i64> = drive.frames.iter().map(|(t, _)| t + CLOCK_NS).collect();
     assert!(stamps.iter().all(|s| recorded.contains(s)), "{stamps:?}");
 
     // A recorder killed mid-drive: the file cut at 60%, its complete chunks replayed.

@@ -6,7 +6,7 @@
 //! out, each at the pose of the frame that opened it in the drive.
 
 use crate::drive_support;
-use crate::node_pose_sources::{edge, map_to_odom, mount};
+use crate::node_pose_sources::{edge, map_to_odom, mount, CLOCK_NS};
 use crate::python_support;
 use crate::ros2_bridge::{bridge_drive, rclpy_node, start_bridge, Running};
 
@@ -33,7 +33,7 @@ fn write_robot_inputs(drive: &Drive, keys: &Keys, path: &std::path::Path) {
             .unwrap();
     };
     let rig = &drive.rig;
-    let first = drive.frames[0].0;
+    let first = drive.frames[0].0 + CLOCK_NS;
     put(
         keys::TF_STATIC,
         first,
@@ -45,6 +45,7 @@ fn write_robot_inputs(drive: &Drive, keys: &Keys, path: &std::path::Path) {
         edge("base_link", "camera_optical", &mount(), first).encode(),
     );
     for (t, frame) in &drive.frames {
+        let t = &(t + CLOCK_NS);
         let header = |id: &str| Header::new(*t, id);
         let body = map_to_odom().inverse() * frame.left_to_world * mount().inverse();
         put(

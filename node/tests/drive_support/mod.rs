@@ -19,6 +19,7 @@ use model::generate::write_synthetic;
 use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 use node::msg::image::{camera_info, image_from_rgb};
+use node::msg::latency::Diagnostics;
 use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
@@ -436,6 +437,34 @@ impl Collector {
     pub fn headers(&self, key: &str) -> Vec<Header> {
         self.decoded::<Header>(key)
     }
+}
+
+/// Waits, two minutes at most, for a `diagnostics` message on `subscriber` whose counter
+/// sum over the names starting with `prefix` reaches `at_least`; the last sum seen. A
+/// loaded machine may take seconds to count what a test sent: tests wait for the count, not
+/// a fixed time.
+pub async fn wait_counted(
+    subscriber: &zenoh::pubsub::Subscriber<
+        zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>,
+    >,
+    prefix: &str,
+    at_least: u64,
+) -> u64 {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(120);
+    let mut seen = 0;
+    while seen < at_least {
+        let sample = tokio::time::timeout_at(deadline, subscriber.recv_async()).await;
+        let Ok(Ok(sample)) = sample else { break };
+        if let Ok(d) = Diagnostics::decode(&sample.payload().to_bytes()) {
+            seen = d
+                .counters
+                .iter()
+                .filter(|c| c.kind.starts_with(prefix))
+                .map(|c| c.count)
+                .sum();
+        }
+    }
+    seen
 }
 
 /// Polls `done` every 50 ms until it holds or `limit` passes; whether it held. A guard

@@ -86,7 +86,6 @@ async fn bad_then_drive(tag: &str, bad: impl Fn(&Drive) -> [Vec<u8>; 5]) {
     assert!(node.is_running());
     outputs.wait_count(&keys.bin_map(), opened).await;
     let summary = node.stop().await;
-    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
 
     for c in COUNTERS {
         assert_eq!(summary.counters.get(c), 1, "{c}: {:?}", summary.counters);

@@ -46,7 +46,8 @@ async fn run(tag: &str, operating: OperatingConfig) -> (NodeSummary, Vec<BinLate
     player.frames(&drive.rig, &drive.frames).await;
     outputs.wait_count(&keys.bin_map(), opened).await;
     let summary = node.stop().await;
-    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    // The last bin's latency goes out as the node stops.
+    outputs.wait_count(&keys.latency(), opened).await;
     (summary, outputs.decoded(&keys.latency()), opened)
 }
 

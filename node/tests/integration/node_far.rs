@@ -53,7 +53,6 @@ async fn run_drive(drive: &Drive, shift: DVec3, out: &Path) -> Run {
     let opened = drive.bins_opened(8.0);
     assert!(outputs.wait_count(&keys.bin_pose(), opened).await);
     let summary = node.stop().await;
-    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
     assert_eq!(summary.counters.get("dropped/worker_queue"), 0);
     let origin: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out_file(out, "global_map_origin.json")).unwrap())

@@ -44,7 +44,8 @@ async fn run(tag: &str, drive: &Drive, frames: &[(i64, StereoFrame)], on_fail: O
     player.frames(&drive.rig, frames).await;
     outputs.wait_count(&keys.bin_map(), opened).await;
     let summary = node.stop().await;
-    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    // The last bin's latency goes out as the node stops.
+    outputs.wait_count(&keys.latency(), opened).await;
     Run {
         summary,
         latencies: outputs.decoded(&keys.latency()),

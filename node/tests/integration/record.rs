@@ -7,7 +7,7 @@
 //! monitor's statistics of known latencies.
 
 use crate::msg_support;
-use crate::net_support;
+use crate::net_support::{self, sees_a_subscriber};
 
 use std::future::Future;
 use std::path::{Path, PathBuf};
@@ -121,9 +121,11 @@ fn contents(path: &Path) -> Vec<(String, Vec<u8>)> {
 }
 
 /// Records `count` messages of `keys` from `recorder` into `path` while `publish` runs (it
-/// starts once the recorder had time to subscribe). A 60 s stop guards against a hang.
+/// starts once `publisher` sees the recorder's subscriber on every topic). A 60 s stop
+/// guards against a hang.
 async fn record_while(
     recorder: &Session,
+    publisher: &Session,
     keys: &Keys,
     path: &Path,
     count: usize,
@@ -135,7 +137,12 @@ async fn record_while(
     };
     let guard = tokio::time::sleep(Duration::from_secs(60));
     let publish = async {
-        tokio::time::sleep(Duration::from_millis(700)).await;
+        for (key, _) in keys.all() {
+            assert!(
+                sees_a_subscriber(publisher, &key).await,
+                "the recorder on {key}"
+            );
+        }
         publish.await;
     };
     let (summary, ()) = tokio::join!(record(recorder, keys, path, limits, guard), publish);
@@ -170,6 +177,7 @@ async fn recorded_drive(
     let path = scratch(name);
     let summary = record_while(
         recorder,
+        player,
         &keys,
         &path,
         drive.len(),
@@ -234,7 +242,7 @@ async fn a_recording_replayed_as_fast_as_possible_records_again_bit_for_bit() {
         assert_eq!(summary.skipped_outputs, 0);
         assert!(summary.unknown_topics.is_empty());
     };
-    let again = record_while(&recorder, &keys, &second, published.len(), replay).await;
+    let again = record_while(&recorder, &player, &keys, &second, published.len(), replay).await;
     assert_eq!(again.messages, published.len() as u64);
     assert_eq!(contents(&second), published);
 }
@@ -340,7 +348,7 @@ async fn replay_maps_the_recorded_namespace_skips_outputs_and_unknown_topics() {
     writer.finish().unwrap();
 
     let subscriber = receiver.declare_subscriber("**").await.unwrap();
-    tokio::time::sleep(Duration::from_millis(700)).await;
+    assert!(sees_a_subscriber(&player, &new.left_image()).await);
     let bag = BagReader::open(&path).unwrap();
     let options = BagReplayOptions {
         rate: Rate::Recorded,
@@ -413,7 +421,9 @@ async fn monitor_summarises_known_latencies() {
         }],
     };
     let publish = async {
-        tokio::time::sleep(Duration::from_millis(700)).await;
+        for key in [keys.latency(), keys.diagnostics()] {
+            assert!(sees_a_subscriber(&node, &key).await, "the monitor on {key}");
+        }
         node.put(keys.latency(), vec![0, 1, 0, 0, 7]).await.unwrap();
         node.put(keys.diagnostics(), diagnostics.encode())
             .await

@@ -8,8 +8,8 @@
 //! certificate takes the node's bins, on its own key (another worker's certificate, or a
 //! viewer's, gets none).
 
-use crate::drive_support::{Drive, Player};
-use crate::net_support;
+use crate::drive_support::{wait_counted, Drive, Player};
+use crate::net_support::{self, sees_a_subscriber};
 use crate::node_workers::WorkerProcess;
 
 use std::io::{BufRead, BufReader};
@@ -94,19 +94,6 @@ async fn wait_connected(session: &Session) -> bool {
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(20) {
         if session.info().peers_zid().await.next().is_some() {
-            return true;
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
-    false
-}
-
-/// Waits (at most 20 s) until a publisher of `session` on `key` has a matching subscriber.
-async fn sees_a_subscriber(session: &Session, key: &str) -> bool {
-    let publisher = session.declare_publisher(key.to_string()).await.unwrap();
-    let start = Instant::now();
-    while start.elapsed() < Duration::from_secs(20) {
-        if publisher.matching_status().await.unwrap().matching() {
             return true;
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
@@ -346,12 +333,27 @@ async fn mutual_tls_and_access_control_admit_only_the_allowed_peers() {
     }
 
     // Everyone publishes a different number of bad messages: the node counts the camera's.
-    publish_garbage(camera, &keys, 5).await;
+    // A second viewer session watches the counters (the first one's publishes and closes).
+    let watcher = open(&peer(Some(ca.identity("stereosplat-viewer", &ca.ca()))))
+        .await
+        .unwrap();
+    let diagnostics = watcher
+        .declare_subscriber(keys.diagnostics())
+        .await
+        .unwrap();
     publish_garbage(viewer, &keys, 7).await;
     publish_garbage(no_cert, &keys, 11).await;
     publish_garbage(forged, &keys, 13).await;
     publish_garbage(plain, &keys, 17).await;
-    tokio::time::sleep(Duration::from_secs(1)).await;
+    publish_garbage(camera, &keys, 5).await;
+    // Once the camera's five are counted, one more counters message: a refused peer's
+    // message that got through would have been counted by then as well.
+    let counted = wait_counted(&diagnostics, "bad_message/", 5).await;
+    assert!(
+        counted >= 5,
+        "{counted} of the camera's 5 bad messages counted"
+    );
+    let _ = tokio::time::timeout(Duration::from_secs(5), diagnostics.recv_async()).await;
     stop_tx.send(()).unwrap();
     let summary = node.await.unwrap().unwrap();
     assert_eq!(
@@ -524,9 +526,21 @@ async fn in_the_secure_profile_a_worker_takes_bins_with_its_own_certificate_on_i
     )
     .await;
     assert!(sees_a_subscriber(&camera.session, &keys.left_image()).await);
+    // A viewer waits for every bin's pose before the node is stopped.
+    let viewer = open(&TransportConfig {
+        connect: vec![endpoint.clone()],
+        tls: Some(ca.identity("stereosplat-viewer", &ca.ca())),
+        ..TransportConfig::default()
+    })
+    .await
+    .unwrap();
+    let poses = viewer.declare_subscriber(keys.bin_pose()).await.unwrap();
     camera.frames(&drive.rig, &drive.frames).await;
-    tokio::time::sleep(Duration::from_secs(1)).await;
-    // The node finishes the bins its worker holds before it stops.
+    let opened = drive.bins_opened(8.0);
+    for n in 0..opened {
+        let pose = tokio::time::timeout(Duration::from_secs(120), poses.recv_async()).await;
+        assert!(matches!(pose, Ok(Ok(_))), "{n} of {opened} bin poses");
+    }
     stop_tx.send(()).unwrap();
     let summary = node.await.unwrap().unwrap();
     let c = &summary.counters;

@@ -41,6 +41,20 @@ pub async fn connected_pair() -> (Session, Session) {
     (a, b)
 }
 
+/// Waits (two minutes at most) until a publisher of `session` on `key` has a matching
+/// subscriber: what a test waits for before it publishes what a subscriber must receive.
+pub async fn sees_a_subscriber(session: &Session, key: &str) -> bool {
+    let publisher = session.declare_publisher(key.to_string()).await.unwrap();
+    let start = std::time::Instant::now();
+    while start.elapsed() < Duration::from_secs(120) {
+        if publisher.matching_status().await.unwrap().matching() {
+            return true;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    false
+}
+
 /// GET `path` from 127.0.0.1:`port` on a fresh connection: the status and the body (`None`
 /// when the exchange fails).
 pub fn http_get(port: u16, path: &str) -> Option<(u16, Vec<u8>)> {

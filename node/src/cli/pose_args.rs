@@ -3,6 +3,7 @@
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
+use glam::{DAffine3, DQuat, DVec3};
 
 use crate::tf::{Mount, PoseSourceConfig, PoseSourceKind};
 
@@ -15,7 +16,7 @@ pub enum PoseSourceArg {
     /// frame at each image's stamp.
     Tf,
     /// nav_msgs/Odometry of the robot's body on the `odometry` topic, with the camera's
-    /// mount on `/tf_static`.
+    /// mount on `/tf_static` (or `--camera-mount`).
     Odometry,
 }
 
@@ -34,6 +35,12 @@ pub struct PoseArgs {
     /// The left camera's optical frame; by default each left image's `header.frame_id`.
     #[arg(long)]
     camera_frame: Option<String>,
+    /// The camera's mount on the odometry's body frame, for `--pose-source odometry`
+    /// without it on `/tf_static`: `x,y,z,qx,qy,qz,qw`, the left camera's optical frame in
+    /// the body frame (metres and a unit quaternion, as `static_transform_publisher` takes
+    /// them).
+    #[arg(long, value_parser = parse_mount, allow_hyphen_values = true)]
+    camera_mount: Option<DAffine3>,
     /// Milliseconds an image waits for the transform at its stamp before it is given up
     /// (counted as `pose_source/timed_out`).
     #[arg(long, default_value_t = 500.0)]
@@ -60,9 +67,13 @@ impl PoseArgs {
                 PoseSourceKind::Tf
             }
             PoseSourceArg::Odometry => PoseSourceKind::Odometry {
-                mount: Mount::TfStatic,
+                mount: self.camera_mount.map_or(Mount::TfStatic, Mount::Fixed),
             },
         };
+        anyhow::ensure!(
+            self.camera_mount.is_none() || self.pose_source == PoseSourceArg::Odometry,
+            "--camera-mount is the camera's mount on the odometry's body: it needs --pose-source odometry"
+        );
         anyhow::ensure!(
             self.pose_wait_ms.is_finite() && self.pose_wait_ms >= 0.0,
             "--pose-wait-ms must be a number of milliseconds, 0 or more"
@@ -71,5 +82,59 @@ impl PoseArgs {
         config.camera_frame = self.camera_frame.clone();
         config.wait_ns = (self.pose_wait_ms * 1e6) as i64;
         Ok(Some(config))
+    }
+}
+
+/// `x,y,z,qx,qy,qz,qw` as a rigid transform: seven finite numbers, the quaternion of unit
+/// length within 1e-3 (then normalised), as printed calibrations round it.
+fn parse_mount(text: &str) -> Result<DAffine3, String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{text:?}: {e}"))?;
+    let [x, y, z, qx, qy, qz, qw] = values[..] else {
+        return Err(format!(
+            "{text:?}: seven numbers x,y,z,qx,qy,qz,qw expected"
+        ));
+    };
+    if !values.iter().all(|v| v.is_finite()) {
+        return Err(format!("{text:?}: not every number is finite"));
+    }
+    let q = DQuat::from_xyzw(qx, qy, qz, qw);
+    if (q.length() - 1.0).abs() > 1e-3 {
+        return Err(format!(
+            "{text:?}: the quaternion's length is {}, not 1",
+            q.length()
+        ));
+    }
+    Ok(DAffine3::from_rotation_translation(
+        q.normalize(),
+        DVec3::new(x, y, z),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_mount;
+
+    #[test]
+    fn a_mount_parses_and_bad_ones_are_named() {
+        let m = parse_mount("1.2,0,1.5,-0.5,0.5,-0.5,0.5").unwrap();
+        assert!((m.translation.x - 1.2).abs() < 1e-12);
+        // REP 103's optical frame: its z (forward) is the body's x.
+        let forward = m.transform_vector3(glam::DVec3::Z);
+        assert!((forward - glam::DVec3::X).length() < 1e-12, "{forward}");
+        for bad in [
+            "1,2,3",
+            "1,2,3,0,0,0,2",
+            "1,2,nan,0,0,0,1",
+            "1,2,3,0,0,0,1e400",
+            "a",
+        ] {
+            assert!(parse_mount(bad).is_err(), "{bad}");
+        }
+        // Huge but finite values: a rigid transform, finite.
+        assert!(parse_mount("1e300,0,0,0,0,0,1").unwrap().is_finite());
     }
 }

@@ -31,7 +31,7 @@ pub struct Randomisation {
     pub baseline_m: (f64, f64),
     /// The nearest the scene's surfaces come to the camera, metres, when that is near enough
     /// to bound the rig: the baseline is then drawn no wider than the one that puts this
-    /// depth at [`NEAREST_DISPARITY_FRACTION`] of the image width (a 50 cm rig 20 cm from a
+    /// depth at `NEAREST_DISPARITY_FRACTION` of the image width (a 50 cm rig 20 cm from a
     /// desk would see it over twice the image width apart, matched by nothing). `None`: the
     /// baseline's range alone.
     pub nearest_m: Option<f64>,
@@ -155,7 +155,7 @@ impl Randomisation {
 
     /// The baseline range of a rig whose horizontal field of view is `hfov` radians:
     /// [`Randomisation::baseline_m`], its top lowered to the widest baseline that keeps
-    /// [`Randomisation::nearest_m`] within [`NEAREST_DISPARITY_FRACTION`] of the width (its
+    /// [`Randomisation::nearest_m`] within `NEAREST_DISPARITY_FRACTION` of the width (its
     /// bottom too, when that is narrower still). Disparity over width is `baseline / (2
     /// depth tan(hfov / 2))`, the same at every image size of one lens.
     fn baseline_range(&self, hfov: f64) -> (f64, f64) {

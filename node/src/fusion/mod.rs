@@ -23,7 +23,7 @@
 //! whole cells are evicted: ground column by ground column (x-y squares of about 16 m), the
 //! farthest (column centre) from the latest bin's origin first, and within a column the
 //! farthest cell (centre) first, ties by key. A map kept on disk pages far tiles out
-//! instead ([`tiles`], `crate::service::map_store`), so its budget bounds what is in memory
+//! instead (`tiles`, `crate::service::map_store`), so its budget bounds what is in memory
 //! and eviction is only the last resort. Ids are u64, assigned in increasing order in the
 //! bin's input order, never reused.
 

@@ -295,7 +295,7 @@ impl Drop for Worker {
 
 /// Runs one job, handing its map and render to `on_event`; returns the nanoseconds the
 /// model path and the render took. The worker thread and a worker process
-/// ([`crate::remote::serve`]) both make bins' maps with it.
+/// ([`mod@crate::remote::serve`]) both make bins' maps with it.
 pub fn run_job(
     runner: &mut PointRunner,
     point: usize,

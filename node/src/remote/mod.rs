@@ -1,6 +1,6 @@
 //! Bins on worker processes, on this machine or others, over the node's zenoh session:
 //! the protocol ([`wire`]), what both ends compare before a bin changes hands
-//! ([`fingerprint`]), the worker process ([`serve`], `stereosplat worker`), and the node's
+//! ([`fingerprint`]), the worker process ([`mod@serve`], `stereosplat worker`), and the node's
 //! side: which bin runs where and the release of maps in bin order ([`dispatch`]), the
 //! talking to the workers ([`pool`]), and what the node takes from their replies
 //! ([`admit`]: a remote bin is the node's bin). docs/workers.md says how to run them.

@@ -22,7 +22,7 @@
 //! record or [`MapStore::flush`] ([`crate::fusion::JournalWriter`]); the base is written
 //! before any record, and retried until it is; a tile that cannot be written stays in
 //! memory. The node publishes a bin only once its record is durable
-//! ([`super::outputs`]), so what a crash can take is never something published.
+//! (`super::outputs`), so what a crash can take is never something published.
 //!
 //! Paging ([`Paging`], [`crate::fusion::PagedTile`]): before a bin is fused, every tile on
 //! disk within the paging radius of the bin's origin is read back into the map

@@ -253,7 +253,7 @@ impl ViewState {
     }
 
     /// One tile as a 3DGS PLY relative to the origin, with its version: all its Gaussians,
-    /// or its `take` most opaque ([`super::tiles::most_opaque`]).
+    /// or its `take` most opaque (`tiles::most_opaque`).
     pub fn tile_ply(&mut self, tile: TileKey, take: Option<usize>) -> TilePly {
         let Some(origin) = self.origin else {
             return TilePly::Unknown;

@@ -339,7 +339,7 @@ impl ViewTiles {
     /// Takes note of tiles the node keeps on its disk (key and Gaussian count, as a
     /// whole-map snapshot's reply names them) as let-go tiles stamped `version`, so the page
     /// can list them and the view fetch them; tiles the view holds or knows already are
-    /// left as they are, and none is added beyond [`MAX_LET_GO`].
+    /// left as they are, and none is added beyond `MAX_LET_GO`.
     pub fn paged_on_node(&mut self, tiles: &[(TileKey, usize)], version: u64) {
         for &(key, gaussians) in tiles {
             if self.let_go.len() >= MAX_LET_GO {
@@ -356,7 +356,7 @@ impl ViewTiles {
     }
 
     /// Lets go of the held tiles farther than the keep range from `vehicle`, and forgets
-    /// the farthest let-go tiles beyond [`MAX_LET_GO`].
+    /// the farthest let-go tiles beyond `MAX_LET_GO`.
     pub fn let_go_far_from(&mut self, vehicle: DVec3) {
         let side = self.rules.side_m;
         let far: Vec<TileKey> = self
@@ -397,7 +397,7 @@ impl ViewTiles {
     /// The tiles (held or let go) within `radius` metres of `point`, nearest first, until
     /// `budget` Gaussians are listed: each tile takes all its Gaussians while they fit and
     /// the first that does not fit takes what is left (its most opaque, see
-    /// [`most_opaque`]), so a page's budget bounds what it draws even when one tile holds
+    /// `most_opaque`), so a page's budget bounds what it draws even when one tile holds
     /// more.
     pub fn near(&self, point: DVec3, radius: f64, budget: usize) -> Vec<NearTile> {
         let side = self.rules.side_m;

@@ -193,7 +193,7 @@ async fn fetch_tiles(session: &Session, keys: &Keys, state: &Mutex<ViewState>) {
 }
 
 /// What one fetch asks the node for: the first of the `wanted` let-go tiles (with their
-/// ground boxes, [`ViewState::wanted_tiles`]) and the others within [`FETCH_REACH`] tiles of
+/// ground boxes, [`ViewState::wanted_tiles`]) and the others within `FETCH_REACH` tiles of
 /// it, and the region query's parameters for the box around them (`box=x0,y0,x1,y1`,
 /// [`crate::service::region`]); `None` when none is wanted.
 pub fn fetch_batch(wanted: &[(TileKey, (DVec2, DVec2))]) -> Option<(Vec<TileKey>, String)> {

@@ -1,4 +1,4 @@
-//! `stereosplat`: the one command line of the project (see DESIGN.md for the subcommands).
+//! `stereosplat`: the one command line of the project (every subcommand and flag: docs/node.md).
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

@@ -51,7 +51,7 @@ pub struct BenchKeepUpArgs {
     #[arg(long, default_value_t = 10.0)]
     warmup_s: f64,
     /// Bins waiting for the worker at most.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = crate::service::DEFAULT_QUEUE)]
     queue: usize,
     /// Rasterizer of the node's per-bin renders (worker time, as a user's node spends it).
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]

@@ -63,7 +63,7 @@ pub struct BenchNodeSettings {
     #[arg(long, value_enum, default_value_t = RenderArg::Auto)]
     pub renders: RenderArg,
     /// Bins waiting for the worker at most (keep newest beyond it).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = crate::service::DEFAULT_QUEUE)]
     pub queue: usize,
     /// The global map's Gaussian budget (its memory bound).
     #[arg(long, default_value_t = FusionConfig::default().max_gaussians)]

@@ -49,7 +49,7 @@ pub struct BenchWorkersArgs {
     #[arg(long, default_value_t = 704 * 188)]
     working_pixels: u64,
     /// Bins waiting for a worker at most.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = crate::service::DEFAULT_QUEUE)]
     queue: usize,
     /// Bin length in metres (the node's `--bin-length`): shorter bins ask more bins per
     /// second of the workers at the same camera rate.

@@ -100,7 +100,7 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 8.0)]
     bin_length: f64,
     /// Bins waiting for the worker at most (the oldest waiting is dropped beyond it).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = crate::service::DEFAULT_QUEUE)]
     queue: usize,
     /// Where the fused global map is written when the node stops, and where its checkpoint
     /// (`global_map.ssgmap` and `global_map.journal/`) is kept: a node started on a folder
@@ -237,7 +237,42 @@ impl LimitsArgs {
 
 /// Runs the node until Ctrl-C or SIGTERM.
 pub fn run(args: &RunArgs) -> Result<()> {
-    let config = args.method.node_config(NodeConfig {
+    let config = node_config(args)?;
+    if args.operating.calibrate && args.operating.latency_budget.is_none() {
+        // A calibration alone: the table is written, and no budget asks for a node.
+        return Ok(());
+    }
+    let runtime = tokio::runtime::Runtime::new()?;
+    let namespace = config.keys.namespace.clone();
+    let keys = config.keys.clone();
+    let summary = runtime.block_on(async {
+        let (start_view, view) = view::beside(&args.view, keys).await?;
+        let summary = service::run_announced(config, shutdown_signal(), |session| {
+            eprintln!("node ready: {namespace}");
+            start_view(session);
+        })
+        .await;
+        if let Some(view) = view::take(&view) {
+            view.stop().await;
+        }
+        anyhow::Ok(summary?)
+    })?;
+    println!(
+        "{}",
+        serde_json::json!({
+            "bins_published": summary.bins_published,
+            "global_gaussians": summary.global_gaussians,
+            "counters": summary.counters,
+            "out": args.out,
+        })
+    );
+    Ok(())
+}
+
+/// The node `run`'s flags describe (with `--calibrate`, the operating table is measured
+/// and written on the way).
+fn node_config(args: &RunArgs) -> Result<NodeConfig> {
+    Ok(args.method.node_config(NodeConfig {
         transport: args.zenoh.transport(),
         keys: args.zenoh.keys(),
         sync: SyncConfig {
@@ -297,36 +332,7 @@ pub fn run(args: &RunArgs) -> Result<()> {
             )? as u64),
         },
         ..NodeConfig::default()
-    });
-    if args.operating.calibrate && args.operating.latency_budget.is_none() {
-        // A calibration alone: the table is written, and no budget asks for a node.
-        return Ok(());
-    }
-    let runtime = tokio::runtime::Runtime::new()?;
-    let namespace = config.keys.namespace.clone();
-    let keys = config.keys.clone();
-    let summary = runtime.block_on(async {
-        let (start_view, view) = view::beside(&args.view, keys).await?;
-        let summary = service::run_announced(config, shutdown_signal(), |session| {
-            eprintln!("node ready: {namespace}");
-            start_view(session);
-        })
-        .await;
-        if let Some(view) = view::take(&view) {
-            view.stop().await;
-        }
-        anyhow::Ok(summary?)
-    })?;
-    println!(
-        "{}",
-        serde_json::json!({
-            "bins_published": summary.bins_published,
-            "global_gaussians": summary.global_gaussians,
-            "counters": summary.counters,
-            "out": args.out,
-        })
-    );
-    Ok(())
+    }))
 }
 
 /// A non-negative number of seconds as nanoseconds (at most about 292 years).
@@ -513,6 +519,23 @@ mod tests {
             "[::1]:0".parse().ok()
         );
         assert!(foxglove(&["--foxglove", "localhost"]).is_err());
+    }
+
+    #[test]
+    fn runs_defaults_are_the_nodes() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            run: RunArgs,
+        }
+        let args = <Cli as clap::Parser>::try_parse_from(["run"]).unwrap().run;
+        let (flags, node) = (node_config(&args).unwrap(), NodeConfig::default());
+        assert_eq!(flags.queue_capacity, node.queue_capacity);
+        assert_eq!(flags.queue_capacity, crate::service::DEFAULT_QUEUE);
+        assert_eq!(flags.binner, node.binner);
+        assert_eq!(flags.sync, node.sync);
+        assert_eq!(flags.world_frame, node.world_frame);
+        assert_eq!(flags.limits, node.limits);
     }
 
     #[test]

@@ -2,11 +2,11 @@
 //! an MCAP schema record so that tools which do not know a type (Foxglove, the `mcap` CLI,
 //! `rosbags`) can still decode its messages.
 //!
-//! The layout follows rosbag2's `LocalMessageDefinitionSource` (and its
-//! `docs/message_definition_encoding.md`): the type's own `.msg` text first, then every type
-//! it depends on, transitively and each once, depth first, the dependencies of one type in
-//! sorted name order; each dependency is preceded by a blank line, a line of 80 `=` and
-//! `MSG: pkg/Type`. The `.msg` texts are [`MessageKind::definition`]'s.
+//! The layout follows rosbag2's `LocalMessageDefinitionSource` (and the page on it,
+//! its `docs/message_definition_encoding.md`): the type's own `.msg` text first, then
+//! every type it depends on, transitively and each once, depth first, the dependencies of
+//! one type in sorted name order; each dependency is preceded by a blank line, a line of 80
+//! `=` and `MSG: pkg/Type`. The `.msg` texts are [`MessageKind::definition`]'s.
 
 use std::collections::HashSet;
 

@@ -46,7 +46,7 @@ pub use limits::{InputLimits, Refusal};
 pub use map_files::{ExportError, RestoreError, StartMap};
 pub use map_store::{Compaction, Paging};
 pub use monitor::{monitor, MonitorEvent, MonitorReport};
-pub use node::{run, run_announced, run_with, NodeConfig, WorkersConfig};
+pub use node::{run, run_announced, run_with, NodeConfig, WorkersConfig, DEFAULT_QUEUE};
 pub use outputs::NodeSummary;
 pub use record::{channel_of, record, LogError, RecordLimits, RecordSummary};
 pub use replay::{replay, ReplaySummary, UnreadFrame};

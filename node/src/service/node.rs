@@ -208,7 +208,7 @@ impl Default for NodeConfig {
             keys: Keys::default(),
             sync: SyncConfig::default(),
             binner: BinnerConfig::default(),
-            queue_capacity: 4,
+            queue_capacity: DEFAULT_QUEUE,
             method: model::methods::DEFAULT.into(),
             preset: None,
             weights: None,
@@ -239,6 +239,10 @@ impl Default for NodeConfig {
 fn zenoh_err(e: zenoh::Error) -> TransportError {
     TransportError::Zenoh(e.to_string())
 }
+
+/// Bins waiting for the worker at most, by default (beyond it the oldest waiting is
+/// dropped): the node's and `run --queue`'s.
+pub const DEFAULT_QUEUE: usize = 2;
 
 /// Runs the node until `stop` completes; then finishes the queued bins, exports the global
 /// map and returns what happened.

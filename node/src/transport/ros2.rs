@@ -2,7 +2,7 @@
 //! topics and the node in their graph. Pure functions and types; [`super::outlet`] uses them.
 //!
 //! Everything here was read from `ros2/rmw_zenoh` (files under `rmw_zenoh_cpp/src/detail/`
-//! and `docs/design.md`), written anew:
+//! and rmw_zenoh's `docs/design.md`), written anew:
 //!
 //! - **Attachment** (`attachment_helpers.cpp`, `rmw_publisher_data.cpp`): every sample carries
 //!   three values written with zenoh-ext's serializer: the sequence number (int64, little
@@ -13,7 +13,7 @@
 //! - **GID** (`liveliness_utils.cpp`, `Entity::Entity`): the XXH3 128-bit hash of the
 //!   entity's liveliness key expression, its low 64 bits then its high 64 bits, each in the
 //!   machine's (little-endian) byte order. Derived, not random: the same key gives the same GID.
-//! - **Liveliness tokens** (`liveliness_utils.cpp`, `docs/design.md` "Graph Cache"):
+//! - **Liveliness tokens** (`liveliness_utils.cpp`, its `docs/design.md` "Graph Cache"):
 //!   `@ros2_lv/<domain>/<session zid>/<node id>/<entity id>/<kind>/<enclave>/<namespace>/<node
 //!   name>`, and for topics `/<topic>/<dds type>/<type hash>/<qos>` after it. A node's entity id
 //!   is its node id. Names are mangled: every `/` becomes `%` (so the default enclave and an

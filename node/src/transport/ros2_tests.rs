@@ -1,8 +1,8 @@
 //! Unit tests of [`super`] against literal values: the example tokens of rmw_zenoh's
-//! `docs/design.md` ("Graph Cache", demo_nodes_cpp talker and listener) and XXH3-128 values
-//! computed with the reference xxHash C library (libxxhash 0.8.1, `XXH3_128bits`, through
-//! Python's ctypes), laid out low 64 bits then high 64 bits, little endian, as rmw_zenoh's
-//! `liveliness_utils.cpp` copies them.
+//! design page (its `docs/design.md`, "Graph Cache", demo_nodes_cpp talker and listener)
+//! and XXH3-128 values computed with the reference xxHash C library (libxxhash 0.8.1,
+//! `XXH3_128bits`, through Python's ctypes), laid out low 64 bits then high 64 bits, little
+//! endian, as rmw_zenoh's `liveliness_utils.cpp` copies them.
 
 use super::*;
 
@@ -97,8 +97,8 @@ fn gid_is_xxh3_128_low_then_high_little_endian() {
 
 #[test]
 fn qos_strings_leave_rmw_zenoh_defaults_empty() {
-    // docs/design.md: the listener's subscription (rclcpp default, depth 10) and the talker's
-    // publisher (depth 7).
+    // rmw_zenoh's `docs/design.md`: the listener's subscription (rclcpp default, depth 10)
+    // and the talker's publisher (depth 7).
     assert_eq!(qos_string(&Qos::NODE), "::,10:,:,:,,");
     let depth7 = Qos {
         history: History::KeepLast(7),

@@ -2,7 +2,9 @@
 //! string is exactly `sh` is a quick one: it runs here with `bash -euo pipefail`, in a scratch
 //! folder that links the repository's top-level folders and has an empty `out/`, with the
 //! `stereosplat` binary first on `PATH`. Every other shell block is marked
-//! `sh long-running` (with a comment saying why) and is only checked to be marked so.
+//! `sh long-running` (with a comment saying why) and is only checked to be marked so. And
+//! every repository path the code and scripts cite (`docs/...`, `results/...`, `launch/...`)
+//! exists.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -151,4 +153,77 @@ fn the_quick_shell_blocks_run() {
         }
     }
     assert!(ran > 0, "the docs hold quick blocks");
+}
+
+/// Every file under `dir` (no `node_modules`, no `target`) whose name ends with one of
+/// `endings`.
+fn files_under(dir: &Path, endings: &[&str], out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name().to_string_lossy().to_string();
+        if path.is_dir() {
+            if !matches!(name.as_str(), "node_modules" | "target" | ".git") {
+                files_under(&path, endings, out);
+            }
+        } else if endings.iter().any(|e| name.ends_with(e)) {
+            out.push(path);
+        }
+    }
+}
+
+#[test]
+fn every_repository_path_the_code_cites_exists() {
+    let root = root();
+    let mut files = Vec::new();
+    for dir in [
+        "node/src",
+        "node/tests",
+        "model/src",
+        "model/tests",
+        "renderer/src",
+        "ros2_bridge/src",
+        "tests",
+        "scripts",
+        ".ci",
+        "fuzz",
+    ] {
+        files_under(
+            &root.join(dir),
+            &[".rs", ".py", ".sh", "run", "setup"],
+            &mut files,
+        );
+    }
+    // A path of this repository; one written as another project's (preceded by "its" or by
+    // a possessive, "rmw_zenoh's", on its line) is not checked.
+    let cited = regex::Regex::new(
+        r"(^|[^\w/.-])((?:docs|results|scripts|launch|view|model|node|renderer|tests)/[A-Za-z0-9_./-]+\.(?:md|json5|json|toml|py|sh|xml|yaml|csv|safetensors))",
+    )
+    .unwrap();
+    let mut missing = Vec::new();
+    for file in &files {
+        let text = std::fs::read_to_string(file).unwrap_or_default();
+        for (n, line) in text.lines().enumerate() {
+            for c in cited.captures_iter(line) {
+                let m = c.get(2).unwrap();
+                let before = &line[..m.start()];
+                if before.ends_with("'s `") || before.ends_with("its `") {
+                    continue;
+                }
+                let path = m.as_str().trim_end_matches('.');
+                if !root.join(path).exists() {
+                    let at = file.strip_prefix(&root).unwrap_or(file).display();
+                    missing.push(format!("{at}:{}: {path}", n + 1));
+                }
+            }
+        }
+    }
+    assert!(files.len() > 100, "{} files read", files.len());
+    assert!(
+        missing.is_empty(),
+        "cited but not in the repository:\n{}",
+        missing.join("\n")
+    );
 }

@@ -4,11 +4,14 @@
 //! network, [`net`], with its training, [`train`]), the differentiable candle ops the network
 //! trains through ([`ops`]), the LPIPS loss and metric ([`lpips`]), the evaluation protocol of the
 //! paper's section 4, loss-curve charts ([`curve`]), and the one-step enhancer of StereoSplat+ with
-//! its training pairs, training and scores ([`enhance`]).
+//! its training pairs, training and scores ([`enhance`]). The shipped weights are embedded
+//! and found wherever the binary is installed ([`assets`]).
 //!
 //! It depends on `renderer` for the Gaussian, camera and rasterizer types and must not know
 //! about transport (`node`).
 
+#[cfg(feature = "net")]
+pub mod assets;
 pub mod baseline;
 pub mod bins;
 #[cfg(feature = "net")]

@@ -31,11 +31,10 @@ use std::path::{Path, PathBuf};
 pub use config::{Config, UnknownPreset, PRESETS};
 pub use network::Enhancer;
 
-/// The shipped weights of a preset: `model/weights/enhancer_<preset>.safetensors`.
+/// The shipped weights of a preset, `enhancer_<preset>.safetensors`, found as
+/// [`crate::assets`] says.
 pub fn default_weights(preset: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("weights")
-        .join(format!("enhancer_{preset}.safetensors"))
+    crate::assets::weights_file(&format!("enhancer_{preset}.safetensors"))
 }
 
 /// The enhancer of `cfg` with weights from `path` (safetensors, f32), on `device`.

@@ -19,15 +19,13 @@ use super::{pair_fusion, Config, Prediction, StereoSplat};
 use crate::ops::SplatTensors;
 use crate::reconstruct::{ReconstructError, Reconstructor, StereoView};
 
-/// The shipped weights of a preset: `model/weights/stereosplat_<preset>.safetensors` (a
-/// `-plus` preset's are its base preset's, see [`weights_preset`]).
+/// The shipped weights of a preset, `stereosplat_<preset>.safetensors` (a `-plus` preset's
+/// are its base preset's, see [`weights_preset`]), found as [`crate::assets`] says.
 pub fn default_weights(preset: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("weights")
-        .join(format!(
-            "stereosplat_{}.safetensors",
-            weights_preset(preset)
-        ))
+    crate::assets::weights_file(&format!(
+        "stereosplat_{}.safetensors",
+        weights_preset(preset)
+    ))
 }
 
 /// Why weights could not be loaded.

@@ -17,7 +17,7 @@ use crate::node_image_transports::RawRig;
 use cli_support::{stereosplat, temp_dir};
 
 /// A one-frame generated drive at 272x72: its left and right image paths and the sequence.
-fn synthetic_pair(name: &str) -> (PathBuf, PathBuf, Sequence) {
+pub(crate) fn synthetic_pair(name: &str) -> (PathBuf, PathBuf, Sequence) {
     let data = temp_dir(name);
     stereosplat(
         &[
@@ -37,7 +37,7 @@ fn synthetic_pair(name: &str) -> (PathBuf, PathBuf, Sequence) {
 }
 
 /// The rig flags of a sequence.
-fn rig_flags(seq: &Sequence) -> Vec<String> {
+pub(crate) fn rig_flags(seq: &Sequence) -> Vec<String> {
     let rig = seq.rig();
     let k = rig.intrinsics;
     [

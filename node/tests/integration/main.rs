@@ -38,6 +38,7 @@ mod fusion_journal;
 mod fusion_journal_faults;
 mod fusion_keep;
 mod fusion_tiles;
+mod installed_binary;
 #[cfg(unix)]
 mod launch;
 mod msg_codec;

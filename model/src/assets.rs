@@ -5,15 +5,21 @@
 //! binary. [`weights_file`] looks for a file of that name, in order:
 //! 1. the folder `$STEREOSPLAT_WEIGHTS` names ([`WEIGHTS_ENV`]), when set;
 //! 2. `weights/` beside the executable;
-//! 3. the embedded copy, written once into the user's cache folder
-//!    (`$XDG_CACHE_HOME/stereosplat/weights-<version>/`, else `~/.cache/...`, else the
-//!    system's temporary folder), so every loader reads a file as before.
+//! 3. the embedded copy, which goes by the path `embedded:<name>` ([`EMBEDDED`]) and is read
+//!    from memory by [`read`] and [`load_tensors`]: nothing is written anywhere.
 //!
 //! A name with no embedded copy and no file in 1 or 2 gives the path of 1 (or 2) that was
 //! looked at, which the loaders report as missing. Retrained weights written into
 //! `model/weights/` are embedded by the next build (cargo tracks the included files).
 
+use std::borrow::Cow;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+
+use candle_core::{Device, Tensor};
+
+/// The prefix of the path an embedded file goes by.
+pub const EMBEDDED: &str = "embedded:";
 
 /// The environment variable naming a folder of weight files that take precedence.
 pub const WEIGHTS_ENV: &str = "STEREOSPLAT_WEIGHTS";
@@ -48,55 +54,43 @@ pub fn weights_file(name: &str) -> PathBuf {
             return candidate.clone();
         }
     }
-    let embedded = SHIPPED.iter().find(|(n, _)| *n == name);
-    if let Some(path) = embedded.and_then(|(_, bytes)| cached(name, bytes)) {
-        return path;
+    if embedded(name).is_some() {
+        return PathBuf::from(format!("{EMBEDDED}{name}"));
     }
     from_env
         .or(beside_exe)
         .unwrap_or_else(|| PathBuf::from(name))
 }
 
-/// The cache folders to try, most preferred first.
-fn cache_dirs() -> Vec<PathBuf> {
-    let version = format!("weights-{}", env!("CARGO_PKG_VERSION"));
-    let xdg = std::env::var_os("XDG_CACHE_HOME")
-        .filter(|d| !d.is_empty())
-        .map(PathBuf::from);
-    let home = std::env::var_os("HOME")
-        .filter(|d| !d.is_empty())
-        .map(|h| PathBuf::from(h).join(".cache"));
-    xdg.into_iter()
-        .chain(home)
-        .chain([std::env::temp_dir()])
-        .map(|d| d.join("stereosplat").join(&version))
-        .collect()
+/// The embedded bytes of the file `name`.
+fn embedded(name: &str) -> Option<&'static [u8]> {
+    SHIPPED.iter().find(|(n, _)| *n == name).map(|(_, b)| *b)
 }
 
-/// `bytes` as the file `name` in the first cache folder that holds it or takes it; `None`
-/// when none can.
-fn cached(name: &str, bytes: &[u8]) -> Option<PathBuf> {
-    cache_dirs().into_iter().find_map(|dir| {
-        let path = dir.join(name);
-        let current = std::fs::read(&path).is_ok_and(|held| held == bytes);
-        (current || write_atomically(&dir, &path, bytes).is_ok()).then_some(path)
-    })
+/// The embedded bytes `path` names, when it is an [`EMBEDDED`] path of a shipped file.
+fn embedded_path(path: &Path) -> Option<&'static [u8]> {
+    embedded(path.to_str()?.strip_prefix(EMBEDDED)?)
 }
 
-/// Writes `bytes` to `path` through a file of its own in `dir`, renamed over `path`: a reader
-/// (another process starting at the same time) sees the whole file or none.
-fn write_atomically(dir: &Path, path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    let tmp = dir.join(format!(
-        ".{}.{}.{:?}.tmp",
-        path.file_name().unwrap_or_default().to_string_lossy(),
-        std::process::id(),
-        std::thread::current().id()
-    ));
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path).inspect_err(|_| {
-        let _ = std::fs::remove_file(&tmp);
-    })
+/// Whether `path` names a file, or an embedded one.
+pub fn exists(path: &Path) -> bool {
+    embedded_path(path).is_some() || path.is_file()
+}
+
+/// The bytes of `path`: an embedded file's from memory, any other's from disk.
+pub fn read(path: &Path) -> std::io::Result<Cow<'static, [u8]>> {
+    match embedded_path(path) {
+        Some(bytes) => Ok(Cow::Borrowed(bytes)),
+        None => std::fs::read(path).map(Cow::Owned),
+    }
+}
+
+/// The tensors of the safetensors file `path` (embedded or on disk) on `device`.
+pub fn load_tensors(path: &Path, device: &Device) -> candle_core::Result<HashMap<String, Tensor>> {
+    match embedded_path(path) {
+        Some(bytes) => candle_core::safetensors::load_buffer(bytes, device),
+        None => candle_core::safetensors::load(path, device),
+    }
 }
 
 #[cfg(test)]
@@ -104,41 +98,29 @@ mod tests {
     use super::*;
 
     #[test]
-    fn an_embedded_file_is_cached_once_and_a_stale_copy_replaced() {
-        let (name, bytes) = SHIPPED[0];
-        let dir = std::env::temp_dir().join(format!("stereosplat-assets-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        let path = dir.join(name);
-        assert!(write_atomically(&dir, &path, b"stale").is_ok());
-        // `cached` replaces what differs; done here on the folder directly.
-        let held = std::fs::read(&path).unwrap();
-        assert_ne!(held, bytes);
-        write_atomically(&dir, &path, bytes).unwrap();
-        assert_eq!(std::fs::read(&path).unwrap(), bytes);
-        // No temporary file is left behind.
-        let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
-        assert_eq!(left.len(), 1);
-        let _ = std::fs::remove_dir_all(&dir);
-    }
-
-    #[test]
-    fn every_shipped_file_is_safetensors_of_the_checkout() {
+    fn every_shipped_file_is_safetensors_of_the_checkout_and_loads_from_memory() {
         for (name, bytes) in SHIPPED {
             let file = Path::new(env!("CARGO_MANIFEST_DIR"))
                 .join("weights")
                 .join(name);
             assert_eq!(std::fs::read(&file).unwrap(), bytes, "{name}");
-            // safetensors: an 8-byte little-endian header length, then JSON.
-            let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
-            assert_eq!(bytes[8], b'{', "{name}");
-            assert!(8 + n <= bytes.len(), "{name}");
+            let path = PathBuf::from(format!("{EMBEDDED}{name}"));
+            assert!(exists(&path));
+            assert_eq!(read(&path).unwrap(), bytes);
+            let from_memory = load_tensors(&path, &Device::Cpu).unwrap();
+            let from_disk = load_tensors(&file, &Device::Cpu).unwrap();
+            assert_eq!(from_memory.len(), from_disk.len(), "{name}");
+            assert!(!from_memory.is_empty(), "{name}");
         }
     }
 
     #[test]
-    fn a_name_found_nowhere_is_the_path_looked_at() {
+    fn a_name_found_nowhere_is_the_path_looked_at_and_unknown_embedded_names_are_not() {
         let p = weights_file("stereosplat_nothing.safetensors");
-        assert!(!p.is_file(), "{}", p.display());
+        assert!(!exists(&p), "{}", p.display());
         assert!(p.ends_with("stereosplat_nothing.safetensors"));
+        let unknown = Path::new("embedded:stereosplat_nothing.safetensors");
+        assert!(!exists(unknown));
+        assert!(read(unknown).is_err());
     }
 }

@@ -43,7 +43,7 @@ pub fn load(
     path: &Path,
     device: &candle_core::Device,
 ) -> Result<Enhancer, EnhanceError> {
-    let tensors = candle_core::safetensors::load(path, device)?;
+    let tensors = crate::assets::load_tensors(path, device)?;
     let vb = candle_nn::VarBuilder::from_tensors(tensors, candle_core::DType::F32, device);
     Ok(Enhancer::new(vb, cfg)?)
 }

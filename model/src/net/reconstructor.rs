@@ -76,7 +76,7 @@ pub struct BranchReport {
 impl LearnedReconstructor {
     /// The network of `cfg` with weights from `path` (safetensors, f32), on `cfg.device`.
     pub fn load(cfg: &Config, path: &Path) -> Result<Self, LoadError> {
-        if !path.exists() {
+        if !crate::assets::exists(path) {
             return Err(LoadError::Missing(path.to_path_buf()));
         }
         let device = cfg.device.open().map_err(LoadError::Device)?;
@@ -84,7 +84,7 @@ impl LearnedReconstructor {
             path: path.to_path_buf(),
             source,
         };
-        let tensors = candle_core::safetensors::load(path, &device).map_err(mismatch)?;
+        let tensors = crate::assets::load_tensors(path, &device).map_err(mismatch)?;
         let parameters = tensors.values().map(Tensor::elem_count).sum();
         let vb = VarBuilder::from_tensors(tensors, DType::F32, &device);
         let net = StereoSplat::new(vb, cfg).map_err(mismatch)?;
@@ -95,7 +95,7 @@ impl LearnedReconstructor {
     /// initialisers) for the rest: the shipped cost-volume weights under a network with the
     /// volume branch, before the branch is trained. The report names the fresh weights.
     pub fn warm_start(cfg: &Config, path: &Path) -> Result<(Self, WarmStart), LoadError> {
-        if !path.exists() {
+        if !crate::assets::exists(path) {
             return Err(LoadError::Missing(path.to_path_buf()));
         }
         let mismatch = |source| LoadError::Mismatch {

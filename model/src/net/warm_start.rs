@@ -37,7 +37,7 @@ impl WarmStart {
 /// same name for. A tensor whose shape differs from its variable's is an error (the file is
 /// of another preset), so nothing is half-loaded silently.
 pub fn load_matching(varmap: &VarMap, path: &Path) -> candle_core::Result<WarmStart> {
-    let file = candle_core::safetensors::load(path, &Device::Cpu)?;
+    let file = crate::assets::load_tensors(path, &Device::Cpu)?;
     let data = varmap
         .data()
         .lock()

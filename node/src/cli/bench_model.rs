@@ -210,7 +210,7 @@ pub fn run(args: &BenchModelArgs) -> Result<()> {
     for name in names {
         let cfg = Config::preset(name)?.with_settings(&args.settings)?;
         let path = default_weights(name);
-        let (mut rec, weights) = if path.exists() {
+        let (mut rec, weights) = if model::assets::exists(&path) {
             let (rec, warm) = LearnedReconstructor::warm_start(&cfg, &path)
                 .with_context(|| format!("loading {}", path.display()))?;
             let weights = match warm.fresh.is_empty() {

@@ -16,7 +16,9 @@ pub struct MethodArgs {
     /// The reconstructor (see `model::methods`).
     #[arg(long, default_value = model::methods::DEFAULT)]
     pub method: String,
-    /// Network preset of a learned method (tiny, small, paper, tiny-plus, tiny-3d; default tiny).
+    /// Network preset of a learned method: tiny (default), tiny-plus or tiny-3d, whose weights
+    /// ship in the binary; small and paper ship none and need --weights (train them with
+    /// `stereosplat train`).
     #[arg(long)]
     pub preset: Option<String>,
     /// Weights of a learned method (default: the preset's shipped file).

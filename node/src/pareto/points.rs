@@ -116,7 +116,7 @@ impl OperatingPoint {
             return Availability::Ready;
         }
         let path = self.weights_path();
-        match path.exists() {
+        match model::assets::exists(&path) {
             true => Availability::Ready,
             false => Availability::Missing(path),
         }

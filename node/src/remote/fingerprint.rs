@@ -4,7 +4,6 @@
 //! a worker whose fingerprint differs from the node's is refused rather than let mix
 //! another network's maps into the node's.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
@@ -112,16 +111,10 @@ fn sha256_file(path: &Path) -> Result<String, FingerprintError> {
         path: path.to_path_buf(),
         source,
     };
-    let mut file = std::fs::File::open(path).map_err(err)?;
+    // Weight files are a few MB: read whole (an embedded one from memory).
+    let bytes = model::assets::read(path).map_err(err)?;
     let mut hasher = Sha256::new();
-    let mut buf = vec![0u8; 1 << 16];
-    loop {
-        let n = file.read(&mut buf).map_err(err)?;
-        if n == 0 {
-            break;
-        }
-        hasher.update(&buf[..n]);
-    }
+    hasher.update(&bytes);
     Ok(hasher
         .finalize()
         .iter()

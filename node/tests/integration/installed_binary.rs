@@ -1,7 +1,8 @@
 //! The binary works where it is installed: copied into an empty folder, far from the
 //! checkout, with a fresh home, `reconstruct` runs the learned model on the embedded weights
-//! (written once into the user's cache); a folder named by `STEREOSPLAT_WEIGHTS` takes
-//! precedence, and a bad file there is named in the error.
+//! (read from memory: nothing is written under the home folder); a folder named by `STEREOSPLAT_WEIGHTS` takes
+//! precedence, and a bad file there is named in the error; a preset with no shipped weights
+//! says how to train them.
 
 use std::path::Path;
 use std::process::Command;
@@ -56,17 +57,14 @@ fn a_copied_binary_runs_the_learned_model_on_its_embedded_weights() {
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(cwd.join("out/summary.json")).unwrap()).unwrap();
     assert!(summary["gaussians"].as_u64().unwrap() > 1000, "{summary}");
-    let version = format!("weights-{}", env!("CARGO_PKG_VERSION"));
-    let cached = home
-        .join("cache/stereosplat")
-        .join(version)
-        .join("stereosplat_tiny.safetensors");
-    let shipped =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../model/weights/stereosplat_tiny.safetensors");
-    assert_eq!(
-        std::fs::read(&cached).unwrap(),
-        std::fs::read(shipped).unwrap()
-    );
+    // The embedded weights are read from memory: nothing is written under the home folder.
+    assert_eq!(std::fs::read_dir(&home).unwrap().count(), 0);
+
+    // A preset that ships no weights is an error that says how to get them.
+    let mut small = args.clone();
+    small.extend(["--preset".into(), "small".into()]);
+    let (ok, err) = run(&exe, &cwd, &home, None, &small);
+    assert!(!ok && err.contains("stereosplat train"), "{err}");
 
     // A folder of weights named by the environment comes first: a bad file there is named.
     let override_dir = root.join("weights");

@@ -178,11 +178,12 @@ async fn replay_into_node(
     bins: usize,
 ) -> (BagReplaySummary, NodeSummary, Vec<i64>) {
     let keys = Keys::new(tag);
+    // A bag replayed as fast as possible on a loaded machine: `/tf` (a subscription of its
+    // own) may lag the images by more than a live camera's 500 ms, so stamps wait 10 s.
+    let mut pose_source = PoseSourceConfig::new(PoseSourceKind::Tf, Some("map".into()));
+    pose_source.wait_ns = 10_000_000_000;
     let node = RunningNode::start(NodeConfig {
-        pose_source: Some(PoseSourceConfig::new(
-            PoseSourceKind::Tf,
-            Some("map".into()),
-        )),
+        pose_source: Some(pose_source),
         ..sgm_config(&keys)
     })
     .await;
@@ -197,11 +198,9 @@ async fn replay_into_node(
     let replayed = replay_bag(&session, &keys, bag, &options, &mut |_, _| {})
         .await
         .expect("replays");
-    assert!(
-        outputs.wait_count(&keys.bin_map(), bins).await,
-        "{bins} bin maps"
-    );
+    let all = outputs.wait_count(&keys.bin_map(), bins).await;
     let summary = node.stop().await;
+    assert!(all, "{bins} bin maps: {:?}", summary.counters);
     let stamps = outputs
         .headers(&keys.bin_map())
         .iter()

@@ -229,7 +229,7 @@ fn lpips_the_enhancer_and_the_network_agree_with_the_cpu() {
     let right = Camera::from_camera_to_world(k, glam::Quat::IDENTITY, glam::Vec3::X * 0.6);
     let predict = |device: &Device| {
         let tensors =
-            candle_core::safetensors::load(model::net::default_weights("tiny"), device).unwrap();
+            model::assets::load_tensors(&model::net::default_weights("tiny"), device).unwrap();
         let vb = VarBuilder::from_tensors(tensors, DType::F32, device);
         let net = model::net::StereoSplat::new(vb, &net_cfg).unwrap();
         let p = net

@@ -260,7 +260,7 @@ fn shipped_tiny_weights_warm_start_the_cost_volume_part() {
     let cfg = config(&[]);
     let path = default_weights("tiny");
     let (warm, report) = LearnedReconstructor::warm_start(&cfg, &path).unwrap();
-    let file = candle_core::safetensors::load(&path, &Device::Cpu).unwrap();
+    let file = model::assets::load_tensors(&path, &Device::Cpu).unwrap();
     assert_eq!(report.loaded, file.len());
     assert!(report.unused.is_empty());
     assert!(!report.fresh.is_empty() && report.fresh.iter().all(|n| n.starts_with("volume.")));

@@ -226,8 +226,9 @@ pub struct Foxglove {
 
 impl Foxglove {
     /// Binds `config.bind`, advertises the channels (topics under `/<namespace>/`, world
-    /// clouds and transforms in `world_frame`) and starts the server's thread. Must be called inside a tokio runtime (the SDK serves
-    /// clients on it). Prints a warning when the address is not loopback.
+    /// clouds and transforms in `world_frame`) and starts the server's thread. Must be
+    /// called inside a tokio runtime (the SDK serves clients on it). Prints a warning when
+    /// the address is not loopback.
     pub async fn start(
         config: &FoxgloveConfig,
         namespace: &str,

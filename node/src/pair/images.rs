@@ -22,12 +22,6 @@ pub fn decode(path: &Path) -> Result<DynamicImage, PairError> {
     })
 }
 
-/// The image at `path` as RGB in [0, 1].
-pub fn load_rgb(path: &Path) -> Result<RgbImage, PairError> {
-    let rgb = decode(path)?.to_rgb8();
-    Ok(RgbImage::from_rgb8(rgb.width(), rgb.height(), rgb.as_raw()))
-}
-
 /// The left and right images, which must have one size, rectified by `rectifier` when the
 /// calibration describes raw cameras (8-bit RGB through each camera's remap table).
 pub fn load_pair(

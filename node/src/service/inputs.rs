@@ -180,13 +180,11 @@ impl Inputs {
     /// their wait are given up (counted) and any pose it has now is paired, so a drive that
     /// stops does not leave its last images waiting uncounted.
     pub fn on_tick(&mut self, counters: &mut Counters) -> Vec<Step> {
-        match self.pose_source.is_some() {
-            true => {
-                let synced = self.ready_poses(counters);
-                self.advance(synced, counters)
-            }
-            false => Vec::new(),
+        if self.pose_source.is_none() {
+            return Vec::new();
         }
+        let synced = self.ready_poses(counters);
+        self.advance(synced, counters)
     }
 
     /// Takes the frames the synchroniser completed: into the wait for the rig, then, with a
@@ -536,19 +534,19 @@ pub(crate) const INPUT_TOPICS: [Topic; 7] = [
     keys::RIGHT_COMPRESSED,
 ];
 
-/// [`INPUT_TOPICS`] and the pose source's: what a node with `--pose-source` reads.
-pub(crate) const POSE_SOURCE_TOPICS: [Topic; 10] = [
-    keys::LEFT_IMAGE,
-    keys::RIGHT_IMAGE,
-    keys::LEFT_INFO,
-    keys::RIGHT_INFO,
-    keys::POSE,
-    keys::LEFT_COMPRESSED,
-    keys::RIGHT_COMPRESSED,
-    keys::TF,
-    keys::TF_STATIC,
-    keys::ODOMETRY,
-];
+/// [`INPUT_TOPICS`] then the pose source's (`/tf`, `/tf_static`, odometry): what a node with
+/// `--pose-source` reads.
+pub(crate) const POSE_SOURCE_TOPICS: [Topic; 10] = {
+    let mut topics = [keys::TF; 10];
+    let mut i = 0;
+    while i < INPUT_TOPICS.len() {
+        topics[i] = INPUT_TOPICS[i];
+        i += 1;
+    }
+    topics[8] = keys::TF_STATIC;
+    topics[9] = keys::ODOMETRY;
+    topics
+};
 
 /// Runs `samples` (topic and payload) through a fresh input side with the default
 /// synchroniser, binner and limits and `pose_source` (`None`: the `pose` topic), then one

@@ -154,7 +154,8 @@ pub struct RunningNode {
 
 impl RunningNode {
     /// Starts the node with `config` (its listen endpoints replaced by a free port, the
-    /// endpoints it connects to kept) and waits until it says it is ready (bound and subscribed), two minutes at most.
+    /// endpoints it connects to kept) and waits until it says it is ready (bound and
+    /// subscribed), two minutes at most.
     pub async fn start(mut config: NodeConfig) -> Self {
         let endpoint = format!("tcp/127.0.0.1:{}", net_support::free_port());
         config.transport = TransportConfig {

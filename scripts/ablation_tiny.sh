@@ -70,20 +70,20 @@ train_row() {
     --warmup 100 --seed "$seed" --depth-loss relative --rendered-depth-weight 0.5
     --estimated-depth-weight 0.5 "${set[@]}" "${extra[@]}")
   if [ -f "$run/checkpoint/state.json" ]; then
-    "$bin" train "${flags[@]}" --resume
+    "$bin" research train "${flags[@]}" --resume
   else
     if [ ! -f "$base" ]; then
       echo "missing $base: run bash scripts/train_tiny.sh, then bash scripts/train_tiny_transfer.sh" >&2
       exit 1
     fi
-    "$bin" train "${flags[@]}" --init "$base"
+    "$bin" research train "${flags[@]}" --init "$base"
   fi
 }
 
 eval_row() {
   local row="$1"
   read -ra set <<<"$(settings "$row")"
-  "$bin" eval --data "$heldout" --method stereosplat --preset tiny --stride 5 \
+  "$bin" research eval --data "$heldout" --method stereosplat --preset tiny --stride 5 \
     --weights "$runs/$row/stereosplat_tiny.safetensors" "${set[@]}" \
     --out "out/$(basename "$runs")/$row"
 }
@@ -93,7 +93,7 @@ prepare() {
     bash scripts/transfer_data.sh "$data"
   fi
   if [ ! -f "$heldout/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
-    "$bin" synth-heldout --out "$heldout" --sequences 2 --frames 300 --width 272 --height 72
+    "$bin" research synth-heldout --out "$heldout" --sequences 2 --frames 300 --width 272 --height 72
   fi
 }
 

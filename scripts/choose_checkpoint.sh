@@ -5,7 +5,7 @@
 # scripts/validation_data.sh), and plain streets on KITTI-360's rig at 272x72 (seeds
 # 2,000,300 and 2,000,301, the size of the demo and of the held-out streets). Scores the
 # run's starting weights and each kept checkpoint (RUN_DIR/kept/step_N.safetensors, every
-# EVERY-th, default 300) with the `tiny` preset's settings (`stereosplat eval`, at most 6
+# EVERY-th, default 300) with the `tiny` preset's settings (`stereosplat research eval`, at most 6
 # bins per sequence), and picks by this rule: the lowest sum over desks, rooms and streets
 # of AbsRel relative to the starting weights' (geometry is the product; per kind, each
 # sequence's AbsRel over the start's on it, averaged), among checkpoints whose PSNR on
@@ -45,7 +45,7 @@ for row in "desk 0.1 1" "room 0.5 1" "street 8 5" "plain 8 5"; do
     for root in "$data/${kind}_"*; do
       dir="$run/choice_runs/$kind-$name/$(basename "$root")"
       [ -f "$dir/eval.json" ] && continue
-      "$bin" eval --data "$root" --method stereosplat --preset "$preset" --weights "$file" \
+      "$bin" research eval --data "$root" --method stereosplat --preset "$preset" --weights "$file" \
         --bin-length "$bin_length" --stride "$stride" --max-bins 6 --pictures 0 --no-lpips \
         --out "$dir" >/dev/null
     done

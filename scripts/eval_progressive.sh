@@ -12,7 +12,7 @@
 # The enhancer rows are skipped, and said so, while model/weights/enhancer_tiny.safetensors
 # does not exist (ENHANCER=FILE names other weights).
 #   bash scripts/eval_progressive.sh [DATA_DIR] [OUT_DIR] [--set KEY=VALUE ...]
-# Flags after the two folders go to every row's `stereosplat eval`, e.g.
+# Flags after the two folders go to every row's `stereosplat research eval`, e.g.
 # `--set pseudo_fusion_margin=0.3` or `--weights FILE`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,12 +23,12 @@ bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 enhancer="${ENHANCER:-model/weights/enhancer_tiny.safetensors}"
 [ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
 if [ ! -f "$data/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
-  "$bin" synth-heldout --out "$data" --sequences 2 --frames 300 --width 272 --height 72
+  "$bin" research synth-heldout --out "$data" --sequences 2 --frames 300 --width 272 --height 72
 fi
 run() {
   local name="$1"
   shift
-  "$bin" eval --data "$data" --method stereosplat --preset tiny --stride 5 "${extra[@]}" "$@" \
+  "$bin" research eval --data "$data" --method stereosplat --preset tiny --stride 5 "${extra[@]}" "$@" \
     --out "$out/$name"
 }
 run default

@@ -15,16 +15,16 @@ extra=("${@:3}")
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 [ -n "${STEREOSPLAT_BIN:-}" ] || cargo build --release --bin stereosplat
 if [ ! -f "$data/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
-  "$bin" synth-heldout --out "$data" --sequences 2 --frames 300 --width 272 --height 72
+  "$bin" research synth-heldout --out "$data" --sequences 2 --frames 300 --width 272 --height 72
 fi
-"$bin" eval --data "$data" --method sgm --stride 5 --out "$out/sgm"
+"$bin" research eval --data "$data" --method sgm --stride 5 --out "$out/sgm"
 for pairs in 1 2 3; do
-  "$bin" eval --data "$data" --method stereosplat --preset tiny --pairs "$pairs" --stride 5 \
+  "$bin" research eval --data "$data" --method stereosplat --preset tiny --pairs "$pairs" --stride 5 \
     "${extra[@]}" --out "$out/tiny_pairs$pairs"
 done
 for pairs in 2 3; do
-  "$bin" eval --data "$data" --method stereosplat --preset tiny --pairs "$pairs" --stride 5 \
+  "$bin" research eval --data "$data" --method stereosplat --preset tiny --pairs "$pairs" --stride 5 \
     --set pair_fusion_margin=null "${extra[@]}" --out "$out/tiny_pairs${pairs}_unfused"
 done
-"$bin" eval --data "$data" --method stereosplat --preset tiny --stride 5 --set match_views=0 \
+"$bin" research eval --data "$data" --method stereosplat --preset tiny --stride 5 --set match_views=0 \
   "${extra[@]}" --out "$out/tiny_no_matching"

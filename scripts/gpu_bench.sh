@@ -44,7 +44,7 @@ run() { # NAME LIMIT CMD...: stdout to NAME.json, stderr to NAME.err
 # (their GPU timestamps and kernel times do not count the CPU).
 synth_plain=()
 want gputrain && for seed in 0 1 2 3 4 5 6 7; do
-  timeout 300 $bin synth --out /tmp/plain --seed $seed --frames 300 --width 272 --height 72 \
+  timeout 300 $bin research synth --out /tmp/plain --seed $seed --frames 300 --width 272 --height 72 \
     >"$out/synth_plain_$seed.log" 2>&1 &
   synth_plain+=($!)
 done
@@ -132,7 +132,7 @@ want scale && for s in "2m 1920 1080 2000000" "3m 1920 1080 3000000" "4m 1920 10
     --height "$h" --scene random --gaussians "$n"
 done
 # The training drive (also the source of `paper` weights for the node, below).
-{ want node || want train; } && log synth && timeout 60 $bin synth --out /tmp/train_data \
+{ want node || want train; } && log synth && timeout 60 $bin research synth --out /tmp/train_data \
   --seed 0 --frames 160 --width 272 --height 72 >"$out/synth.log" 2>&1
 # 4. The node per bin: the model on CUDA, renders on wgpu, 300 frames at the recorded rate.
 # A first run on a machine pays the driver's one-time compilation of candle's PTX kernels
@@ -141,7 +141,7 @@ done
 # `paper` is timed with untrained weights (its Gaussian count is not a trained one's).
 want node && {
   run node_warmup 120 $bin bench model --preset tiny --set device=cuda --runs 1 --warmup 1
-  run node_paper_weights 60 $bin train --data /tmp/train_data --preset paper --set device=cuda \
+  run node_paper_weights 60 $bin research train --data /tmp/train_data --preset paper --set device=cuda \
     --out /tmp/run_paper1 --steps 1
   for preset in tiny tiny-plus; do
     run "node_$preset" 100 $bin bench node --frames 300 --rate 1 --preset $preset \
@@ -153,7 +153,7 @@ want node && {
 }
 # 5. Training steps per second on CUDA per preset (same generated drive).
 want train && for preset in tiny small paper; do
-  run "train_$preset" 60 $bin train --data /tmp/train_data --preset $preset --set device=cuda \
+  run "train_$preset" 60 $bin research train --data /tmp/train_data --preset $preset --set device=cuda \
     --out "/tmp/run_$preset" --steps 20 --checkpoint-every 1000
   cp "/tmp/run_$preset/log.csv" "$out/train_$preset.csv" 2>/dev/null
 done
@@ -176,7 +176,7 @@ want gputrain && {
     local left=$((deadline - SECONDS))
     [ "$left" -gt 10 ] || return 0
     log "train_small $*"
-    timeout "$left" $bin train --data /tmp/plain --preset small --set device=cuda \
+    timeout "$left" $bin research train --data /tmp/plain --preset small --set device=cuda \
       --out /tmp/small_run --checkpoint-every 100 "$@" >>"$out/train_small_run.log" 2>&1
     echo "rc=$?" >>"$out/train_small_run.log"
   }

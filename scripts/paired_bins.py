@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Whether one `stereosplat eval` run beats another on the same bins, beyond noise.
+"""Whether one `stereosplat research eval` run beats another on the same bins, beyond noise.
 
 The bin averages of two runs differ by a mean over bins; this script pairs the runs bin by
 bin (and frame by frame, grouped by the frame's distance from the bin's input pair), reports

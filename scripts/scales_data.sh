@@ -26,7 +26,7 @@ written() { [ -f "$1/data_poses/$2/poses.txt" ]; }
 for seed in 0 1 2 3; do
   name=$(printf "synth_drive_%07d_sync" "$seed")
   written "$data/street/plain" "$name" ||
-    "$bin" synth --out "$data/street/plain" --seed "$seed" --frames 120 "${size[@]}"
+    "$bin" research synth --out "$data/street/plain" --seed "$seed" --frames 120 "${size[@]}"
 done
 for seed in 0 1 2 3 4 5 6 7 8 9 10 11; do
   name=$(printf "synth_drive_%07d_sync" "$seed")
@@ -34,7 +34,7 @@ for seed in 0 1 2 3 4 5 6 7 8 9 10 11; do
   ((seed < 4)) || root="$data/plain272b"
   ((seed < 8)) || root="$data/plain272c"
   written "$root" "$name" ||
-    "$bin" synth --out "$root" --seed "$seed" --frames 300 --width 272 --height 72
+    "$bin" research synth --out "$root" --seed "$seed" --frames 300 --width 272 --height 72
 done
 # kind, first seed, word in the sequence name, frames
 for row in "desk 300 desk 40" "room 400 room 40" "street 500 drive 80"; do
@@ -44,7 +44,7 @@ for row in "desk 300 desk 40" "room 400 room 40" "street 500 drive 80"; do
     root="$data/$kind/rand_$seed"
     name=$(printf "synth_%s_%07d_sync" "$word" "$seed")
     written "$root" "$name" ||
-      "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
+      "$bin" research synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
   done
 done
 echo "training mix of every scale under $data"

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The tables and the choices of scripts/setting_choices.sh, from its `stereosplat eval` runs.
+"""The tables and the choices of scripts/setting_choices.sh, from its `stereosplat research eval` runs.
 
 Two validation sets: fixed rigs (one run per scene over its two drives) and randomised rigs
 (one run per sequence, each its own rig). For each set and variant, the AbsRel of desks,

@@ -67,7 +67,7 @@ for row in "${scenes[@]}"; do
   read -r scene frames width height bin_length stride <<<"$row"
   for seed in 2000000 2000001; do
     [ -d "$work/data/$scene/data_2d_raw" ] && ls "$work/data/$scene/data_2d_raw" | grep -q "$seed" && continue
-    "$bin" synth --scene "$scene" --seed "$seed" --frames "$frames" --width "$width" \
+    "$bin" research synth --scene "$scene" --seed "$seed" --frames "$frames" --width "$width" \
       --height "$height" --out "$work/data/$scene" >/dev/null
   done
   for variant in "${variants[@]}"; do
@@ -78,7 +78,7 @@ for row in "${scenes[@]}"; do
     [ -f "$dir/eval.json" ] && continue
     method=(--method stereosplat --preset "$preset" "${sets[@]}")
     [ "$name" = SGM ] && method=(--method sgm)
-    "$bin" eval --data "$work/data/$scene" "${method[@]}" \
+    "$bin" research eval --data "$work/data/$scene" "${method[@]}" \
       --bin-length "$bin_length" --stride "$stride" --max-bins 6 --pictures 0 --no-lpips \
       --out "$dir" >/dev/null
   done
@@ -100,7 +100,7 @@ for row in "desk 0.1 1" "room 0.5 1" "street 8 5" "plain 8 5"; do
     for root in "$random/${kind}_"*; do
       dir="$work/randomised/$prefix$kind-${name// /_}/$(basename "$root")"
       [ -f "$dir/eval.json" ] && continue
-      "$bin" eval --data "$root" "${method[@]}" \
+      "$bin" research eval --data "$root" "${method[@]}" \
         --bin-length "$bin_length" --stride "$stride" --max-bins 6 --pictures 0 --no-lpips \
         --out "$dir" >/dev/null
     done

@@ -24,7 +24,7 @@ from sgm_vs_opencv import against_truth, ours
 
 WIDTH, HEIGHT = 1408, 376
 DRIVES, FRAMES = 2, 3
-# The first validation seed (node::cli::synth's VALIDATION_SEED_BASE).
+# The first validation seed (node::research::synth's VALIDATION_SEED_BASE).
 VALIDATION_SEED = 2_000_000
 # Pixel budgets: an eighth, a quarter, a third, two thirds and all of a 1408x376 frame.
 BUDGETS = (66176, 132352, 176469, 352938, 529408)
@@ -54,7 +54,7 @@ def main():
     args = ap.parse_args()
     if not (args.data / "data_2d_raw").is_dir():
         for seed in range(VALIDATION_SEED, VALIDATION_SEED + DRIVES):
-            subprocess.run([args.bin, "synth", "--seed", str(seed), "--out", str(args.data),
+            subprocess.run([args.bin, "research", "synth", "--seed", str(seed), "--out", str(args.data),
                             "--frames", str(FRAMES), "--width", str(WIDTH), "--height", str(HEIGHT)],
                            check=True, stdout=subprocess.DEVNULL)
     fx, baseline, cx, cy = rig(args.data)

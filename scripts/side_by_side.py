@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Pictures of the same bins from several `stereosplat eval` runs, side by side.
+"""Pictures of the same bins from several `stereosplat research eval` runs, side by side.
 
 Each eval picture (model/src/eval/pictures.rs) stacks four panels of one frame top to bottom:
 recorded image, render, rendered depth, error. For every picture name the first run has

@@ -43,11 +43,11 @@ done
 for seed in 20 21 22 23 24 25 26 27; do
   name=$(printf "synth_drive_%07d_sync" "$seed")
   if [ ! -f "$data/drives/data_poses/$name/poses.txt" ]; then
-    "$bin" synth --out "$data/drives" --seed "$seed" --frames 300 --width 272 --height 72
+    "$bin" research synth --out "$data/drives" --seed "$seed" --frames 300 --width 272 --height 72
   fi
 done
 if [ ! -f "$data/heldout/data_poses/synth_drive_1000001_sync/poses.txt" ]; then
-  "$bin" synth-heldout --out "$data/heldout" --sequences 2 --frames 300 --width 272 --height 72
+  "$bin" research synth-heldout --out "$data/heldout" --sequences 2 --frames 300 --width 272 --height 72
 fi
 before_census=census_matching=false,auto_depth_range=false,sgm_guidance=null,rig_disparity_fraction=null
 shipped=$transfer@$before_census
@@ -56,13 +56,13 @@ weights=(
   --weights "street=$street@$before_census"
   --weights "unbounded=$unbounded@depth_logit_bound=null,$before_census"
 )
-"$bin" enhancer-data --data "$data/drives" --out "$data/pairs" --pairs "$pairs" --seed 0 "${weights[@]}"
+"$bin" research enhancer-data --data "$data/drives" --out "$data/pairs" --pairs "$pairs" --seed 0 "${weights[@]}"
 # Held-out pairs: the transfer stage's weights only (what the node ran), another seed.
-"$bin" enhancer-data --data "$data/heldout" --out "$data/heldout_pairs" --pairs "$heldout_pairs" \
+"$bin" research enhancer-data --data "$data/heldout" --out "$data/heldout_pairs" --pairs "$heldout_pairs" \
   --seed 1 --weights "shipped=$shipped"
 resume=()
 [ -f "$run/checkpoint/state.json" ] && resume=(--resume)
-"$bin" train-enhancer --pairs "$data/pairs" --preset tiny --out "$run" --steps "$steps" "${resume[@]}"
-"$bin" eval-enhancer --pairs "$data/heldout_pairs" --preset tiny \
+"$bin" research train-enhancer --pairs "$data/pairs" --preset tiny --out "$run" --steps "$steps" "${resume[@]}"
+"$bin" research eval-enhancer --pairs "$data/heldout_pairs" --preset tiny \
   --weights "$run/enhancer_tiny.safetensors" --out "$run/eval.json"
 echo "weights: $run/enhancer_tiny.safetensors (scripts/reproduce_weights.sh enhancer copies them into model/weights/)"

@@ -62,7 +62,7 @@ bin_length() {
 # TOTAL (the roots of one folder are filled in a fixed order, so a rerun goes on where it
 # stopped).
 pairs() {
-  "$bin" enhancer-data --data "$1" --out "$2" --pairs "$3" --seed "$4" \
+  "$bin" research enhancer-data --data "$1" --out "$2" --pairs "$3" --seed "$4" \
     --bin-length "$(bin_length "$5")" --weights "tiny=$tiny" >/dev/null
 }
 
@@ -71,7 +71,7 @@ roots=()
 for seed in 20 21 22 23; do
   root="$data/drives/plain_$seed"
   written "$root" "$(printf "synth_drive_%07d_sync" "$seed")" ||
-    "$bin" synth --out "$root" --seed "$seed" --frames 120 "${size[@]}"
+    "$bin" research synth --out "$root" --seed "$seed" --frames 120 "${size[@]}"
   roots+=("plain:$root")
 done
 for row in "desk 600 desk 40" "room 700 room 40" "street 800 drive 80"; do
@@ -80,7 +80,7 @@ for row in "desk 600 desk 40" "room 700 room 40" "street 800 drive 80"; do
     seed=$((first + k))
     root="$data/drives/${kind}_$seed"
     written "$root" "$(printf "synth_%s_%07d_sync" "$word" "$seed")" ||
-      "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
+      "$bin" research synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
     roots+=("$kind:$root")
   done
 done
@@ -100,11 +100,11 @@ for kind in desk room street; do
   word=$kind
   [ "$kind" = street ] && word=drive
   written "$data/heldout_drives/$kind" "$(printf "synth_%s_1000000_sync" "$word")" ||
-    "$bin" synth-heldout --out "$data/heldout_drives/$kind" --scene "$kind" --frames "$frames" \
+    "$bin" research synth-heldout --out "$data/heldout_drives/$kind" --scene "$kind" --frames "$frames" \
       --randomise "${size[@]}"
 done
 written "$data/heldout_drives/plain" synth_drive_1000001_sync ||
-  "$bin" synth-heldout --out "$data/heldout_drives/plain" --sequences 2 --frames 300 --width 272 --height 72
+  "$bin" research synth-heldout --out "$data/heldout_drives/plain" --sequences 2 --frames 300 --width 272 --height 72
 for kind in desk room street plain; do
   total=0
   for root in data/validation_choice/"${kind}"_*; do
@@ -126,7 +126,7 @@ for ((s = keep_every; s <= steps; s += keep_every)); do
   [ -f "$run/kept/step_$s.safetensors" ] && continue
   from=(--init "$start")
   [ -f "$run/checkpoint/state.json" ] && from=(--resume)
-  "$bin" train-enhancer --pairs "$data/pairs" --preset tiny --out "$run" --steps "$s" --lr "$lr" \
+  "$bin" research train-enhancer --pairs "$data/pairs" --preset tiny --out "$run" --steps "$s" --lr "$lr" \
     "${from[@]}"
   cp "$run/enhancer_tiny.safetensors" "$run/kept/step_$s.safetensors"
 done
@@ -139,7 +139,7 @@ score() {
   mkdir -p "$folder"
   for kind in desk room street plain; do
     out="$folder/${step}_$kind.json"
-    [ -f "$out" ] || "$bin" eval-enhancer --pairs "$data/$set/$kind" --preset tiny \
+    [ -f "$out" ] || "$bin" research eval-enhancer --pairs "$data/$set/$kind" --preset tiny \
       --weights "$run/kept/$step.safetensors" --out "$out" >/dev/null
   done
 }

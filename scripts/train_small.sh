@@ -18,7 +18,7 @@ steps="${3:-8000}"
 bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 bash scripts/transfer_data.sh "$data"
 step() { sed -n 's/.*"step": *\([0-9]*\).*/\1/p' "$run/checkpoint/state.json" 2>/dev/null || echo 0; }
-train() { "$bin" train --data "$data" --preset small --out "$run" "$@"; }
+train() { "$bin" research train --data "$data" --preset small --out "$run" "$@"; }
 resume=()
 [ -f "$run/checkpoint/state.json" ] && resume=(--resume)
 if [ "$(step)" -lt 1600 ]; then

@@ -27,7 +27,7 @@ bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 for seed in 0 1 2 3 4 5 6 7; do
   name=$(printf "synth_drive_%07d_sync" "$seed")
   if [ ! -f "$data/data_poses/$name/poses.txt" ]; then
-    "$bin" synth --out "$data" --seed "$seed" --frames 300 --width 272 --height 72
+    "$bin" research synth --out "$data" --seed "$seed" --frames 300 --width 272 --height 72
   fi
 done
 phase1=1600
@@ -35,14 +35,14 @@ step() { sed -n 's/.*"step": *\([0-9]*\).*/\1/p' "$run/checkpoint/state.json" 2>
 resume=()
 [ -f "$run/checkpoint/state.json" ] && resume=(--resume)
 if [ "$(step)" -lt "$phase1" ]; then
-  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase1" "${resume[@]}" "${extra[@]}"
+  "$bin" research train --data "$data" --preset tiny --out "$run" --steps "$phase1" "${resume[@]}" "${extra[@]}"
 fi
 phase2=3000
 if [ "$(step)" -lt "$phase2" ]; then
-  "$bin" train --data "$data" --preset tiny --out "$run" --steps "$phase2" --resume --no-subsample \
+  "$bin" research train --data "$data" --preset tiny --out "$run" --steps "$phase2" --resume --no-subsample \
     "${extra[@]}"
 fi
-"$bin" train --data "$data" --preset tiny --out "$run" --steps 7000 --resume --no-subsample \
+"$bin" research train --data "$data" --preset tiny --out "$run" --steps 7000 --resume --no-subsample \
   --lr 5e-4 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5 \
   "${extra[@]}"
 echo "weights: $run/stereosplat_tiny.safetensors (next: bash scripts/train_tiny_transfer.sh)"

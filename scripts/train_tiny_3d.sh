@@ -16,7 +16,7 @@
 # 3. The chain's file, runs/tiny_3d/blends/chosen.safetensors (which
 #    scripts/train_tiny_3d_scales.sh trains on every scale for the shipped file): a point
 #    on the straight line from the first phase's weights to the second's, tensor by tensor
-#    (`stereosplat interpolate-weights`, t = 0.25, 0.5, 0.75, 0.85 and 0.9, and the two
+#    (`stereosplat research interpolate-weights`, t = 0.25, 0.5, 0.75, 0.85 and 0.9, and the two
 #    ends), chosen on generated validation drives by the rule of
 #    scripts/choose_checkpoint.sh with the preset's settings (never on real pairs or the
 #    held-out drives; runs/tiny_3d/blends/choice/README.md).
@@ -42,16 +42,16 @@ near=(--data data/transfer --preset tiny-3d --out "$near_run" --steps 1800 --lr 
   --warmup 50 --seed 0 --depth-loss relative --rendered-depth-weight 0.5
   --estimated-depth-weight 0.5)
 if [ -f "$near_run/checkpoint/state.json" ]; then
-  [ "$(step "$near_run")" -ge 1800 ] || "$bin" train "${near[@]}" --resume
+  [ "$(step "$near_run")" -ge 1800 ] || "$bin" research train "${near[@]}" --resume
 else
-  "$bin" train "${near[@]}" --init "$first/stereosplat_tiny.safetensors"
+  "$bin" research train "${near[@]}" --init "$first/stereosplat_tiny.safetensors"
 fi
 blends=runs/tiny_3d/blends
 mkdir -p "$blends"
 candidates=("t1|$near_run/stereosplat_tiny-3d.safetensors")
 for t in 0.25 0.5 0.75 0.85 0.9; do
   file="$blends/t$t.safetensors"
-  [ -f "$file" ] || "$bin" interpolate-weights --from "$first/stereosplat_tiny.safetensors" \
+  [ -f "$file" ] || "$bin" research interpolate-weights --from "$first/stereosplat_tiny.safetensors" \
     --to "$near_run/stereosplat_tiny-3d.safetensors" --t "$t" --out "$file"
   candidates+=("t$t|$file")
 done

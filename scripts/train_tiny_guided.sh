@@ -28,9 +28,9 @@ flags=(--data data/transfer --preset tiny --out "$run" --steps "$steps" --lr 5e-
   --seed 0 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
   --matching-weight 0.5 --set volume_branch=false --set view_subsampling=false ${SETTINGS:-})
 if [ -f "$run/checkpoint/state.json" ]; then
-  "$bin" train "${flags[@]}" --resume
+  "$bin" research train "${flags[@]}" --resume
 else
-  "$bin" train "${flags[@]}" --init "$init"
+  "$bin" research train "${flags[@]}" --init "$init"
 fi
 if [ "${SHIP:-1}" != 0 ]; then
   cp "$run/stereosplat_tiny.safetensors" model/weights/stereosplat_tiny.safetensors

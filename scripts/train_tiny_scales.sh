@@ -57,9 +57,9 @@ for ((to = 100; to <= steps; to += 100)); do
   ((to > most_from)) && data+=("${most[@]}")
   ((to > slow_from)) && lr="${LR3:-1e-4}"
   if [ -f "$run/checkpoint/state.json" ]; then
-    "$bin" train "${data[@]}" "${flags[@]}" --lr "$lr" --resume --steps "$to"
+    "$bin" research train "${data[@]}" "${flags[@]}" --lr "$lr" --resume --steps "$to"
   else
-    "$bin" train "${data[@]}" "${flags[@]}" --lr "$lr" --init "$init" --steps "$to"
+    "$bin" research train "${data[@]}" "${flags[@]}" --lr "$lr" --init "$init" --steps "$to"
   fi
   cp "$run/stereosplat_$preset.safetensors" "$run/kept/step_$to.safetensors"
 done

@@ -11,7 +11,7 @@
 # runs/tiny_transfer; the next stages read runs/tiny_transfer/stereosplat_tiny.safetensors).
 # Resumable: drives already written are kept, training resumes from its checkpoint.
 #   bash scripts/train_tiny_transfer.sh [DATA_DIR] [RUN_DIR] [STEPS] [TRAIN FLAGS ...]
-# Flags after STEPS go to every `stereosplat train` call, after the settings these weights
+# Flags after STEPS go to every `stereosplat research train` call, after the settings these weights
 # were trained with (`census_matching=false`, `auto_depth_range=false`, `sgm_guidance=null`).
 # INIT: the weights a fresh run starts from (default the street-trained ones).
 set -euo pipefail
@@ -32,8 +32,8 @@ flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --no-subsample
   --warmup 100 --depth-loss relative --rendered-depth-weight 0.5 --estimated-depth-weight 0.5
   "${extra[@]}")
 if [ -f "$run/checkpoint/state.json" ]; then
-  "$bin" train "${flags[@]}" --resume
+  "$bin" research train "${flags[@]}" --resume
 else
-  "$bin" train "${flags[@]}" --init "$base"
+  "$bin" research train "${flags[@]}" --init "$base"
 fi
 echo "weights: $run/stereosplat_tiny.safetensors (next: bash scripts/train_tiny_census.sh)"

@@ -11,7 +11,7 @@
 # in-volume pixels (weight 1). Resumable: run it again after an interruption and training
 # continues from the last checkpoint. Flags after the three positional arguments (e.g.
 # `--set volume.top_k=2048`, `--set view_subsampling=false`, `--set cost_volume_branch=false`)
-# go to every `stereosplat train` call, the same on each resume.
+# go to every `stereosplat research train` call, the same on each resume.
 #   bash scripts/train_volume.sh [DATA_DIR] [RUN_DIR] [STEPS] [--set KEY=VALUE ...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -34,8 +34,8 @@ flags=(--data "$data" --preset tiny --out "$run" --steps "$steps" --lr 5e-4 --wa
   --set census_matching=false --set auto_depth_range=false --set sgm_guidance=null --set volume_branch=true
   "${extra[@]}")
 if [ -f "$run/checkpoint/state.json" ]; then
-  "$bin" train "${flags[@]}" --resume
+  "$bin" research train "${flags[@]}" --resume
 else
-  "$bin" train "${flags[@]}" --init "$base"
+  "$bin" research train "${flags[@]}" --init "$base"
 fi
 echo "weights: $run/stereosplat_tiny.safetensors (evaluate with --set volume_branch=true)"

@@ -15,11 +15,11 @@ bin="${STEREOSPLAT_BIN:-target/release/stereosplat}"
 name() { printf "synth_drive_%07d_sync" "$1"; }
 for seed in 0 1 2 3 4 5 6 7; do
   if [ ! -f "$data/plain/data_poses/$(name "$seed")/poses.txt" ]; then
-    "$bin" synth --out "$data/plain" --seed "$seed" --frames 300 --width 272 --height 72
+    "$bin" research synth --out "$data/plain" --seed "$seed" --frames 300 --width 272 --height 72
   fi
 done
 for seed in $(seq 100 115); do
   if [ ! -f "$data/rand_$seed/data_poses/$(name "$seed")/poses.txt" ]; then
-    "$bin" synth --out "$data/rand_$seed" --seed "$seed" --frames 250 --randomise
+    "$bin" research synth --out "$data/rand_$seed" --seed "$seed" --frames 250 --randomise
   fi
 done

@@ -39,7 +39,7 @@ for kind in desk room street; do
     root="$data/${kind}_$seed"
     name=$(printf "synth_%s_%07d_sync" "$word" "$seed")
     if [ ! -f "$root/data_poses/$name/poses.txt" ]; then
-      "$bin" synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
+      "$bin" research synth --out "$root" --scene "$kind" --seed "$seed" --frames "$frames" --randomise "${size[@]}"
     fi
   done
 done
@@ -47,6 +47,6 @@ for ((k = 0; k < ${VALIDATION_PLAIN:-0}; k++)); do
   seed=$((base + 300 + k))
   name=$(printf "synth_drive_%07d_sync" "$seed")
   [ -f "$data/plain_$seed/data_poses/$name/poses.txt" ] ||
-    "$bin" synth --out "$data/plain_$seed" --seed "$seed" --frames 80 --width 272 --height 72
+    "$bin" research synth --out "$data/plain_$seed" --seed "$seed" --frames 80 --width 272 --height 72
 done
 echo "validation set under $data"

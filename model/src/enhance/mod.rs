@@ -110,7 +110,7 @@ pub enum EnhanceError {
         line: String,
     },
     /// The pair folder holds no pair.
-    #[error("no training pairs in {0} (make them with `stereosplat enhancer-data`)")]
+    #[error("no training pairs in {0} (make them with `stereosplat research enhancer-data`)")]
     NoPairs(PathBuf),
 }
 

@@ -37,7 +37,7 @@ pub struct UnknownDepthError(pub String);
 impl std::str::FromStr for DepthError {
     type Err = UnknownDepthError;
 
-    /// `metric` or `relative`, as `stereosplat train --depth-loss` takes them.
+    /// `metric` or `relative`, as `stereosplat research train --depth-loss` takes them.
     fn from_str(name: &str) -> std::result::Result<Self, Self::Err> {
         match name {
             "metric" => Ok(Self::Metric),

@@ -14,16 +14,18 @@ use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 use renderer::formats::MapFormat;
 
-use super::method_args::MethodArgs;
-use super::progress;
-use super::shutdown::shutdown_signal;
-use super::stream::{rate_of, OnCheckFailArg, RenderArg};
-use super::synth::{cached_drive, first_sequence};
+use super::common::drives::{cached_drive, first_sequence};
+use super::common::method_args::MethodArgs;
+use super::common::shutdown::shutdown_signal;
+use super::common::units::rate_of;
+use super::run::{OnCheckFailArg, RenderArg};
 use super::view::{self, ViewFlags};
+use crate::clients::loopback::{run_loopback, Received, ReceivedBin};
+use crate::clients::replay::Drive;
+use crate::progress;
 use crate::service::latency_stats::LatencyStats;
-use crate::service::loopback::{run_loopback, Received, ReceivedBin};
-use crate::service::replay::Drive;
-use crate::service::{NodeConfig, StartMap};
+use crate::service::NodeConfig;
+use crate::store::StartMap;
 
 /// Flags of `demo`.
 #[derive(Args, Clone, Debug)]

@@ -14,7 +14,7 @@ use renderer::formats::{load_map, save_map, MapFormat};
 use renderer::GaussianSet;
 
 use crate::fusion::{local_set, AtTornTail};
-use crate::service::map_files::{journal_of, restore_files, whole_map, Restored};
+use crate::store::map_files::{journal_of, restore_files, whole_map, Restored};
 
 /// The first bytes of the node's checkpoint file.
 const CHECKPOINT_MAGIC: &[u8] = b"SSGMAP";

@@ -1,42 +1,17 @@
-//! Subcommands of the `stereosplat` binary, one module each, plus what they share.
+//! The commands that operate the node and its maps, one module each named as its subcommand,
+//! and the flag helpers they share ([`common`]). Research commands are in
+//! [`crate::research`], benchmarks in [`crate::bench`].
 
-pub mod bench;
-pub mod bench_check;
-pub mod bench_drive;
-pub mod bench_export;
-pub mod bench_fusion;
-pub mod bench_inputs;
-pub mod bench_keep_up;
-pub mod bench_model;
-pub mod bench_node;
-pub mod bench_pareto;
-pub mod bench_view;
-pub mod bench_workers;
+pub mod common;
 pub mod demo;
-pub mod enhancer_data;
-pub mod eval;
-pub mod eval_enhancer;
-pub mod eval_map;
 pub mod export;
-pub mod heldout_drive;
-pub mod interpolate_weights;
 pub mod launch;
-pub mod logs;
-pub mod method_args;
-pub mod operating_args;
-pub mod pose_args;
-pub mod progress;
+pub mod monitor;
 pub mod reconstruct;
+pub mod record;
 pub mod render;
-pub mod rss_trace;
-#[cfg(unix)]
-pub mod scene_source;
-pub mod shader_cache;
-pub mod shutdown;
-pub mod stream;
-pub mod synth;
-pub mod train;
-pub mod train_enhancer;
+pub mod replay;
+pub mod router;
+pub mod run;
 pub mod view;
 pub mod worker;
-pub mod zenoh_args;

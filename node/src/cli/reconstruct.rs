@@ -8,8 +8,8 @@
 
 use std::path::{Path, PathBuf};
 
-use super::method_args::MethodArgs;
-use super::stream::OnCheckFailArg;
+use super::common::method_args::MethodArgs;
+use super::run::OnCheckFailArg;
 use crate::pair::calib::CalibrationInput;
 use crate::pair::outputs::{write_all, Summary};
 use crate::pair::photometric::photometric;

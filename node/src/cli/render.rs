@@ -12,7 +12,7 @@ use renderer::gpu::GpuRasterizer;
 use renderer::picture::{self, DepthScale};
 use renderer::{cpu, RenderOutput, RenderSettings};
 
-use super::scene_source::SceneArgs;
+use super::common::scene_source::SceneArgs;
 
 /// Flags of `render`.
 #[derive(Args, Clone, Debug)]

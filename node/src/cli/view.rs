@@ -8,14 +8,14 @@ use std::sync::{Arc, Mutex};
 use anyhow::{Context, Result};
 use clap::Args;
 
-use super::shutdown::shutdown_signal;
-use super::zenoh_args::ZenohArgs;
+use super::common::shutdown::shutdown_signal;
+use super::common::zenoh_args::ZenohArgs;
 use zenoh::Session;
 
 use crate::fusion::AtTornTail;
-use crate::service::map_files::{restore, whole_map, CHECKPOINT};
-use crate::service::Keys;
+use crate::store::map_files::{restore, whole_map, CHECKPOINT};
 use crate::transport::open;
+use crate::transport::Keys;
 use crate::view::{default_node_modules, Bound, View, ViewConfig, ViewState};
 
 /// Flags of `view`.
@@ -44,6 +44,7 @@ pub struct ViewArgs {
 
 /// The `--view` flags of `run` and `demo`.
 #[derive(Args, Clone, Debug)]
+#[command(next_help_heading = "Live view")]
 pub struct ViewFlags {
     /// Serve the live view (splats of the global map, renders, latency charts) while the
     /// node runs; `demo` keeps serving after the drive until Ctrl-C.

@@ -1,18 +1,16 @@
-//! `stereosplat worker` (a worker process: bins from a node over zenoh, maps back) and
-//! `stereosplat router` (a zenoh router for nodes, workers and cameras that do not reach
-//! each other directly). docs/workers.md.
+//! `stereosplat worker`: a worker process, bins from a node over zenoh, maps back
+//! (docs/workers.md).
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 
 use crate::pipeline::operating::PointRunner;
 use crate::remote::{serve, Fingerprint, ServeConfig};
-use crate::transport::open;
 
-use super::method_args::MethodArgs;
-use super::shutdown::shutdown_signal;
-use super::stream::RenderArg;
-use super::zenoh_args::ZenohArgs;
+use super::common::method_args::MethodArgs;
+use super::common::shutdown::shutdown_signal;
+use super::common::zenoh_args::ZenohArgs;
+use super::run::RenderArg;
 
 /// Flags of `worker`.
 #[derive(Args, Clone, Debug)]
@@ -89,28 +87,4 @@ fn host_name() -> String {
     } else {
         clean
     }
-}
-
-/// Flags of `router`.
-#[derive(Args, Clone, Debug)]
-pub struct RouterArgs {
-    #[command(flatten)]
-    zenoh: ZenohArgs,
-}
-
-/// A zenoh router (mode `router`, whatever `--mode` says) until Ctrl-C or SIGTERM: peers
-/// and clients connected to it reach each other through it.
-pub fn router(args: &RouterArgs) -> Result<()> {
-    let mut transport = args.zenoh.transport();
-    transport.mode = "router".into();
-    let runtime = tokio::runtime::Runtime::new()?;
-    runtime.block_on(async {
-        let session = open(&transport).await.context("starting the router")?;
-        eprintln!("router ready: {}", session.zid());
-        shutdown_signal().await;
-        session
-            .close()
-            .await
-            .map_err(|e| anyhow::anyhow!("closing the router: {e}"))
-    })
 }

@@ -20,9 +20,9 @@ use renderer::picture::unit_to_u8;
 use renderer::GaussianSet;
 use serde_json::{json, Value};
 
+use crate::counters::Counters;
 use crate::fusion::WorldGaussian;
 use crate::msg::latency::BinLatency;
-use crate::service::Counters;
 
 /// Bytes per point: `x y z` (f32), then `red green blue alpha` (u8).
 pub const POINT_STRIDE: u32 = 16;

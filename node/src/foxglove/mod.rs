@@ -28,8 +28,8 @@ use model::frame::RgbImage;
 use renderer::GaussianSet;
 use serde_json::Value;
 
+use crate::counters::Counters;
 use crate::fusion::{GaussianId, WorldGaussian};
-use crate::service::Counters;
 
 /// How long [`Foxglove::stop`] waits for the clients' connections to close.
 pub const STOP_GRACE: std::time::Duration = std::time::Duration::from_secs(2);

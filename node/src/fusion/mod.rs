@@ -23,7 +23,7 @@
 //! whole cells are evicted: ground column by ground column (x-y squares of about 16 m), the
 //! farthest (column centre) from the latest bin's origin first, and within a column the
 //! farthest cell (centre) first, ties by key. A map kept on disk pages far tiles out
-//! instead (`tiles`, `crate::service::map_store`), so its budget bounds what is in memory
+//! instead (`tiles`, `crate::store::map_store`), so its budget bounds what is in memory
 //! and eviction is only the last resort. Ids are u64, assigned in increasing order in the
 //! bin's input order, never reused.
 
@@ -116,7 +116,7 @@ pub struct Keep {
 
 impl Default for Keep {
     /// Within 20 m of the bin's camera, any confidence: chosen on the held-out drive of
-    /// `results/fused_map/` (`stereosplat eval-map --sky-ranges`), where it clears the sky over the road in the bird's-eye
+    /// `results/fused_map/` (`stereosplat research eval-map --sky-ranges`), where it clears the sky over the road in the bird's-eye
     /// view and, with each bin's far part drawn behind the map as its sky layer
     /// ([`Keep::backdrop`]), gives the best fused-map scores with the fewest Gaussians of
     /// every keep range tried (20, 30, 40 m, everything).

@@ -10,13 +10,13 @@
 //!
 //! [[process]]
 //! name = "data"
-//! subcommand = "synth-heldout"              # a `stereosplat` subcommand, or `program = "sh"` for any program
+//! subcommand = "research synth-heldout"     # a `stereosplat` subcommand (with its group), or `program = "sh"`
 //! args = ["--out", "${out}"]
 //! oneshot = true                            # expected to exit 0 (default false: runs until stopped)
 //!
 //! [[process]]
 //! name = "eval"
-//! subcommand = "eval"
+//! subcommand = "research eval"
 //! args = ["--data", "${out}"]
 //! env = { RUST_LOG = "info" }
 //! cwd = "."                                 # relative to the launcher's working directory
@@ -61,7 +61,8 @@ pub struct LaunchFile {
 pub struct ProcessEntry {
     /// Unique name, used in the `[name] ` prefix of its output and in `after`.
     pub name: Spanned<String>,
-    /// A `stereosplat` subcommand (run with the launcher's own executable).
+    /// A `stereosplat` subcommand (run with the launcher's own executable), its words
+    /// separated by spaces where it is in a group (`research synth-heldout`, `bench node`).
     pub subcommand: Option<Spanned<String>>,
     /// Any other program (looked up on `PATH`); exactly one of this and `subcommand`.
     pub program: Option<Spanned<String>>,

@@ -244,7 +244,13 @@ impl Checker<'_> {
         let mut args = Vec::with_capacity(entry.args.len() + 1);
         let program = match (&entry.subcommand, &entry.program) {
             (Some(sub), None) => {
-                args.push(self.substitute(sub, vars)?);
+                // A grouped subcommand is its words: `research synth-heldout` is two.
+                let sub = self.substitute(sub, vars)?;
+                if sub.split_whitespace().next().is_none() {
+                    let message = format!("process `{name}` has an empty `subcommand`");
+                    return Err(self.invalid(entry.name.span(), message));
+                }
+                args.extend(sub.split_whitespace().map(str::to_string));
                 stereosplat.to_path_buf()
             }
             (None, Some(program)) => PathBuf::from(self.substitute(program, vars)?),

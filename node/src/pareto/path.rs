@@ -8,10 +8,10 @@
 use model::reconstruct::{ReconstructError, Reconstructor, StereoView};
 use renderer::GaussianSet;
 
+use crate::memory::{peak_rss_bytes, reset_peak_rss};
 use crate::pipeline::bin_map::bin_map;
 use crate::pipeline::operating::with_scaled_views;
 use crate::pipeline::self_check::{CheckAction, OnCheckFail, SelfCheck};
-use crate::service::loopback::{peak_rss_bytes, reset_peak_rss};
 
 /// A reconstructor run as the node's worker runs it, with per-call memory and check counts.
 pub struct WorkerPath {

@@ -8,7 +8,7 @@ use model::eval::EvalReport;
 use serde::Serialize;
 
 use super::front::{front, Better};
-use super::points::OperatingPoint;
+use crate::pipeline::operating::OperatingPoint;
 
 /// The measurements of one operating point over the held-out bins.
 #[derive(Clone, Debug, PartialEq, Serialize)]

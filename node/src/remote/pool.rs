@@ -47,7 +47,7 @@ use super::fingerprint::Fingerprint;
 use super::wire::{BinJob, Reply, Request};
 use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::worker::{Job, WorkerEvent};
-use crate::service::Keys;
+use crate::transport::Keys;
 use crate::transport::TransportError;
 
 /// Events waiting for the node's loop at most.

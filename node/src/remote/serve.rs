@@ -26,7 +26,7 @@ use super::wire::{BinJob, Hello, Reply, Request, RequestKind, REQUEST_PREFIX};
 use crate::pipeline::operating::PointRunner;
 use crate::pipeline::self_check::{OnCheckFail, SelfCheck};
 use crate::pipeline::worker::{run_job, Job, RenderWith, WorkerEvent};
-use crate::service::Keys;
+use crate::transport::Keys;
 use crate::transport::{open, TransportConfig, TransportError};
 
 /// How a worker process runs.

@@ -1,13 +1,11 @@
 //! Each finished bin through the node's outputs: fused into the global map and journaled
-//! ([`super::map_store`]), then published once its record is durable, or held until it is
+//! ([`crate::store::map_store`]), then published once its record is durable, or held until it is
 //! ([`super::super::held`]).
 
 use renderer::GaussianSet;
 
 use super::super::error::ServiceError;
 use super::super::held::{FusedBin, MAX_HELD_BINS};
-use super::super::keys;
-use super::super::map_store::MapStore;
 use super::Outputs;
 use crate::fusion::increment_message;
 use crate::msg::gaussians::cloud_from_gaussians;
@@ -17,6 +15,8 @@ use crate::msg::tf2_msgs::frame_to;
 use crate::msg::Message;
 use crate::pipeline::self_check::CheckAction;
 use crate::pipeline::worker::{now_ns, Output};
+use crate::store::map_store::MapStore;
+use crate::transport::keys;
 
 impl Outputs<'_> {
     /// Fuses one finished bin and journals it, then publishes it once its record is

@@ -1,7 +1,7 @@
 //! Why the node stopped with an error. Bad input never stops it: a malformed message is
 //! counted and reported on the diagnostics topic instead.
 
-use super::map_files::{ExportError, RestoreError};
+use crate::store::map_files::{ExportError, RestoreError};
 use crate::transport::TransportError;
 
 /// Why the node stopped with an error.

@@ -1,6 +1,6 @@
 //! Bins fused into the map whose journal record is not yet durable (the disk is full, a
 //! write or a sync failed): held back from publishing, in bin order, until the journal
-//! takes them ([`super::map_store::MapStore::flush`]), so that nothing the node publishes
+//! takes them ([`crate::store::map_store::MapStore::flush`]), so that nothing the node publishes
 //! can be lost by a crash.
 //!
 //! The hold is bounded: at most [`MAX_HELD_BINS`] bins (their maps and, once drawn, their

@@ -13,10 +13,10 @@
 use tokio::sync::mpsc;
 use zenoh::bytes::ZBytes;
 
-use super::counters::Counters;
 use super::inputs::{Inputs, Step};
-use super::keys::Topic;
+use crate::counters::Counters;
 use crate::pipeline::worker::now_ns;
+use crate::transport::keys::Topic;
 
 /// Samples handed to the input thread and not yet taken by it, at most.
 pub(super) const SAMPLE_BACKLOG: usize = 8;

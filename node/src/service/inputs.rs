@@ -34,11 +34,10 @@ use model::frame::{RgbImage, StereoFrame, StereoRig};
 use model::kitti360::resample::resample_area;
 use zenoh::bytes::ZBytes;
 
-use super::counters::Counters;
 use super::input_image::InputImage;
-use super::keys::{self, Topic};
 use super::limits::{InputLimits, Refusal};
 use super::unusable::Unusable;
+use crate::counters::Counters;
 use crate::error_text::error_chain as chain;
 use crate::msg::geometry_msgs::PoseStamped;
 use crate::msg::image::intrinsics_from_camera_info;
@@ -52,6 +51,7 @@ use crate::pipeline::sync::{SyncConfig, Synced, Synchronizer};
 use crate::pipeline::worker::{now_ns, Job, Stamps};
 use crate::rectify::{self, CameraModel, Rectifier, StereoRectifier};
 use crate::tf::PoseSource;
+use crate::transport::keys::{self, Topic};
 
 /// Frames kept while no valid pair of camera infos has arrived yet (the oldest is dropped
 /// beyond this and counted as `dropped/no_camera_info`).

@@ -12,19 +12,17 @@ use zenoh::sample::Locality;
 use super::error::ServiceError;
 use super::input_thread::InputThread;
 use super::inputs::{Inputs, Step};
-use super::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use super::limits::InputLimits;
-use super::map_files::{export, start_map, StartMap};
-use super::map_store::{Compaction, MapStore, Paging};
-use super::memory::{limit_arenas_to_cores, Releaser};
 use super::outputs::{NodeSummary, Outputs};
 use super::pace::Pace;
 use super::pose_topics::PoseTopics;
 use super::snapshot_gate::SnapshotGate;
 use super::snapshot_reply::answer_snapshot;
-use super::workers::{publish_released, workers_event, STALL_CHECK};
+use super::start_report::announce_start;
+use super::workers::{publish_released, workers_event, WorkerBinCounters, STALL_CHECK};
 use crate::foxglove::{Foxglove, FoxgloveConfig};
 use crate::fusion::FusionConfig;
+use crate::memory::{limit_arenas_to_cores, Releaser};
 use crate::msg::Message;
 use crate::pipeline::binner::BinnerConfig;
 use crate::pipeline::operating::{OperatingConfig, PointRunner};
@@ -32,7 +30,10 @@ use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::{RenderWith, Worker, WorkerEvent};
 use crate::remote::{Dispatch, Fingerprint, Pool, PoolConfig, Slot};
+use crate::store::map_files::{export, start_map, StartMap};
+use crate::store::map_store::{Compaction, MapStore, Paging};
 use crate::tf::{PoseSource, PoseSourceConfig};
+use crate::transport::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
 use crate::transport::{open, Outlet, TransportConfig, TransportError};
 
 /// Everything the node is configured by.
@@ -63,7 +64,7 @@ pub struct NodeConfig {
     /// The global map's settings.
     pub fusion: FusionConfig,
     /// Where the fused map (PLY, bird's-eye PNG, saved map) goes when the node stops, and
-    /// where its checkpoint is kept and resumed from (see [`super::map_files`]).
+    /// where its checkpoint is kept and resumed from (see [`crate::store::map_files`]).
     pub out_dir: Option<PathBuf>,
     /// The format of the global map file written to `out_dir` when the node stops.
     pub map_format: MapFormat,
@@ -74,10 +75,10 @@ pub struct NodeConfig {
     /// crash loses nothing that was published" hold; larger values trade that for fewer
     /// syncs.
     pub checkpoint_every: u64,
-    /// When the journal is folded into the checkpoint's base ([`super::map_store`]).
+    /// When the journal is folded into the checkpoint's base ([`crate::store::map_store`]).
     pub compaction: Compaction,
     /// Which tiles of the map stay in memory while a journal is kept (`None`: all of it;
-    /// [`super::map_store`]).
+    /// [`crate::store::map_store`]).
     pub paging: Option<Paging>,
     /// A global map snapshot is published after every this many bins (0: only on request).
     pub snapshot_every: u64,
@@ -106,7 +107,7 @@ pub struct NodeConfig {
     /// `odom`) when poses come from the robot's tree.
     pub world_frame: String,
     /// The memory the allocator keeps after it is freed goes back to the system this often,
-    /// and its arenas are capped at one per core ([`super::memory`]), so resident memory
+    /// and its arenas are capped at one per core ([`crate::memory`]), so resident memory
     /// follows the map in memory on a long drive (zero: neither, the allocator's defaults).
     pub release_memory_every: std::time::Duration,
 }
@@ -277,45 +278,7 @@ pub async fn run_with(
 ) -> Result<NodeSummary, ServiceError> {
     let empty = crate::fusion::GlobalMap::new(config.fusion)?;
     let start = start_map(config.out_dir.as_deref(), empty, config.start_map)?;
-    if let Some(path) = &start.resumed_from {
-        let m = &start.map;
-        eprintln!(
-            "resumed the global map of {}: {} Gaussians, bins up to {:?}, sequence {}, epoch {}",
-            path.display(),
-            m.len(),
-            m.last_bin_id(),
-            m.increments(),
-            m.epoch()
-        );
-    }
-    if let Some(replay) = &start.replay {
-        eprintln!(
-            "replayed {} journal records past the base ({} it already held)",
-            replay.applied, replay.skipped
-        );
-        for w in &replay.failed_writes {
-            eprintln!(
-                "skipped {} bytes of a journal write that failed at byte {} of {} (its records follow it again)",
-                w.bytes,
-                w.offset,
-                w.path.display()
-            );
-        }
-        if let Some(t) = &replay.torn {
-            eprintln!(
-                "cut a record torn by a crash at the end of {}: kept its first {} bytes, cut {}",
-                t.path.display(),
-                t.kept_bytes,
-                t.cut_bytes
-            );
-        }
-    }
-    for to in &start.moved_aside {
-        eprintln!(
-            "starting a fresh global map; the old one is kept as {}",
-            to.display()
-        );
-    }
+    announce_start(&start);
     let mut binner = config.binner;
     if let Some(last) = start.map.last_bin_id() {
         binner.first_bin_id = binner.first_bin_id.max(last + 1);
@@ -427,8 +390,7 @@ pub async fn run_with(
     // After `stop`: no more inputs; the bins in hand are finished (for a worker
     // process's timeout at most) and published.
     let mut stopping: Option<Instant> = None;
-    // Worker ids with a counter of their own so far.
-    let mut worker_counters = 0;
+    let mut worker_bins = WorkerBinCounters::default();
     // Until the input thread has ended (after `stop`) and its last steps are taken.
     let mut inputs_open = true;
 
@@ -487,41 +449,21 @@ pub async fn run_with(
                 }
             },
         }
-        for step in todo {
-            match step {
-                Step::Submit(job) => {
-                    if let Some(p) = &pace {
-                        p.bin_opened(job.stamps.opened_ns);
-                    }
-                    if let Some(f) = &foxglove {
-                        f.input_image(job.bin_id, job.stamps.source_ns, &job.frame.left);
-                    }
-                    dispatch.submit(*job);
-                }
-                Step::Closed(bin_id) => outputs.bin_closed(bin_id, dispatch.drops()).await?,
-                Step::Camera(camera) => {
-                    let on_tf = config.pose_source.is_none();
-                    outputs.camera_moved(camera, on_tf).await?
-                }
-            }
-        }
+        let on_tf = config.pose_source.is_none();
+        take_steps(
+            todo,
+            on_tf,
+            pace.as_ref(),
+            foxglove.as_ref(),
+            &mut dispatch,
+            &mut outputs,
+        )
+        .await?;
         for a in dispatch.assign(Instant::now()) {
             match a.slot.clone() {
                 Slot::Local => _ = worker.submit(a.job),
                 Slot::Remote(id) => {
-                    // One counter per worker id, for the first ids only: a peer
-                    // cycling through ids cannot grow the counters without bound.
-                    let name = format!("workers/bins/{id}");
-                    let named = outputs.counters.get(&name) > 0
-                        || worker_counters < crate::remote::MAX_WORKERS;
-                    match named {
-                        true if outputs.counters.get(&name) == 0 => {
-                            worker_counters += 1;
-                            outputs.counters.add(&name, 1);
-                        }
-                        true => outputs.counters.add(&name, 1),
-                        false => outputs.counters.add("workers/bins_past_limit", 1),
-                    }
+                    worker_bins.count(&id, &mut outputs.counters);
                     pool.send(&id, a);
                 }
             }
@@ -540,13 +482,61 @@ pub async fn run_with(
         dispatch.event(&Slot::Local, None, event);
     }
     publish_released(&mut dispatch, &mut outputs, pace.as_mut(), &point_names).await?;
+    drop(pool);
+    let mut summary = finish(&config, dispatch, outputs).await?;
+    if let Some(mut f) = foxglove {
+        // What was still queued is logged first, so the counts are final.
+        f.stop().await;
+        f.count_into(&mut summary.counters);
+    }
+    drop(outlet);
+    // Closing (rather than dropping) the session flushes what is still queued for peers.
+    session.close().await.map_err(zenoh_err)?;
+    Ok(summary)
+}
+
+/// Takes the input thread's steps: bins opened go to the dispatcher, bins closed and camera
+/// poses to the outputs (`on_tf`: the camera's pose goes out on `/tf`, when no pose source
+/// reads it from there).
+async fn take_steps(
+    steps: Vec<Step>,
+    on_tf: bool,
+    pace: Option<&Pace>,
+    foxglove: Option<&Foxglove>,
+    dispatch: &mut Dispatch,
+    outputs: &mut Outputs<'_>,
+) -> Result<(), ServiceError> {
+    for step in steps {
+        match step {
+            Step::Submit(job) => {
+                if let Some(p) = pace {
+                    p.bin_opened(job.stamps.opened_ns);
+                }
+                if let Some(f) = foxglove {
+                    f.input_image(job.bin_id, job.stamps.source_ns, &job.frame.left);
+                }
+                dispatch.submit(*job);
+            }
+            Step::Closed(bin_id) => outputs.bin_closed(bin_id, dispatch.drops()).await?,
+            Step::Camera(camera) => outputs.camera_moved(camera, on_tf).await?,
+        }
+    }
+    Ok(())
+}
+
+/// After the last bin is published: counts the bins left waiting, finishes the outputs and
+/// the store and exports the map into the out folder; returns the summary.
+async fn finish(
+    config: &NodeConfig,
+    dispatch: Dispatch,
+    mut outputs: Outputs<'_>,
+) -> Result<NodeSummary, ServiceError> {
     let drops = dispatch.drops();
     let unfinished = dispatch.unfinished();
     if unfinished > 0 {
         eprintln!("{unfinished} bins were still waiting for a worker when the node stopped");
         outputs.counters.set("dropped/at_stop", unfinished as u64);
     }
-    drop(pool);
     outputs.finish(drops).await?;
     outputs.close_store();
     // A map that never held a bin (nothing arrived, nothing was resumed) leaves no files:
@@ -557,14 +547,5 @@ pub async fn run_with(
     let mut summary = std::mem::take(&mut outputs.summary);
     summary.global_gaussians = outputs.map.total_len() as usize;
     summary.counters = std::mem::take(&mut outputs.counters);
-    drop(outputs);
-    if let Some(mut f) = foxglove {
-        // What was still queued is logged first, so the counts are final.
-        f.stop().await;
-        f.count_into(&mut summary.counters);
-    }
-    drop(outlet);
-    // Closing (rather than dropping) the session flushes what is still queued for peers.
-    session.close().await.map_err(zenoh_err)?;
     Ok(summary)
 }

@@ -4,7 +4,7 @@
 //! also closed, with the counters beside it.
 //!
 //! Write-ahead: a bin is fused and its change journaled and synced (when due,
-//! [`super::map_store`]) before anything of the bin is published, so a crash cannot lose a
+//! [`crate::store::map_store`]) before anything of the bin is published, so a crash cannot lose a
 //! published bin. When the journal fails (a full disk), bins are held back until it takes
 //! them again ([`super::held`]), snapshot queries are refused meanwhile, and the
 //! counters say so (`error/checkpoint`, `map/held_bins`, `dropped/not_durable`). A resumed
@@ -32,22 +32,19 @@
 use glam::DVec2;
 use std::collections::{BTreeMap, BTreeSet};
 
-use super::counters::Counters;
 use super::error::ServiceError;
 use super::held::Held;
 use super::inputs::CameraPose;
-use super::keys::{self, Topic};
-use super::map_files::{gaussians_in_whole, RegionReadError};
-use super::map_store::{MapStore, Recorded};
-use super::memory::Releaser;
 use super::region::RegionQuery;
 use super::static_frames::StaticFrames;
+use crate::counters::Counters;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
 use crate::fusion::{
     bev_image, encode_map_snapshot, snapshot_message, BevView, GaussianId, GlobalMap, Increment,
     Snapshot, WorldGaussian,
 };
+use crate::memory::Releaser;
 use crate::msg::image::image_from_rgb;
 use crate::msg::latency::{BinLatency, Diagnostics};
 use crate::msg::map_update::MapUpdate;
@@ -57,6 +54,9 @@ use crate::msg::tf2_msgs::{frame_to, TfMessage, WORLD};
 use crate::msg::Message;
 use crate::pipeline::self_check::{verdict_code, CheckAction, CheckOutcome};
 use crate::pipeline::worker::{now_ns, Rendered, Stamps, WorkerEvent};
+use crate::store::map_files::{gaussians_in_whole, RegionReadError};
+use crate::store::map_store::{MapStore, Recorded};
+use crate::transport::keys::{self, Topic};
 use crate::transport::Outlet;
 
 #[path = "bin_publish.rs"]

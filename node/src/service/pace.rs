@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use crate::pipeline::operating::{Governor, OperatingConfig};
 use crate::pipeline::worker::WorkerEvent;
 
-use super::counters::Counters;
+use crate::counters::Counters;
 
 /// The shared governor and what the node counts of it.
 pub struct Pace {

@@ -18,7 +18,7 @@ use zenoh::sample::{Locality, Sample};
 use zenoh::Session;
 use zenoh_ext::{AdvancedSubscriber, AdvancedSubscriberBuilderExt, HistoryConfig};
 
-use super::keys::{Keys, Topic, TF, TF_STATIC};
+use crate::transport::keys::{Keys, Topic, TF, TF_STATIC};
 use crate::transport::TransportError;
 
 /// The two subscriptions.

@@ -8,11 +8,11 @@ use std::time::Instant;
 use zenoh::query::Query;
 
 use super::error::ServiceError;
-use super::map_files::RegionReadError;
 use super::outputs::{Outputs, RegionPages};
 use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
 use crate::msg::Message;
+use crate::store::map_files::RegionReadError;
 use crate::transport::TransportError;
 
 /// Answers `q` from `outputs`' map, counting every refusal and encoding error.

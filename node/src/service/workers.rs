@@ -11,10 +11,34 @@
 use crate::pipeline::worker::WorkerEvent;
 use crate::remote::{Answer, Dispatch, PoolEvent, Slot};
 
-use super::counters::Counters;
 use super::error::ServiceError;
 use super::outputs::Outputs;
 use super::pace::Pace;
+use crate::counters::Counters;
+
+/// The `workers/bins/<id>` counters: one per worker id for the first
+/// [`crate::remote::MAX_WORKERS`] ids only, the rest under `workers/bins_past_limit`, so a
+/// peer cycling through ids cannot grow the counters without bound.
+#[derive(Debug, Default)]
+pub(super) struct WorkerBinCounters {
+    /// Worker ids with a counter of their own so far.
+    named: usize,
+}
+
+impl WorkerBinCounters {
+    /// Counts a bin handed to the worker `id`.
+    pub(super) fn count(&mut self, id: &str, counters: &mut Counters) {
+        let name = format!("workers/bins/{id}");
+        if counters.get(&name) > 0 {
+            counters.add(&name, 1);
+        } else if self.named < crate::remote::MAX_WORKERS {
+            self.named += 1;
+            counters.add(&name, 1);
+        } else {
+            counters.add("workers/bins_past_limit", 1);
+        }
+    }
+}
 
 /// How often the node looks for stalled worker processes.
 pub(super) const STALL_CHECK: std::time::Duration = std::time::Duration::from_millis(250);

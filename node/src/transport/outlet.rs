@@ -27,7 +27,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::Session;
 
 use super::ros2::{self, Attachment, NodeInfo, TopicInfo, GID_LEN};
-use crate::service::keys::{KeyMode, Keys, Topic};
+use crate::transport::keys::{KeyMode, Keys, Topic};
 
 /// Why an outlet could not be declared or could not publish.
 #[derive(Debug, thiserror::Error)]

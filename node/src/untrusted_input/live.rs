@@ -19,9 +19,9 @@ use crate::pipeline::worker::{Job, Stamps};
 use crate::remote::admit::{admit_map, admit_render, Rules};
 use crate::remote::wire::{Reply, Request, REQUEST_PREFIX};
 use crate::service::inputs::{feed, INPUT_TOPICS, POSE_SOURCE_TOPICS};
-use crate::service::keys::Topic;
 use crate::service::region::RegionQuery;
 use crate::tf::{Mount, PoseSourceConfig, PoseSourceKind};
+use crate::transport::keys::Topic;
 use crate::view::{
     fetch_batch, paged_tiles, take_sample, tile_query, tiles_query, ViewState, DEFAULT_BUDGET,
     MAX_RADIUS_M,

@@ -26,7 +26,7 @@ use std::sync::{Arc, Mutex};
 use tokio::net::TcpListener;
 use tokio::task::JoinHandle;
 
-use crate::service::Keys;
+use crate::transport::Keys;
 
 pub use routes::{
     tile_query, tiles_query, TileQuery, TilesQuery, DEFAULT_BUDGET, DEFAULT_RADIUS_M, MAX_BUDGET,

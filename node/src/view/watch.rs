@@ -26,7 +26,7 @@ use crate::msg::pose::affine_from_pose;
 use crate::msg::sensor_msgs::{CameraInfo, Image};
 use crate::msg::Message;
 use crate::pipeline::worker::now_ns;
-use crate::service::keys::{self, Keys, Topic};
+use crate::transport::keys::{self, Keys, Topic};
 use crate::transport::TransportError;
 
 /// Least time between two snapshot queries.

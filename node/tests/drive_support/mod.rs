@@ -24,7 +24,8 @@ use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::{run_announced, Keys, NodeConfig, NodeSummary, ServiceError};
+use node::service::{run_announced, NodeConfig, NodeSummary, ServiceError};
+use node::transport::Keys;
 use node::transport::{open, TransportConfig};
 use zenoh::qos::CongestionControl;
 use zenoh::Session;
@@ -491,7 +492,7 @@ pub fn bin_of_frame_id(frame_id: &str) -> u64 {
 
 /// This process's resident set size in bytes (`VmRSS` of /proc/self/status; Linux only).
 pub fn rss_bytes() -> u64 {
-    let bytes = node::service::loopback::rss_bytes();
+    let bytes = node::memory::rss_bytes();
     assert!(bytes > 0, "VmRSS in /proc/self/status");
     bytes
 }

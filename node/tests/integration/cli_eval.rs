@@ -15,7 +15,7 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
     let out = temp_dir("eval-out");
     let size = ["--frames", "40", "--width", "272", "--height", "72"];
     stereosplat(
-        &[&["synth-heldout"][..], &size, &["--out"]].concat(),
+        &[&["research", "synth-heldout"][..], &size, &["--out"]].concat(),
         &[&data],
     );
     let seq = data.join("data_2d_raw/synth_drive_1000000_sync/image_00/data_rect");
@@ -23,6 +23,7 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
 
     let table = stereosplat(
         &[
+            "research",
             "eval",
             "--method",
             "sgm",
@@ -54,6 +55,7 @@ fn synth_then_eval_writes_the_papers_table_for_the_baseline() {
 
     let table = stereosplat(
         &[
+            "research",
             "eval",
             "--method",
             "sgm",
@@ -80,6 +82,7 @@ fn a_desk_validation_sequence_is_written_and_evaluated_with_short_bins() {
     let data = temp_dir("eval-desk");
     let out = temp_dir("eval-desk-out");
     let args = [
+        "research",
         "synth",
         "--scene",
         "desk",
@@ -99,6 +102,7 @@ fn a_desk_validation_sequence_is_written_and_evaluated_with_short_bins() {
     assert!(said.contains("synth_desk_2000000_sync (160x120)"), "{said}");
     let table = stereosplat(
         &[
+            "research",
             "eval",
             "--method",
             "sgm",
@@ -123,7 +127,9 @@ fn a_desk_validation_sequence_is_written_and_evaluated_with_short_bins() {
     // Held-out seeds belong to `synth-heldout`; a bad rig is refused with its reason.
     let refused = |extra: &[&str]| {
         let run = std::process::Command::new(env!("CARGO_BIN_EXE_stereosplat"))
-            .args(["synth", "--frames", "1", "--width", "32", "--height", "24"])
+            .args([
+                "research", "synth", "--frames", "1", "--width", "32", "--height", "24",
+            ])
             .args(extra)
             .arg("--out")
             .arg(&data)
@@ -147,6 +153,7 @@ fn learned_abs_rel(scene: &str, bin_length: &str, extra: &[&str]) -> f64 {
     let data = temp_dir(&format!("eval-learned-{scene}"));
     let out = temp_dir(&format!("eval-learned-{scene}-out"));
     let synth = [
+        "research",
         "synth",
         "--scene",
         scene,
@@ -164,6 +171,7 @@ fn learned_abs_rel(scene: &str, bin_length: &str, extra: &[&str]) -> f64 {
     ];
     stereosplat(&synth, &[&data]);
     let mut args = vec![
+        "research",
         "eval",
         "--no-lpips",
         "--bin-length",

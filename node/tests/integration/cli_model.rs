@@ -14,6 +14,7 @@ fn drive(name: &str) -> PathBuf {
     let data = temp_dir(name);
     stereosplat(
         &[
+            "research",
             "synth-heldout",
             "--frames",
             "40",
@@ -33,7 +34,14 @@ fn train_writes_checkpoint_log_curve_and_resumes() {
     let data = drive("model-train-data");
     let out = temp_dir("model-train-out");
     let train = |steps: &str, resume: bool| {
-        let mut args = vec!["train", "--steps", steps, "--checkpoint-every", "2"];
+        let mut args = vec![
+            "research",
+            "train",
+            "--steps",
+            steps,
+            "--checkpoint-every",
+            "2",
+        ];
         args.extend(["--targets", "1", "--max-pairs", "2"]);
         if resume {
             args.push("--resume");
@@ -57,7 +65,7 @@ fn train_writes_checkpoint_log_curve_and_resumes() {
     }
     // A mix takes one bin length for all roots or one per root, nothing else.
     let mixed = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
-        .args(["train", "--steps", "1", "--data"])
+        .args(["research", "train", "--steps", "1", "--data"])
         .args([&data, Path::new("--data"), &data, Path::new("--out"), &out])
         .args([
             "--bin-length",
@@ -82,7 +90,7 @@ fn train_writes_checkpoint_log_curve_and_resumes() {
         ("enhancer-data", "NaN"),
     ] {
         let refused = Command::new(env!("CARGO_BIN_EXE_stereosplat"))
-            .args([command, "--data"])
+            .args(["research", command, "--data"])
             .args([&data, Path::new("--out"), &out])
             .arg(format!("--bin-length={length}"))
             .output()
@@ -104,6 +112,7 @@ fn eval_runs_the_shipped_weights_with_two_pairs() {
     let out = temp_dir("model-eval-out");
     let table = stereosplat(
         &[
+            "research",
             "eval",
             "--method",
             "stereosplat",

@@ -22,7 +22,7 @@ fn bench_pareto_and_eval_map_on_a_small_drive() {
     std::fs::create_dir_all(&out).unwrap();
     let size = ["--frames", "40", "--width", "272", "--height", "72"];
     stereosplat(
-        &[&["synth-heldout"][..], &size, &["--out"]].concat(),
+        &[&["research", "synth-heldout"][..], &size, &["--out"]].concat(),
         &[&data],
     );
     let points = out.join("points.toml");
@@ -101,6 +101,7 @@ fn bench_pareto_and_eval_map_on_a_small_drive() {
     let map_out = out.join("map");
     let table = stereosplat(
         &[
+            "research",
             "eval-map",
             "--method",
             "sgm",

@@ -21,7 +21,7 @@ pub(crate) fn synthetic_pair(name: &str) -> (PathBuf, PathBuf, Sequence) {
     let data = temp_dir(name);
     stereosplat(
         &[
-            "synth", "--frames", "1", "--width", "272", "--height", "72", "--out",
+            "research", "synth", "--frames", "1", "--width", "272", "--height", "72", "--out",
         ],
         &[&data],
     );

@@ -38,7 +38,8 @@ use node::msg::geometry_msgs::PoseStamped;
 use node::msg::pose::affine_from_pose;
 use node::msg::sensor_msgs::{Image, PointCloud2};
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig, ServiceError};
+use node::service::{NodeConfig, ServiceError};
+use node::transport::Keys;
 use renderer::GaussianSet;
 use serde_json::Value;
 use sha2::{Digest, Sha256};
@@ -471,7 +472,7 @@ async fn empty_and_extreme_maps_reach_the_client_and_an_address_in_use_is_a_clea
 
     // Nothing is copied or queued while no client listens (bin frames are kept).
     server.bin_map(0, 1, &set_of(&[Vec3::ONE], &[Vec3::ONE], &[1.0]));
-    let mut counters = node::service::Counters::default();
+    let mut counters = node::counters::Counters::default();
     server.count_into(&mut counters);
     assert_eq!(counters.get("foxglove/clients"), 0);
     assert_eq!(counters.get("foxglove/dropped"), 0);
@@ -588,7 +589,7 @@ async fn a_client_that_stops_reading_gets_only_what_its_bounded_queue_held() {
     }
     // Let the server's thread hand the last items to the SDK before the count is read.
     tokio::time::sleep(Duration::from_millis(500)).await;
-    let mut counters = node::service::Counters::default();
+    let mut counters = node::counters::Counters::default();
     server.count_into(&mut counters);
     // The stalled client reads what was held for it, until 2 s pass with nothing new.
     let (summary, _) = tokio::task::block_in_place(|| stalled.finish());

@@ -12,9 +12,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{DAffine3, DVec3};
 use node::fusion::{segments, AtTornTail, GlobalMap, JournalWriter, StoreError};
-use node::service::map_files::{restore, CHECKPOINT, JOURNAL};
-use node::service::map_store::{MapStore, Recorded};
-use node::service::Compaction;
+use node::store::map_files::{restore, CHECKPOINT, JOURNAL};
+use node::store::map_store::{MapStore, Recorded};
+use node::store::Compaction;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

@@ -18,9 +18,9 @@ use std::sync::{Arc, Mutex};
 use node::fusion::{
     segments, AtTornTail, GlobalMap, JournalWriter, SegmentFile, StoreError, JOURNAL_HEADER_BYTES,
 };
-use node::service::map_files::{restore, CHECKPOINT, JOURNAL};
-use node::service::map_store::{MapStore, Recorded};
-use node::service::Compaction;
+use node::store::map_files::{restore, CHECKPOINT, JOURNAL};
+use node::store::map_store::{MapStore, Recorded};
+use node::store::Compaction;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

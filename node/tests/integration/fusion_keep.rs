@@ -4,7 +4,7 @@
 
 use glam::{DAffine3, DQuat, DVec3, Quat, Vec3};
 use node::fusion::{FusionConfig, GlobalMap, Keep, DEFAULT_MAX_RANGE_M};
-use node::map_eval::{Backdrops, BinMap};
+use node::research::map_quality::{Backdrops, BinMap};
 use renderer::{Gaussian, GaussianSet};
 
 fn gauss(mean: [f32; 3], confidence: f32) -> Gaussian {

@@ -13,11 +13,12 @@ use node::fusion::{
     read_tile, tile_path, write_tile, AtTornTail, FusionConfig, GlobalMap, Keep, PagedTile,
     StoreError, TileKey,
 };
-use node::service::map_files::{
+use node::store::map_files::{
     export_with_limit, gaussians_in_whole, restore, whole_map, RegionReadError, CHECKPOINT, TILES,
 };
-use node::service::map_store::{MapStore, Recorded};
-use node::service::{Compaction, Paging};
+use node::store::map_store::{MapStore, Recorded};
+use node::store::Compaction;
+use node::store::Paging;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use renderer::formats::{load_map, MapFormat};
@@ -215,7 +216,7 @@ fn a_loop_driven_twice_fuses_into_its_paged_tiles_and_memory_stays_bounded() {
         assert!(now * 10 <= n * 11, "tile {tile:?}: {now} vs {n}");
     }
     // Stopping saves the base; the tiles folder keeps exactly the files the base names.
-    node::service::map_files::checkpoint(&map, &dir).unwrap();
+    node::store::map_files::checkpoint(&map, &dir).unwrap();
     let mut files: Vec<_> = std::fs::read_dir(dir.join(TILES))
         .unwrap()
         .map(|e| e.unwrap().path())

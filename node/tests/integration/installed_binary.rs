@@ -64,7 +64,7 @@ fn a_copied_binary_runs_the_learned_model_on_its_embedded_weights() {
     let mut small = args.clone();
     small.extend(["--preset".into(), "small".into()]);
     let (ok, err) = run(&exe, &cwd, &home, None, &small);
-    assert!(!ok && err.contains("stereosplat train"), "{err}");
+    assert!(!ok && err.contains("stereosplat research train"), "{err}");
 
     // A folder of weights named by the environment comes first: a bad file there is named.
     let override_dir = root.join("weights");

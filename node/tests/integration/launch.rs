@@ -448,6 +448,15 @@ fn example_files_check() {
     assert_eq!(names, ["data", "node", "record", "monitor", "replay"]);
     let node = &plan.processes[1];
     assert_eq!(node.args[..3], ["run", "--listen", "tcp/127.0.0.1:7447"]);
+    // A grouped subcommand is passed as its words.
+    let data = &plan.processes[0];
+    assert_eq!(data.args[..3], ["research", "synth-heldout", "--out"]);
+}
+
+#[test]
+fn an_empty_subcommand_is_refused() {
+    let empty = "[[process]]\nname = \"a\"\nsubcommand = \"  \"\n";
+    assert!(plan_error(empty).contains("process `a` has an empty `subcommand`"));
 }
 
 /// The node demo through the launcher, with renders on wgpu (lavapipe here) and a home

@@ -41,6 +41,7 @@ mod fusion_tiles;
 mod installed_binary;
 #[cfg(unix)]
 mod launch;
+mod layers;
 mod msg_codec;
 mod msg_interop;
 mod msg_rclpy;

@@ -23,7 +23,8 @@ use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig};
+use node::service::NodeConfig;
+use node::transport::Keys;
 
 /// The counter of each input key, in the order the tests send to them.
 const COUNTERS: [&str; 5] = [

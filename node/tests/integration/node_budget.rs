@@ -7,12 +7,13 @@ use crate::drive_support;
 
 use drive_support::{Collector, Drive, Player, RunningNode};
 use node::msg::latency::BinLatency;
-use node::pareto::parse_points;
+use node::pipeline::operating::parse_points;
 use node::pipeline::operating::{
     Budget, GovernorConfig, OperatingConfig, OperatingTable, TableRow,
 };
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig, NodeSummary};
+use node::service::{NodeConfig, NodeSummary};
+use node::transport::Keys;
 
 /// `tiny` (the more accurate) and SGM at half scale (the fastest), with these table times.
 fn table(tiny_ms: f64, sgm_ms: f64) -> OperatingTable {

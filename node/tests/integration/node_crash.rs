@@ -28,9 +28,9 @@ use node::msg::map_update::MapUpdate;
 use node::msg::pose::pose_from_affine;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
-use node::service::map_files::restore;
-use node::service::Keys;
+use node::store::map_files::restore;
 use node::transport::open;
+use node::transport::Keys;
 use zenoh::qos::CongestionControl;
 
 /// A `stereosplat` process with its stderr collected as it is written.

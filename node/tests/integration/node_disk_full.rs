@@ -18,8 +18,8 @@ use model::bins::{make_bins, BinConfig, BinLayout};
 use model::synth::SynthConfig;
 use node::fusion::{AtTornTail, MapReplica, Update};
 use node::msg::latency::Diagnostics;
-use node::service::map_files::restore;
-use node::service::Keys;
+use node::store::map_files::restore;
+use node::transport::Keys;
 
 use super::drive_support::{wait_for, Collector, Drive, Player};
 use super::node_crash::{assert_same_gaussians, play, published, requested_snapshot, start_node};

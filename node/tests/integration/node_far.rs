@@ -20,14 +20,15 @@ use node::msg::geometry_msgs::PoseStamped;
 use node::msg::pose::affine_from_pose;
 use node::msg::sensor_msgs::PointCloud2;
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig};
+use node::service::NodeConfig;
+use node::transport::Keys;
 
 const OFFSET: DVec3 = DVec3::new(1.0e5, -1.0e5, 50.0);
 
 /// What one run published and exported.
 struct Run {
     bins_published: u64,
-    counters: node::service::Counters,
+    counters: node::counters::Counters,
     poses: Vec<DAffine3>,
     maps: Vec<PointCloud2>,
     map: GlobalMap,

@@ -31,7 +31,8 @@ use node::msg::sensor_msgs::{CameraInfo, CompressedImage};
 use node::msg::std_msgs::Header;
 use node::msg::Message;
 use node::rectify::{CameraModel, RemapTable};
-use node::service::{Keys, NodeSummary};
+use node::service::NodeSummary;
+use node::transport::Keys;
 use renderer::{Camera, GaussianSet, Intrinsics, Raster, RenderSettings};
 
 /// How the player sends each frame's images.

@@ -18,7 +18,8 @@ use drive_support::{Collector, Drive, Player, RunningNode};
 use glam::{DAffine3, DVec3};
 use model::frame::{RgbImage, StereoFrame, StereoRig};
 use node::pipeline::worker::RenderWith;
-use node::service::{InputLimits, Keys, NodeConfig};
+use node::service::{InputLimits, NodeConfig};
+use node::transport::Keys;
 use renderer::Intrinsics;
 
 /// The peer's image side: the largest square inside the default input limits' pixel count

@@ -20,9 +20,10 @@ use node::msg::pose::{affine_from_pose, pose_from_affine};
 use node::msg::std_msgs::Header;
 use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::Message;
-use node::service::keys::{TF, TF_STATIC};
-use node::service::{Keys, NodeConfig, NodeSummary};
+use node::service::{NodeConfig, NodeSummary};
 use node::tf::{Mount, PoseSourceConfig, PoseSourceKind};
+use node::transport::keys::{TF, TF_STATIC};
+use node::transport::Keys;
 use node::transport::TransportConfig;
 use zenoh_ext::{AdvancedPublisherBuilderExt, CacheConfig};
 

@@ -20,8 +20,10 @@ use node::fusion::{AtTornTail, FusionConfig, Keep};
 use node::msg::map_update::MapUpdate;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::map_files::{restore, TILES};
-use node::service::{Keys, NodeConfig, Paging};
+use node::service::NodeConfig;
+use node::store::map_files::{restore, TILES};
+use node::store::Paging;
+use node::transport::Keys;
 use zenoh::query::ConsolidationMode;
 
 /// One reply: the page's snapshot and its attachment, or the error text.

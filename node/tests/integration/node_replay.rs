@@ -13,6 +13,7 @@ use model::generate::write_synthetic;
 use model::kitti360::Sequence;
 use model::synth::SynthConfig;
 use node::bag::Rate;
+use node::clients::replay;
 use node::fusion::FusionConfig;
 use node::fusion::{decode_update, MapReplica, Snapshot, Update};
 use node::msg::gaussians::gaussians_from_cloud;
@@ -23,7 +24,8 @@ use node::msg::Message;
 use node::pipeline::binner::BinnerConfig;
 use node::pipeline::sync::SyncConfig;
 use node::pipeline::worker::RenderWith;
-use node::service::{replay, run, Keys, NodeConfig};
+use node::service::{run, NodeConfig};
+use node::transport::Keys;
 use node::transport::{open, TransportConfig};
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

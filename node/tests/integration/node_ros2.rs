@@ -12,14 +12,16 @@ use crate::drive_support;
 use drive_support::{Drive, RunningNode};
 use model::synth::SynthConfig;
 use node::bag::Rate;
+use node::clients::replay;
 use node::msg::gaussians::gaussians_from_cloud;
 use node::msg::sensor_msgs::PointCloud2;
 use node::msg::{Message, MessageKind};
 use node::pipeline::worker::RenderWith;
-use node::service::keys::{Direction, KeyMode, TOPICS};
-use node::service::{replay, Keys, NodeConfig};
+use node::service::NodeConfig;
+use node::transport::keys::{Direction, KeyMode, TOPICS};
 use node::transport::open;
 use node::transport::ros2::{qos_string, Attachment, EntityKind, Token};
+use node::transport::Keys;
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {

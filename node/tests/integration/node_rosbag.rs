@@ -20,17 +20,19 @@ use model::bins::{make_bins, BinConfig, BinLayout};
 use model::frame::{Rgb8Image, RgbImage};
 use model::synth::SynthConfig;
 use node::bag::{BagReader, Rate};
+use node::clients::replay_bag;
+use node::clients::BagReplayOptions;
+use node::clients::BagReplaySummary;
 use node::msg::compressed::{compressed_image, Compression};
 use node::msg::image::camera_info;
 use node::msg::std_msgs::Header;
 use node::msg::tf2_msgs::{world_to, TfMessage};
 use node::msg::{Message, MessageKind};
-use node::service::keys::{self, Topic};
-use node::service::{
-    replay_bag, BagReplayOptions, BagReplaySummary, Keys, NodeConfig, NodeSummary,
-};
+use node::service::{NodeConfig, NodeSummary};
 use node::tf::{PoseSourceConfig, PoseSourceKind};
+use node::transport::keys::{self, Topic};
 use node::transport::open;
+use node::transport::Keys;
 
 /// `map -> odom`.
 fn map_to_odom() -> DAffine3 {

@@ -16,7 +16,8 @@ use node::msg::latency::BinLatency;
 use node::msg::sensor_msgs::PointCloud2;
 use node::pipeline::self_check::{OnCheckFail, LOWERED_FACTOR};
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig, NodeSummary};
+use node::service::{NodeConfig, NodeSummary};
+use node::transport::Keys;
 
 /// What a node made of a drive: its summary, every closed bin's latency message, every
 /// published bin map.

@@ -19,8 +19,9 @@ use node::msg::pose::affine_from_pose;
 use node::msg::sensor_msgs::{Image, PointCloud2};
 use node::msg::tf2_msgs::TfMessage;
 use node::pipeline::worker::RenderWith;
-use node::service::keys::{TF, TF_STATIC};
-use node::service::{Keys, NodeConfig};
+use node::service::NodeConfig;
+use node::transport::keys::{TF, TF_STATIC};
+use node::transport::Keys;
 
 /// Drive stamps are moved this far back (about 23 years), so a stamp taken from the node's
 /// wall clock can never be mistaken for a source stamp.

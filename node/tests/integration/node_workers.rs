@@ -22,7 +22,8 @@ use node::msg::latency::Diagnostics;
 use node::msg::sensor_msgs::{Image, PointCloud2};
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig, NodeSummary, WorkersConfig};
+use node::service::{NodeConfig, NodeSummary, WorkersConfig};
+use node::transport::Keys;
 
 /// A `stereosplat worker` process, killed when dropped.
 pub(crate) struct WorkerProcess {

@@ -25,14 +25,16 @@ use std::process::{Child, ChildStdout, Command, Stdio};
 use drive_support::{Collector, Drive, Player, RunningNode};
 use model::synth::SynthConfig;
 use node::bag::Rate;
+use node::clients::replay;
 use node::msg::gaussians::{records_from_cloud, FIELD_NAMES, RGB_FIELD};
 use node::msg::geometry_msgs::PoseStamped;
 use node::msg::latency::{BinLatency, Diagnostics};
 use node::msg::map_update::MapUpdate;
 use node::msg::sensor_msgs::{Image, PointCloud2};
 use node::msg::MessageKind;
-use node::service::keys::Direction;
-use node::service::{replay, Keys, NodeConfig};
+use node::service::NodeConfig;
+use node::transport::keys::Direction;
+use node::transport::Keys;
 use serde_json::Value;
 
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/zenoh_listen.py");

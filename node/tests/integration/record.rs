@@ -16,18 +16,23 @@ use std::time::Duration;
 
 use model::frame::Rgb8Image;
 use node::bag::{BagReader, BagWriter, Rate};
+use node::clients::channel_of;
+use node::clients::monitor;
+use node::clients::record;
+use node::clients::replay_bag;
+use node::clients::BagReplayOptions;
+use node::clients::MonitorEvent;
+use node::clients::RecordLimits;
+use node::clients::RecordSummary;
 use node::msg::compressed::{compressed_image, Compression};
 use node::msg::latency::{BinLatency, Counter, Diagnostics};
 use node::msg::schema::ros2msg;
 use node::msg::sensor_msgs::Image;
 use node::msg::std_msgs::Header;
 use node::msg::{Message, MessageKind};
-use node::service::keys::{Topic, LATENCY, POSE, TOPICS};
-use node::service::{
-    channel_of, monitor, record, replay_bag, BagReplayOptions, Keys, MonitorEvent, RecordLimits,
-    RecordSummary,
-};
+use node::transport::keys::{Topic, LATENCY, POSE, TOPICS};
 use node::transport::ros2::{Durability, History};
+use node::transport::Keys;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use zenoh::qos::CongestionControl;

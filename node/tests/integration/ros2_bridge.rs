@@ -30,14 +30,16 @@ use std::process::{Child, ChildStdout, Command, Stdio};
 use drive_support::{bin_of_frame_id, Collector, Drive, RunningNode};
 use model::synth::SynthConfig;
 use node::bag::BagWriter;
+use node::clients::channel_of;
 use node::msg::image::{camera_info, image_from_rgb};
 use node::msg::pose::pose_from_affine;
 use node::msg::sensor_msgs::PointCloud2;
 use node::msg::std_msgs::Header;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::keys::{self, Topic};
-use node::service::{channel_of, Keys, NodeConfig};
+use node::service::NodeConfig;
+use node::transport::keys::{self, Topic};
+use node::transport::Keys;
 use serde_json::Value;
 
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");

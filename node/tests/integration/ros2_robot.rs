@@ -13,6 +13,7 @@ use crate::ros2_bridge::{bridge_drive, rclpy_node, start_bridge, Running};
 use drive_support::{sgm_config, Collector, Drive, RunningNode};
 use model::frame::Rgb8Image;
 use node::bag::BagWriter;
+use node::clients::channel_of;
 use node::msg::compressed::{compressed_image, Compression};
 use node::msg::geometry_msgs::{PoseStamped, PoseWithCovariance};
 use node::msg::image::camera_info;
@@ -20,9 +21,10 @@ use node::msg::nav_msgs::Odometry;
 use node::msg::pose::{affine_from_pose, pose_from_affine};
 use node::msg::std_msgs::Header;
 use node::msg::Message;
-use node::service::keys::{self, Topic};
-use node::service::{channel_of, Keys, NodeConfig};
+use node::service::NodeConfig;
 use node::tf::{PoseSourceConfig, PoseSourceKind};
+use node::transport::keys::{self, Topic};
+use node::transport::Keys;
 use serde_json::Value;
 
 /// The drive as the robot publishes it, on the node's channel names (`/tf` absolute).

@@ -7,7 +7,9 @@ use crate::net_support;
 
 use std::time::Duration;
 
-use node::service::keys::{KeyMode, Keys, Topic, BIN_MAP, DIAGNOSTICS, LATENCY, LEFT_IMAGE, POSE};
+use node::transport::keys::{
+    KeyMode, Keys, Topic, BIN_MAP, DIAGNOSTICS, LATENCY, LEFT_IMAGE, POSE,
+};
 use node::transport::ros2::{qos_string, Attachment, EntityKind, Qos, Token};
 use node::transport::{open, Outlet, OutletError, TransportConfig};
 use zenoh::sample::SampleKind;

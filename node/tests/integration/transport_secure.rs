@@ -18,7 +18,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use node::pipeline::worker::RenderWith;
-use node::service::{Keys, NodeConfig, NodeSummary, ServiceError, WorkersConfig};
+use node::service::{NodeConfig, NodeSummary, ServiceError, WorkersConfig};
+use node::transport::Keys;
 use node::transport::{open, TlsFiles, TransportConfig, TransportError};
 use rcgen::{
     BasicConstraints, CertificateParams, DnType, ExtendedKeyUsagePurpose, IsCa, Issuer, KeyPair,

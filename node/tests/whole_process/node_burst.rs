@@ -23,11 +23,13 @@ use crate::drive_support::{
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use node::bag::Rate;
+use node::clients::replay;
 use node::fusion::FusionConfig;
 use node::msg::latency::{BinLatency, Diagnostics};
 use node::pipeline::binner::BinnerConfig;
 use node::pipeline::worker::RenderWith;
-use node::service::{replay, Keys, NodeConfig, NodeSummary};
+use node::service::{NodeConfig, NodeSummary};
+use node::transport::Keys;
 
 /// Bins waiting for the worker at most.
 const CAPACITY: usize = 2;

@@ -23,7 +23,8 @@ use node::msg::sensor_msgs::{Image, PointCloud2};
 use node::msg::std_msgs::Header;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::{InputLimits, Keys, NodeConfig, NodeSummary};
+use node::service::{InputLimits, NodeConfig, NodeSummary};
+use node::transport::Keys;
 
 /// Resident memory of this test process (node, model, zenoh and test) after any probe and
 /// its drive. A 2000x2000 frame worked at full size rather than the working size would take

@@ -9,7 +9,7 @@
 //! on `diagnostics`, and frames lost before the binner in the synchroniser's counters or not
 //! taken by zenoh); afterwards the drive replayed at 1x gives every one of its bins (the jump
 //! back in time resets the synchroniser), each with arrival-to-publish under a generous guard.
-//! The node restarts itself under the allocator's settings (`node::service::memory`) unless
+//! The node restarts itself under the allocator's settings (`node::memory`) unless
 //! the test was given `GLIBC_TUNABLES`. The figures are printed.
 
 use std::process::{Child, Command, Stdio};
@@ -20,13 +20,14 @@ use crate::drive_support::{bin_of_frame_id, net_support, wait_for, Drive, Receiv
 use glam::DAffine3;
 use model::bins::{make_bins, BinConfig, BinLayout};
 use node::bag::Rate;
+use node::clients::replay;
 use node::msg::geometry_msgs::PoseStamped;
 use node::msg::image::image_from_rgb;
 use node::msg::latency::{BinLatency, Diagnostics};
 use node::msg::pose::{affine_from_pose, pose_from_affine};
 use node::msg::std_msgs::Header;
 use node::msg::Message;
-use node::service::{replay, Keys};
+use node::transport::Keys;
 use node::transport::{open, TransportConfig};
 use zenoh::qos::CongestionControl;
 use zenoh::Session;
@@ -86,7 +87,7 @@ impl NodeProcess {
     }
 
     /// Whether the process restarted itself under the allocator's settings
-    /// (`node::service::memory::ALLOCATOR_TUNABLES`): its starting environment (what
+    /// (`node::memory::ALLOCATOR_TUNABLES`): its starting environment (what
     /// `/proc/PID/environ` shows) holds the restart's marker.
     fn restarted_with_allocator_settings(&self) -> bool {
         let environ =

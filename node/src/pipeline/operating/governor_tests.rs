@@ -7,7 +7,7 @@ use super::table::{OperatingTable, TableRow};
 /// Points `a` (best, 1000 ms), `b` (500 ms), `c` (200 ms), `d` (fastest, 50 ms).
 fn table() -> OperatingTable {
     let row = |name: &str, ms: f64, psnr: f64| TableRow {
-        point: crate::pareto::parse_points(&format!("[[point]]\nname = \"{name}\""))
+        point: crate::pipeline::operating::parse_points(&format!("[[point]]\nname = \"{name}\""))
             .unwrap()
             .remove(0),
         ms,

@@ -7,8 +7,8 @@ use model::methods::MethodError;
 use model::reconstruct::{Reconstructor, StereoView};
 use renderer::{Camera, GaussianSet};
 
-use crate::pareto::OperatingPoint;
 use crate::pipeline::bin_map::bin_map;
+use crate::pipeline::operating::OperatingPoint;
 use crate::pipeline::self_check::{CheckOutcome, SelfCheck};
 
 /// A point's reconstructor and input scale, as the worker runs them.

@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::pareto::OperatingPoint;
+use crate::pipeline::operating::OperatingPoint;
 
 /// One operating point with its measured cost and quality.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -206,9 +206,11 @@ mod tests {
 
     fn row(name: &str, ms: f64, psnr: f64) -> TableRow {
         TableRow {
-            point: crate::pareto::parse_points(&format!("[[point]]\nname = \"{name}\""))
-                .unwrap()
-                .remove(0),
+            point: crate::pipeline::operating::parse_points(&format!(
+                "[[point]]\nname = \"{name}\""
+            ))
+            .unwrap()
+            .remove(0),
             ms,
             psnr,
         }

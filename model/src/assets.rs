@@ -1,8 +1,8 @@
 //! Where the shipped weights come from, wherever the binary is installed: a binary copied
 //! into a container or installed with `cargo install` has no checkout beside it.
 //!
-//! The shipped network and enhancer weights ([`SHIPPED`], 5.2 MB) are embedded in the
-//! binary. [`weights_file`] looks for a file of that name, in order:
+//! The shipped network and enhancer weights and LPIPS's ([`SHIPPED`], 15 MB) are embedded
+//! in the binary. [`weights_file`] looks for a file of that name, in order:
 //! 1. the folder `$STEREOSPLAT_WEIGHTS` names ([`WEIGHTS_ENV`]), when set;
 //! 2. `weights/` beside the executable;
 //! 3. the embedded copy, which goes by the path `embedded:<name>` ([`EMBEDDED`]) and is read
@@ -25,7 +25,7 @@ pub const EMBEDDED: &str = "embedded:";
 pub const WEIGHTS_ENV: &str = "STEREOSPLAT_WEIGHTS";
 
 /// The weight files embedded in the binary: name and bytes.
-pub const SHIPPED: [(&str, &[u8]); 3] = [
+pub const SHIPPED: [(&str, &[u8]); 4] = [
     (
         "stereosplat_tiny.safetensors",
         include_bytes!("../weights/stereosplat_tiny.safetensors"),
@@ -37,6 +37,10 @@ pub const SHIPPED: [(&str, &[u8]); 3] = [
     (
         "enhancer_tiny.safetensors",
         include_bytes!("../weights/enhancer_tiny.safetensors"),
+    ),
+    (
+        "lpips_alex.safetensors",
+        include_bytes!("../weights/lpips_alex.safetensors"),
     ),
 ];
 

@@ -12,18 +12,21 @@
 //! `scripts/lpips_convert.py` (attribution beside the file). They are fixed: the loaded
 //! tensors are not variables, so training never updates them.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use candle_core::{DType, Device, Module, Result, Tensor, D};
 use candle_nn::VarBuilder;
 
 use crate::ops::Conv;
 
-/// The shipped weights (AlexNet backbone and the five linear heads, f32).
-pub const DEFAULT_WEIGHTS: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/weights/lpips_alex.safetensors"
-);
+/// The shipped weights' file name (AlexNet backbone and the five linear heads, f32),
+/// embedded in the binary and looked for as [`crate::assets`] says.
+pub const WEIGHTS_NAME: &str = "lpips_alex.safetensors";
+
+/// The shipped weights' path ([`WEIGHTS_NAME`], found by [`crate::assets::weights_file`]).
+pub fn default_weights() -> PathBuf {
+    crate::assets::weights_file(WEIGHTS_NAME)
+}
 
 /// LPIPS's per-channel input shift (on `[-1, 1]` inputs), RGB.
 const SHIFT: [f32; 3] = [-0.030, -0.088, -0.188];
@@ -158,19 +161,20 @@ impl Lpips {
         })
     }
 
-    /// The AlexNet LPIPS from a safetensors file (e.g. [`DEFAULT_WEIGHTS`]), in `dtype`.
+    /// The AlexNet LPIPS from a safetensors file (e.g. [`default_weights`], embedded or on
+    /// disk), in `dtype`.
     pub fn load(path: impl AsRef<Path>, dtype: DType, device: &Device) -> Result<Self> {
-        let tensors = candle_core::safetensors::load(path, device)?;
+        let tensors = crate::assets::load_tensors(path.as_ref(), device)?;
         Self::new(
             VarBuilder::from_tensors(tensors, dtype, device),
             &Config::alex(),
         )
     }
 
-    /// The shipped weights ([`DEFAULT_WEIGHTS`]) in f32 on the CPU: the network `eval`
+    /// The shipped weights ([`default_weights`]) in f32 on the CPU: the network `eval`
     /// scores with, loadable without naming candle types.
     pub fn load_default() -> Result<Self> {
-        Self::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu)
+        Self::load(default_weights(), DType::F32, &Device::Cpu)
     }
 
     /// The device the network lives on (inputs must be there too).

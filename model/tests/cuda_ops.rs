@@ -198,7 +198,7 @@ fn lpips_the_enhancer_and_the_network_agree_with_the_cpu() {
     let b = random(9, &[2, 3, 64, 96], 0.0, 1.0);
     let lpips = |device: &Device| {
         let net =
-            model::lpips::Lpips::load(model::lpips::DEFAULT_WEIGHTS, DType::F32, device).unwrap();
+            model::lpips::Lpips::load(model::lpips::default_weights(), DType::F32, device).unwrap();
         net.forward(&a.to_device(device).unwrap(), &b.to_device(device).unwrap())
             .unwrap()
     };

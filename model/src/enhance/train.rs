@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::loss::{losses, LossWeights};
 use super::pairs::PairSet;
 use super::{Config, EnhanceError, Enhancer};
-use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
+use crate::lpips::{default_weights, Lpips};
 use crate::net::load_matching;
 use crate::train::checkpoint::Run;
 use crate::train::{mix, AdamWConfig, TrainError};
@@ -147,7 +147,7 @@ impl Trainer {
             check,
         )?;
         Ok(Self {
-            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu)?,
+            lpips: Lpips::load(default_weights(), DType::F32, &Device::Cpu)?,
             run,
             net,
             pairs: set,

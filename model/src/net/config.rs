@@ -382,9 +382,10 @@ impl Config {
 
     /// Twice the channels and candidates of `tiny`, two transformer layers. One residual block
     /// per encoder, as `tiny`: with two (no normalisation in the blocks) training stalled at
-    /// LPIPS 0.68 where one block reaches 0.47 in the same 400 steps (`stereosplat research train
-    /// --preset small --steps 400` on the plain street drives, `results/stereosplat_small/`). Without `tiny`'s census correlation and fitted
-    /// range: no `small` weights were trained with them.
+    /// LPIPS 0.68 where one block reaches 0.47 in the same 400 steps (`stereosplat research
+    /// train --preset small --steps 400` on the plain street drives,
+    /// `results/stereosplat_small/`). Without `tiny`'s census correlation and fitted range: no
+    /// `small` weights were trained with them.
     pub fn small() -> Self {
         Self {
             name: "small".into(),

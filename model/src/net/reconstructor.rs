@@ -31,7 +31,8 @@ pub fn default_weights(preset: &str) -> PathBuf {
 /// Why weights could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
-    /// No file there (the preset has no shipped weights: train them with `stereosplat research train`).
+    /// No file there (the preset has no shipped weights: train them with `stereosplat research
+    /// train`).
     #[error("no weights at {0} (train them with `stereosplat research train`)")]
     Missing(PathBuf),
     /// The `device` setting names a device this build or machine does not have.

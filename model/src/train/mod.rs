@@ -40,7 +40,7 @@ pub use matching::matching_loss;
 pub use pseudo_mix::mix_pseudo_pairs;
 
 use crate::compute::ComputeDevice;
-use crate::lpips::{Lpips, DEFAULT_WEIGHTS};
+use crate::lpips::{default_weights, Lpips};
 use crate::net::volume::VolumeConfig;
 use crate::net::{load_matching, Config, StereoSplat, WarmStart};
 use renderer::RenderSettings;
@@ -263,7 +263,7 @@ impl Trainer {
             check,
         )?;
         Ok(Self {
-            lpips: Lpips::load(DEFAULT_WEIGHTS, DType::F32, &device)?,
+            lpips: Lpips::load(default_weights(), DType::F32, &device)?,
             data: TrainingSet::open(data, cfg.resize)?,
             run,
             net,

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 
 use candle_core::{DType, Device, Tensor, Var};
 use candle_nn::VarBuilder;
-use model::lpips::{Config, ConvLayer, Lpips, DEFAULT_WEIGHTS};
+use model::lpips::{default_weights, Config, ConvLayer, Lpips};
 
 fn fixtures() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/lpips")
@@ -29,7 +29,7 @@ fn load_png(name: &str) -> Tensor {
 }
 
 fn net() -> Lpips {
-    Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu).unwrap()
+    Lpips::load(default_weights(), DType::F32, &Device::Cpu).unwrap()
 }
 
 #[test]

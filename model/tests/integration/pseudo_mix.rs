@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use finite_support::assert_finite_gradients;
-use model::lpips::{Lpips, DEFAULT_WEIGHTS};
+use model::lpips::{default_weights, Lpips};
 use model::net::{Config, StereoSplat};
 use model::synth::SynthConfig;
 use model::train::{
@@ -97,7 +97,7 @@ fn mixing_replaces_later_pairs_by_renders_and_trains_finitely() {
         .all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
 
     let prediction = net.forward(&mixed.images, &mixed.cameras).unwrap();
-    let lpips = Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu).unwrap();
+    let lpips = Lpips::load(default_weights(), DType::F32, &Device::Cpu).unwrap();
     let l = losses(
         &prediction,
         &mixed,

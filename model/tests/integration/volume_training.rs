@@ -15,7 +15,7 @@ use candle_core::{DType, Device, Tensor};
 use candle_nn::{VarBuilder, VarMap};
 use finite_support::{assert_finite, assert_finite_gradients};
 use glam::{Quat, Vec3};
-use model::lpips::{Lpips, DEFAULT_WEIGHTS};
+use model::lpips::{self, Lpips};
 use model::net::volume::voxels::voxel_count;
 use model::net::{default_weights, Config, LearnedReconstructor, StereoSplat};
 use model::synth::SynthConfig;
@@ -88,7 +88,7 @@ fn step(cfg: &Config, sample: &Sample, what: &str) -> (f32, f32, usize) {
     let prediction = net.forward(&sample.images, &sample.cameras).unwrap();
     let volume = prediction.volume.as_ref().expect("the branch ran");
     assert_finite(&prediction.output().unwrap().pack().unwrap(), what);
-    let lpips = Lpips::load(DEFAULT_WEIGHTS, DType::F32, &Device::Cpu).unwrap();
+    let lpips = Lpips::load(lpips::default_weights(), DType::F32, &Device::Cpu).unwrap();
     let l = losses(
         &prediction,
         sample,

@@ -1,19 +1,18 @@
-//! `stereosplat bench model`: the learned reconstructor per preset on this machine, as JSON
-//! on stdout: milliseconds per reconstruction of one stereo pair (median and min over timed
-//! runs after warm-up), the process's peak resident memory so far (with `--preset all`,
-//! the largest of the presets run so far: run one preset per process for each alone), parameters and
+//! `stereosplat bench model`: the learned reconstructor per preset on this machine, as JSON on
+//! stdout: milliseconds per reconstruction of one stereo pair (median and min over timed runs
+//! after warm-up), the process's peak resident memory so far (with `--preset all`, the largest
+//! of the presets run so far: run one preset per process for each alone), parameters and
 //! Gaussians emitted. A preset without shipped weights runs untrained (`"weights":
-//! "untrained"`): its time and memory are those of the trained network, its Gaussian count
-//! is not. `--set volume_branch=true` runs the preset with the 3D-volume branch: the report
-//! gives each branch's median milliseconds and output Gaussians (`cost_volume_*`,
-//! `volume_*`); shipped weights without the branch's tensors load for the cost-volume part
-//! and the branch runs untrained (`"weights": "<file> + untrained volume branch"`). Each
-//! report also times the triplane encoder alone (`volume_encoder_*`: untrained, on features
-//! of the cost-volume branch's shape at stride 4, with the pair's cameras). `--set
-//! device=cuda` runs the network on the GPU (a build with the `cuda` feature).
-//! `--preset sgm` times the classical baseline (`model::baseline`, default settings) on the
-//! same generated pair instead: milliseconds, disparity levels searched, Gaussians and peak
-//! memory.
+//! "untrained"`): its time and memory are those of the trained network, its Gaussian count is
+//! not. `--set volume_branch=true` runs the preset with the 3D-volume branch: the report gives
+//! each branch's median milliseconds and output Gaussians (`cost_volume_*`, `volume_*`);
+//! shipped weights without the branch's tensors load for the cost-volume part and the branch
+//! runs untrained (`"weights": "<file> + untrained volume branch"`). Each report also times the
+//! triplane encoder alone (`volume_encoder_*`: untrained, on features of the cost-volume
+//! branch's shape at stride 4, with the pair's cameras). `--set device=cuda` runs the network
+//! on the GPU (a build with the `cuda` feature). `--preset sgm` times the classical baseline
+//! (`model::baseline`, default settings) on the same generated pair instead: milliseconds,
+//! disparity levels searched, Gaussians and peak memory.
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -1,8 +1,9 @@
 //! `stereosplat export`: a map in the formats the splat field exchanges. The input is any map
 //! file (3DGS PLY, SPZ, glTF binary; told apart by content) or the node's checkpoint
-//! (`global_map.ssgmap` with its journal `global_map.journal/` replayed, exported around its latest bin's origin, as `run` does); the output is
-//! PLY, SPZ or glTF binary with `KHR_gaussian_splatting` ([`renderer::formats`]). Prints one
-//! JSON line: what was written, what was skipped or clamped, the format's position error.
+//! (`global_map.ssgmap` with its journal `global_map.journal/` replayed, exported around its
+//! latest bin's origin, as `run` does); the output is PLY, SPZ or glTF binary with
+//! `KHR_gaussian_splatting` ([`renderer::formats`]). Prints one JSON line: what was written,
+//! what was skipped or clamped, the format's position error.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};

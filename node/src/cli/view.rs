@@ -29,7 +29,8 @@ pub struct ViewArgs {
     /// Port the page is served on (0: any free one, printed).
     #[arg(long, default_value_t = 8090)]
     port: u16,
-    /// The `node_modules` folder `npm ci` filled in `view/` (default: the checkout's).
+    /// The `node_modules` folder `npm ci` filled in `view/` (default: `$STEREOSPLAT_VIEW_MODULES`,
+    /// then `view/node_modules` beside the executable, then the checkout's).
     #[arg(long, env = "STEREOSPLAT_VIEW_MODULES")]
     node_modules: Option<PathBuf>,
     /// Show a saved map instead of a running node: a folder `run --out` wrote (its

@@ -85,11 +85,11 @@ pub enum LoopbackError {
     Transport(String),
 }
 
-/// Replays `drive` at `rate` into a node configured by `config` (its transport is
-/// replaced by a fresh loopback endpoint, keeping its `connect` endpoints), hands every bin and render the listener receives
-/// to `on_bin`, waits until every expected bin is published or nothing has come for `idle`,
-/// then stops the node and reports. `on_ready` gets the node's session once it is up (the
-/// live view subscribes on it).
+/// Replays `drive` at `rate` into a node configured by `config` (its transport is replaced by a
+/// fresh loopback endpoint, keeping its `connect` endpoints), hands every bin and render the
+/// listener receives to `on_bin`, waits until every expected bin is published or nothing has
+/// come for `idle`, then stops the node and reports. `on_ready` gets the node's session once it
+/// is up (the live view subscribes on it).
 pub async fn run_loopback(
     mut config: NodeConfig,
     drive: Drive<'_>,

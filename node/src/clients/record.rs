@@ -88,12 +88,13 @@ fn now_ns() -> u64 {
 }
 
 /// Records every topic of `keys` from `session` into a new MCAP file at `path` until `stop`
-/// completes or a limit is reached; then stops subscribing, writes what was already
-/// received (within the count limit) and finishes the file (summary and index), also when
-/// stopped early. Every second (`FLUSH_EVERY`) the chunk in progress is closed and
-/// flushed, so a killed recorder leaves a file whose complete chunks hold all but the last
-/// second (`crate::bag::BagReader::recover`). Log time is the receive time; publish time is the sample's zenoh
-/// timestamp when it has one, else the receive time; the sequence counts per channel from 1.
+/// completes or a limit is reached; then stops subscribing, writes what was already received
+/// (within the count limit) and finishes the file (summary and index), also when stopped early.
+/// Every second (`FLUSH_EVERY`) the chunk in progress is closed and flushed, so a killed
+/// recorder leaves a file whose complete chunks hold all but the last second
+/// (`crate::bag::BagReader::recover`). Log time is the receive time; publish time is the
+/// sample's zenoh timestamp when it has one, else the receive time; the sequence counts per
+/// channel from 1.
 pub async fn record(
     session: &Session,
     keys: &Keys,

@@ -116,10 +116,10 @@ pub struct Keep {
 
 impl Default for Keep {
     /// Within 20 m of the bin's camera, any confidence: chosen on the held-out drive of
-    /// `results/fused_map/` (`stereosplat research eval-map --sky-ranges`), where it clears the sky over the road in the bird's-eye
-    /// view and, with each bin's far part drawn behind the map as its sky layer
-    /// ([`Keep::backdrop`]), gives the best fused-map scores with the fewest Gaussians of
-    /// every keep range tried (20, 30, 40 m, everything).
+    /// `results/fused_map/` (`stereosplat research eval-map --sky-ranges`), where it clears the
+    /// sky over the road in the bird's-eye view and, with each bin's far part drawn behind the
+    /// map as its sky layer ([`Keep::backdrop`]), gives the best fused-map scores with the
+    /// fewest Gaussians of every keep range tried (20, 30, 40 m, everything).
     fn default() -> Self {
         Self {
             max_range_m: DEFAULT_MAX_RANGE_M,

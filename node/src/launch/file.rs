@@ -10,7 +10,7 @@
 //!
 //! [[process]]
 //! name = "data"
-//! subcommand = "research synth-heldout"     # a `stereosplat` subcommand (with its group), or `program = "sh"`
+//! subcommand = "research synth-heldout"     # a `stereosplat` subcommand, or `program = "sh"`
 //! args = ["--out", "${out}"]
 //! oneshot = true                            # expected to exit 0 (default false: runs until stopped)
 //!

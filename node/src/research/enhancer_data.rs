@@ -1,7 +1,7 @@
-//! `stereosplat research enhancer-data`: the one-step enhancer's training pairs, renders of the bins'
-//! other frames by the project's own StereoSplat against their true images (see
-//! `model::enhance::make_pairs`). Bounded by `--pairs`, seeded, resumable: run it again and
-//! it continues after the last whole draw.
+//! `stereosplat research enhancer-data`: the one-step enhancer's training pairs, renders of the
+//! bins' other frames by the project's own StereoSplat against their true images (see
+//! `model::enhance::make_pairs`). Bounded by `--pairs`, seeded, resumable: run it again and it
+//! continues after the last whole draw.
 
 use std::path::PathBuf;
 

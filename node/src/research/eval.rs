@@ -1,6 +1,6 @@
-//! `stereosplat research eval`: the paper's protocol on a data root in the KITTI-360 layout (real or
-//! synthetic). Writes `eval.md` (the table), `eval.json` (every score) and pictures of a few
-//! bins into the output folder, and prints the table. Frames are scored with PSNR, SSIM,
+//! `stereosplat research eval`: the paper's protocol on a data root in the KITTI-360 layout
+//! (real or synthetic). Writes `eval.md` (the table), `eval.json` (every score) and pictures of
+//! a few bins into the output folder, and prints the table. Frames are scored with PSNR, SSIM,
 //! LPIPS (unless `--no-lpips`) and, where there is LiDAR, AbsRel and SqRel.
 
 use std::path::PathBuf;

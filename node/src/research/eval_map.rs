@@ -1,10 +1,11 @@
 //! `stereosplat research eval-map`: the fused global map's own quality on a drive
-//! ([`crate::research::map_quality`]), swept over the fusion's settings one at a time around the node's
-//! defaults (map budget, cell size, keep range, keep confidence). Writes `eval_map.json`,
-//! `eval_map.md` (Gaussians in the map and per metre of drive against PSNR, SSIM, LPIPS,
-//! AbsRel, SqRel at every frame's camera), `eval_map.png` (the sweep against the map's size,
-//! the front marked: no other setting both smaller and better), bird's-eye views of the map
-//! fusing everything and with the default keep rule, and renders from beside the trajectory.
+//! ([`crate::research::map_quality`]), swept over the fusion's settings one at a time around
+//! the node's defaults (map budget, cell size, keep range, keep confidence). Writes
+//! `eval_map.json`, `eval_map.md` (Gaussians in the map and per metre of drive against PSNR,
+//! SSIM, LPIPS, AbsRel, SqRel at every frame's camera), `eval_map.png` (the sweep against the
+//! map's size, the front marked: no other setting both smaller and better), bird's-eye views of
+//! the map fusing everything and with the default keep rule, and renders from beside the
+//! trajectory.
 
 use std::path::PathBuf;
 

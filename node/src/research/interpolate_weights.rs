@@ -1,5 +1,5 @@
-//! `stereosplat research interpolate-weights`: a weight file on the straight line between two trained
-//! end points of the same network, `(1 - t) * from + t * to` tensor by tensor (how the
+//! `stereosplat research interpolate-weights`: a weight file on the straight line between two
+//! trained end points of the same network, `(1 - t) * from + t * to` tensor by tensor (how the
 //! shipped `tiny-3d` weights keep the streets after their fine-tuning on rooms; see
 //! `model::train::interpolate`).
 

@@ -1,11 +1,10 @@
-//! The fused global map's own quality (`stereosplat research eval-map`): a drive cut into bins as the
-//! node's binner cuts it (consecutive, 8 m), each bin's first stereo pair through the
+//! The fused global map's own quality (`stereosplat research eval-map`): a drive cut into bins
+//! as the node's binner cuts it (consecutive, 8 m), each bin's first stereo pair through the
 //! worker's path ([`crate::pipeline::bin_map::bin_map`]), the bin maps fused by the node's
-//! [`GlobalMap`], and the fused map rendered at every (`frame_stride`-th) frame's left
-//! camera and scored against the recorded image and LiDAR with the evaluation protocol's
-//! metrics ([`model::eval::score_frame`]). The bin maps are made once and fused again per
-//! fusion setting, so a sweep of budgets, cell sizes and keep rules costs only fusion and
-//! renders.
+//! [`GlobalMap`], and the fused map rendered at every (`frame_stride`-th) frame's left camera
+//! and scored against the recorded image and LiDAR with the evaluation protocol's metrics
+//! ([`model::eval::score_frame`]). The bin maps are made once and fused again per fusion
+//! setting, so a sweep of budgets, cell sizes and keep rules costs only fusion and renders.
 
 use glam::{DAffine3, DQuat, DVec3};
 use model::bins::{make_bins, BinConfig, BinLayout};

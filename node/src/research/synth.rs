@@ -1,7 +1,8 @@
-//! `stereosplat research synth` and `stereosplat research synth-heldout`: synthetic sequences (streets, desks,
-//! rooms) in the KITTI-360 layout, for training (seeds below [`HELDOUT_SEED_BASE`]), for
-//! validation (seeds from [`VALIDATION_SEED_BASE`] up, where settings and checkpoints are
-//! chosen) and for evaluation (the held-out seeds in between, which nothing else uses).
+//! `stereosplat research synth` and `stereosplat research synth-heldout`: synthetic sequences
+//! (streets, desks, rooms) in the KITTI-360 layout, for training (seeds below
+//! [`HELDOUT_SEED_BASE`]), for validation (seeds from [`VALIDATION_SEED_BASE`] up, where
+//! settings and checkpoints are chosen) and for evaluation (the held-out seeds in between,
+//! which nothing else uses).
 
 use std::path::PathBuf;
 
@@ -32,8 +33,8 @@ pub struct DriveArgs {
     /// Samples per pixel along each axis (anti-aliasing).
     #[arg(long, default_value_t = SynthConfig::default().supersample)]
     supersample: u32,
-    /// Domain randomisation (docs/evaluation.md, "Synthetic drives"): photo textures, lighting, a rig and
-    /// image size of its own (unless `--width`/`--height` fix it), camera effects and
+    /// Domain randomisation (docs/evaluation.md, "Synthetic drives"): photo textures, lighting,
+    /// a rig and image size of its own (unless `--width`/`--height` fix it), camera effects and
     /// floating objects, all drawn from the seed.
     #[arg(long)]
     randomise: bool,

@@ -1,6 +1,6 @@
-//! `stereosplat research train`: trains a preset on KITTI-360-layout roots (generated streets, desks
-//! and rooms, or the real data set), with checkpoints, resume, a CSV log and the weights as safetensors.
-//! Ctrl-C stops at the end of the current step after writing a checkpoint.
+//! `stereosplat research train`: trains a preset on KITTI-360-layout roots (generated streets,
+//! desks and rooms, or the real data set), with checkpoints, resume, a CSV log and the weights
+//! as safetensors. Ctrl-C stops at the end of the current step after writing a checkpoint.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -1,6 +1,7 @@
 //! What the node says on stderr as it starts its map: the checkpoint it resumed, the
 //! journal records it replayed past the base, the failed writes it skipped, a torn record it
-//! cut, and an old map moved aside for a fresh one.
+//! cut, the fusion settings asked for that the resumed map does not take, and an old map
+//! moved aside for a fresh one.
 
 use crate::store::map_files::Start;
 
@@ -43,6 +44,12 @@ pub(super) fn announce_start(start: &Start) {
         eprintln!(
             "starting a fresh global map; the old one is kept as {}",
             to.display()
+        );
+    }
+    for kept in &start.settings_kept {
+        eprintln!(
+            "warning: the resumed map keeps its {} of {}, not the {} asked for (--fresh starts a map with it)",
+            kept.flag, kept.stored, kept.asked
         );
     }
 }

@@ -32,7 +32,7 @@ use renderer::formats::MapFormat;
 use crate::error_text::error_chain;
 use crate::fusion::{
     bev_image, collect_garbage, create_dir_durably, local_set, save_bev_png, segments, AtTornTail,
-    BevView, GaussianId, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
+    BevView, FusionConfig, GaussianId, GlobalMap, Replay, StoreError, TileKey, WorldGaussian,
 };
 
 /// The checkpoint's base file name in the out folder.
@@ -94,6 +94,59 @@ pub struct Start {
     pub replay: Option<Replay>,
     /// Where a fresh start moved the old checkpoint's files.
     pub moved_aside: Vec<PathBuf>,
+    /// The fusion settings asked for that a resumed map did not take ([`settings_kept`]).
+    pub settings_kept: Vec<SettingKept>,
+}
+
+/// A fusion setting the node was asked for that its resumed map does not take: a map keeps
+/// the settings it was saved with, because its cells and tiles are laid out by them and what
+/// it fused was chosen by them (`--fresh` starts a map with the new ones).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SettingKept {
+    /// The setting's `run` flag.
+    pub flag: &'static str,
+    /// The value the map keeps.
+    pub stored: String,
+    /// The value asked for.
+    pub asked: String,
+}
+
+/// The settings of `asked` that differ from the `stored` ones of a resumed map, each with
+/// its `run` flag (settings with no flag are compared too, under their field's name).
+pub fn settings_kept(stored: &FusionConfig, asked: &FusionConfig) -> Vec<SettingKept> {
+    let pairs = [
+        ("--tile-m", stored.tile_side(), asked.tile_side()),
+        (
+            "--map-keep-range",
+            f64::from(stored.keep.max_range_m),
+            f64::from(asked.keep.max_range_m),
+        ),
+        (
+            "min_confidence",
+            f64::from(stored.keep.min_confidence),
+            f64::from(asked.keep.min_confidence),
+        ),
+        ("cell_size", stored.cell_size, asked.cell_size),
+        (
+            "opacity_floor",
+            f64::from(stored.opacity_floor),
+            f64::from(asked.opacity_floor),
+        ),
+        (
+            "max_gaussians",
+            stored.max_gaussians as f64,
+            asked.max_gaussians as f64,
+        ),
+    ];
+    pairs
+        .into_iter()
+        .filter(|(_, a, b)| a.to_bits() != b.to_bits())
+        .map(|(flag, stored, asked)| SettingKept {
+            flag,
+            stored: stored.to_string(),
+            asked: asked.to_string(),
+        })
+        .collect()
 }
 
 /// A map restored from an out folder's checkpoint.
@@ -217,6 +270,7 @@ pub fn start_map(
         resumed_from: None,
         replay: None,
         moved_aside: Vec::new(),
+        settings_kept: Vec::new(),
     };
     let Some(dir) = out_dir else {
         return Ok(start);
@@ -227,6 +281,7 @@ pub fn start_map(
             let restored = restore(dir, AtTornTail::Cut)
                 .map_err(|source| RestoreError::Unreadable { source })?;
             if let Some(mut r) = restored {
+                start.settings_kept = settings_kept(r.map.config(), start.map.config());
                 r.map.resume();
                 start.map = r.map;
                 start.replay = Some(r.replay);
@@ -398,4 +453,45 @@ fn export_tiles(
     let text = serde_json::to_string_pretty(&json).map_err(|e| err(&e))?;
     renderer::atomic::write_bytes_atomic(&file, text.as_bytes())
         .map_err(|e| err(&format!("{}: {e}", file.display())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fusion::Keep;
+
+    fn config(tile_m: f64, max_range_m: f32) -> FusionConfig {
+        FusionConfig {
+            tile_m,
+            keep: Keep {
+                max_range_m,
+                ..Keep::default()
+            },
+            ..FusionConfig::default()
+        }
+    }
+
+    #[test]
+    fn a_resumed_map_names_the_settings_it_keeps_against_the_ones_asked_for() {
+        let dir = std::env::temp_dir().join(format!("ss-settings-kept-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        checkpoint(&GlobalMap::new(config(64.0, 20.0)).unwrap(), &dir).unwrap();
+        let resume = |asked: FusionConfig| {
+            start_map(Some(&dir), GlobalMap::new(asked).unwrap(), StartMap::Resume).unwrap()
+        };
+
+        let same = resume(config(64.0, 20.0));
+        assert!(same.resumed_from.is_some());
+        assert_eq!(same.settings_kept, []);
+
+        let other = resume(config(32.0, f32::INFINITY));
+        let flags: Vec<_> = other.settings_kept.iter().map(|k| k.flag).collect();
+        assert_eq!(flags, ["--tile-m", "--map-keep-range"]);
+        assert_eq!(other.settings_kept[0].stored, "64");
+        assert_eq!(other.settings_kept[0].asked, "32");
+        assert_eq!(other.settings_kept[1].asked, "inf");
+        // The map keeps what it was saved with.
+        assert_eq!(other.map.config().tile_m, 64.0);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

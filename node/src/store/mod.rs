@@ -5,5 +5,5 @@
 pub mod map_files;
 pub mod map_store;
 
-pub use map_files::{ExportError, RestoreError, StartMap};
+pub use map_files::{settings_kept, ExportError, RestoreError, SettingKept, StartMap};
 pub use map_store::{Compaction, Paging};

@@ -1,7 +1,8 @@
 //! zenoh for the node's inputs and outputs: the node's topics and their keys ([`keys`]),
-//! sessions that stay on loopback unless told otherwise ([`session`]), why that can fail ([`error`]), what an endpoint exposes and the secure profile ([`security`]),
-//! rmw_zenoh's conventions for the ROS 2 key mode ([`ros2`]), and the publishing side that
-//! uses them ([`outlet`]).
+//! sessions that stay on loopback unless told otherwise ([`session`]), why that can fail
+//! ([`error`]), what an endpoint exposes and the secure profile ([`security`]), rmw_zenoh's
+//! conventions for the ROS 2 key mode ([`ros2`]), and the publishing side that uses them
+//! ([`outlet`]).
 
 #[cfg(feature = "runtime")]
 pub mod error;

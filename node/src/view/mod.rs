@@ -20,7 +20,7 @@ mod tiles;
 mod watch;
 
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use tokio::net::TcpListener;
@@ -55,9 +55,30 @@ impl Default for ViewConfig {
     }
 }
 
-/// `view/node_modules` of the checkout this binary was built from.
+/// The environment variable naming the folder of the page's browser libraries (a
+/// `node_modules` that `npm ci` filled in `view/`).
+pub const VIEW_MODULES_ENV: &str = "STEREOSPLAT_VIEW_MODULES";
+
+/// The page's browser libraries, looked for in order: the folder `$STEREOSPLAT_VIEW_MODULES`
+/// names, `view/node_modules` beside the executable (an installed binary with its page's
+/// libraries copied there), then `view/node_modules` of the checkout the binary was built
+/// from. The first that exists; the checkout's when none does (the view then says they are
+/// missing).
 pub fn default_node_modules() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../view/node_modules"))
+    let exe = std::env::current_exe().ok();
+    node_modules_among(std::env::var_os(VIEW_MODULES_ENV), exe.as_deref())
+}
+
+/// [`default_node_modules`] for the variable's value `from_env` and the executable `exe`.
+fn node_modules_among(from_env: Option<std::ffi::OsString>, exe: Option<&Path>) -> PathBuf {
+    let from_env = from_env.filter(|d| !d.is_empty()).map(PathBuf::from);
+    let beside_exe = exe.and_then(|e| e.parent().map(|d| d.join("view").join("node_modules")));
+    let checkout = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../view/node_modules"));
+    from_env
+        .into_iter()
+        .chain(beside_exe)
+        .find(|d| d.is_dir())
+        .unwrap_or(checkout)
 }
 
 /// Why the view did not start.
@@ -209,5 +230,36 @@ impl View {
         for t in self.tasks {
             let _ = t.await;
         }
+    }
+}
+
+#[cfg(test)]
+mod modules_tests {
+    use super::*;
+
+    #[test]
+    fn the_libraries_are_looked_for_in_the_variable_then_beside_the_binary_then_the_checkout() {
+        let root = std::env::temp_dir().join(format!("ss-view-modules-{}", std::process::id()));
+        let named = root.join("named");
+        let beside = root.join("bin").join("view").join("node_modules");
+        std::fs::create_dir_all(&named).unwrap();
+        std::fs::create_dir_all(&beside).unwrap();
+        let exe = root.join("bin").join("stereosplat");
+        let checkout = node_modules_among(None, None);
+        assert!(
+            checkout.ends_with("view/node_modules"),
+            "{}",
+            checkout.display()
+        );
+        assert_eq!(
+            node_modules_among(Some(named.clone().into()), Some(&exe)),
+            named
+        );
+        assert_eq!(node_modules_among(None, Some(&exe)), beside);
+        // A variable naming no folder, or empty, is passed over.
+        let missing = root.join("missing").into_os_string();
+        assert_eq!(node_modules_among(Some(missing), Some(&exe)), beside);
+        assert_eq!(node_modules_among(Some("".into()), None), checkout);
+        let _ = std::fs::remove_dir_all(&root);
     }
 }

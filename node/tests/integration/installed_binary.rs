@@ -1,8 +1,8 @@
-//! The binary works where it is installed: copied into an empty folder, far from the
-//! checkout, with a fresh home, `reconstruct` runs the learned model on the embedded weights
-//! (read from memory: nothing is written under the home folder); a folder named by `STEREOSPLAT_WEIGHTS` takes
-//! precedence, and a bad file there is named in the error; a preset with no shipped weights
-//! says how to train them.
+//! The binary works where it is installed: copied into an empty folder, far from the checkout,
+//! with a fresh home, `reconstruct` runs the learned model on the embedded weights (read from
+//! memory: nothing is written under the home folder); a folder named by `STEREOSPLAT_WEIGHTS`
+//! takes precedence, and a bad file there is named in the error; a preset with no shipped
+//! weights says how to train them.
 
 use std::path::Path;
 use std::process::Command;

@@ -1,8 +1,9 @@
 //! The streaming node end to end on real zenoh sessions over loopback: a generated drive is
 //! replayed into a running node (SGM reconstructor) while a third session listens to the
-//! outputs. Every bin's map and renders arrive and decode, latency arrives for every bin
-//! (the drive's last, which never closes, when the node stops), the global map's increments add up to its snapshots (periodic and requested), a
-//! malformed message is counted without stopping the node, and the global map is exported.
+//! outputs. Every bin's map and renders arrive and decode, latency arrives for every bin (the
+//! drive's last, which never closes, when the node stops), the global map's increments add up
+//! to its snapshots (periodic and requested), a malformed message is counted without stopping
+//! the node, and the global map is exported.
 
 use crate::net_support;
 

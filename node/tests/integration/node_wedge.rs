@@ -201,9 +201,9 @@ fn reconstruct(drive: &Drive, frame: &StereoFrame) -> renderer::GaussianSet {
     sgm.reconstruct(&[view]).unwrap()
 }
 
-/// Replays the drives at once, each from its own session, their messages interleaved at
-/// random (each source in the order left, right, pose, as the replay sends them); checks every bin published is one
-/// drive's frame whole. Returns the node's summary and how many bins came out.
+/// Replays the drives at once, each from its own session, their messages interleaved at random
+/// (each source in the order left, right, pose, as the replay sends them); checks every bin
+/// published is one drive's frame whole. Returns the node's summary and how many bins came out.
 async fn at_once(tag: &str, offsets_ns: [i64; 3]) -> (NodeSummary, usize) {
     let sources: Vec<Source> = offsets_ns
         .iter()

@@ -1,19 +1,19 @@
 //! Live interop with software independent of this code base, so that a CDR reader the node's
-//! authors did not write decodes what it publishes: while a generated drive is replayed into
-//! an in-process node, `scripts/zenoh_listen.py` subscribes to the node's namespace through
-//! the Python `eclipse-zenoh` package (its own zenoh implementation of the wire protocol, as
-//! a peer connected to the node's endpoint) and decodes every sample with `rosbags`' CDR
-//! deserializer (ROS 2 Jazzy types plus the node's messages from node/src/msg/*.msg). A Rust
-//! subscriber listens to the same run.
+//! authors did not write decodes what it publishes: while a generated drive is replayed into an
+//! in-process node, `scripts/zenoh_listen.py` subscribes to the node's namespace through the
+//! Python `eclipse-zenoh` package (its own zenoh implementation of the wire protocol, as a peer
+//! connected to the node's endpoint) and decodes every sample with `rosbags`' CDR deserializer
+//! (ROS 2 Jazzy types plus the node's messages from node/src/msg/*.msg). A Rust subscriber
+//! listens to the same run.
 //!
-//! Checked: both saw the same output keys with the same message counts and Python decoded
-//! every sample; the bin maps have the same widths, frames and fields (the 3DGS PLY names
-//! plus `confidence` and the packed `rgb`, 64-byte points) and the same first point; the bin poses are the same
-//! f64 bits; latency arrived for every closed bin with the same values; the diagnostics
-//! counters and any map updates and images agree.
+//! Checked: both saw the same output keys with the same message counts and Python decoded every
+//! sample; the bin maps have the same widths, frames and fields (the 3DGS PLY names plus
+//! `confidence` and the packed `rgb`, 64-byte points) and the same first point; the bin poses
+//! are the same f64 bits; latency arrived for every closed bin with the same values; the
+//! diagnostics counters and any map updates and images agree.
 //!
-//! Needs `python3` with the packages of `scripts/requirements.txt`; without them the test
-//! fails and says how to install them.
+//! Needs `python3` with the packages of `scripts/requirements.txt`; without them the test fails
+//! and says how to install them.
 
 use crate::drive_support;
 use crate::python_support;

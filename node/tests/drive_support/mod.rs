@@ -149,6 +149,9 @@ pub struct RunningNode {
     pub endpoint: String,
     /// Its keys.
     pub keys: Keys,
+    /// The node's own session (what the node publishes on): tests wait on it for their
+    /// subscribers to reach the node.
+    pub session: Session,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     task: tokio::task::JoinHandle<Result<NodeSummary, ServiceError>>,
 }
@@ -166,24 +169,25 @@ impl RunningNode {
         };
         let keys = config.keys.clone();
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let (ready_tx, ready_rx) = tokio::sync::oneshot::channel::<()>();
+        let (ready_tx, ready_rx) = tokio::sync::oneshot::channel::<Session>();
         let task = tokio::spawn(run_announced(
             config,
             async {
                 let _ = stop_rx.await;
             },
-            move |_| {
-                let _ = ready_tx.send(());
+            move |session| {
+                let _ = ready_tx.send(session.clone());
             },
         ));
         let ready = tokio::time::timeout(Duration::from_secs(120), ready_rx).await;
-        assert!(
-            matches!(ready, Ok(Ok(()))) && !task.is_finished(),
-            "the node stopped at start or was not ready in two minutes"
-        );
+        let Ok(Ok(session)) = ready else {
+            panic!("the node stopped at start or was not ready in two minutes")
+        };
+        assert!(!task.is_finished(), "the node stopped at start");
         Self {
             endpoint,
             keys,
+            session,
             stop: Some(stop_tx),
             task,
         }
@@ -233,9 +237,17 @@ impl Player {
         Self::at(&node.endpoint, node.keys.clone()).await
     }
 
-    /// Connects to a node (in this process or another) listening on `endpoint` with `keys`.
+    /// Connects to a node (in this process or another) listening on `endpoint` with `keys`,
+    /// and waits until the node's input subscription is known here (two minutes at most): a
+    /// put before it would reach no one.
     pub async fn at(endpoint: &str, keys: Keys) -> Self {
-        Self::with(&client_of(endpoint), keys).await
+        let player = Self::with(&client_of(endpoint), keys).await;
+        let inputs = player.keys.left_info();
+        assert!(
+            net_support::sees_a_subscriber(&player.session, &inputs).await,
+            "the node at {endpoint} never subscribed to {inputs}"
+        );
+        player
     }
 
     /// A player on a session opened as `transport` says (a secure one, say).
@@ -255,10 +267,9 @@ impl Player {
             .expect("put");
     }
 
-    /// Publishes both camera infos stamped `stamp_ns` and waits 300 ms. The node reads each
-    /// input key on its own subscriber and drops (counts as `dropped/no_camera_info`) a frame
-    /// completed before it has both infos; when infos and the first frame arrive together it
-    /// may take them in either order, so tests that count bins send the infos first.
+    /// Publishes both camera infos stamped `stamp_ns`. The node reads every input key on one
+    /// subscriber, in arrival order, and the player's messages reach it in the order they
+    /// were put, so frames put after this are taken after the infos.
     pub async fn camera_infos(&self, rig: &StereoRig, stamp_ns: i64) {
         let k = &self.keys;
         let left = camera_info(&rig.intrinsics, 0.0, Header::new(stamp_ns, "left"));
@@ -269,7 +280,6 @@ impl Player {
         );
         self.put(k.left_info(), left.encode()).await;
         self.put(k.right_info(), right.encode()).await;
-        tokio::time::sleep(Duration::from_millis(300)).await;
     }
 
     /// Publishes the camera infos, then every frame of `frames` at its stamp with its own
@@ -352,8 +362,8 @@ pub struct Collector {
 }
 
 impl Collector {
-    /// Subscribes to each key expression in `keys` on a new session connected to `node`,
-    /// then waits half a second for the subscriptions to reach the node.
+    /// Subscribes to each key in `keys` on a new session connected to `node`, then waits
+    /// until the node's session sees a subscriber on each (two minutes at most).
     pub async fn connect(node: &RunningNode, keys: &[String]) -> Self {
         Self::connect_truncated(node, keys, usize::MAX).await
     }
@@ -362,12 +372,27 @@ impl Collector {
     /// for a message's header: see [`Collector::headers`]), so that collecting many large
     /// maps does not grow the test process.
     pub async fn connect_truncated(node: &RunningNode, keys: &[String], max_bytes: usize) -> Self {
-        Self::at(&node.endpoint, keys, max_bytes).await
+        let collector = Self::subscribed(&node.endpoint, keys, max_bytes).await;
+        for key in keys {
+            assert!(
+                net_support::sees_a_subscriber(&node.session, key).await,
+                "the node never saw the subscriber on {key}"
+            );
+        }
+        collector
     }
 
-    /// As [`Collector::connect_truncated`], for a node (in this process or another)
-    /// listening on `endpoint`.
+    /// As [`Collector::connect_truncated`], for a node in another process listening on
+    /// `endpoint`: with no session of the node's at hand to ask, it waits half a second for
+    /// the subscriptions to reach the node.
     pub async fn at(endpoint: &str, keys: &[String], max_bytes: usize) -> Self {
+        let collector = Self::subscribed(endpoint, keys, max_bytes).await;
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        collector
+    }
+
+    /// A session connected to `endpoint` with a subscriber on each of `keys`.
+    async fn subscribed(endpoint: &str, keys: &[String], max_bytes: usize) -> Self {
         let session = open(&client_of(endpoint)).await.expect("listener session");
         let samples: Arc<Mutex<Vec<Received>>> = Arc::default();
         let mut subscribers = Vec::new();
@@ -386,7 +411,6 @@ impl Collector {
                 .expect("subscriber");
             subscribers.push(sub);
         }
-        tokio::time::sleep(Duration::from_millis(500)).await;
         Self {
             samples,
             _subscribers: subscribers,

@@ -20,7 +20,7 @@ use node::fusion::{AtTornTail, FusionConfig, Keep};
 use node::msg::map_update::MapUpdate;
 use node::msg::Message;
 use node::pipeline::worker::RenderWith;
-use node::service::NodeConfig;
+use node::service::{InputLimits, NodeConfig};
 use node::store::map_files::{restore, TILES};
 use node::store::Paging;
 use node::transport::Keys;
@@ -28,6 +28,15 @@ use zenoh::query::ConsolidationMode;
 
 /// One reply: the page's snapshot and its attachment, or the error text.
 type Reply = Result<(Snapshot, serde_json::Value), String>;
+
+/// The input limits with no wait between snapshot queries: these tests query the map
+/// several times in a row and are not about the rate limit.
+fn any_rate() -> InputLimits {
+    InputLimits {
+        snapshot_interval: Duration::ZERO,
+        ..InputLimits::default()
+    }
+}
 
 async fn query(player: &Player, selector: &str) -> Vec<Reply> {
     // Pages share the key: without consolidation off, zenoh would keep only the last.
@@ -96,6 +105,7 @@ async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refu
         method: "sgm".into(),
         queue_capacity: 64,
         renders: RenderWith::Off,
+        limits: any_rate(),
         ..NodeConfig::default()
     })
     .await;
@@ -133,7 +143,6 @@ async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refu
         }
     }
 
-    tokio::time::sleep(Duration::from_millis(1100)).await;
     let selector = format!("{key}?box={},{},{},{}", min.x, min.y, max.x, max.y);
     let replies = query(&player, &selector).await;
     let want = inside(min, max);
@@ -145,7 +154,6 @@ async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refu
     assert_eq!(pages_ids(&replies, usize::MAX), want);
     assert_eq!(replies.len(), 1);
 
-    tokio::time::sleep(Duration::from_millis(1100)).await;
     let page = 37;
     let selector = format!("{key}?around={},{};radius=5;page_size={page}", mid.x, mid.y);
     let replies = query(&player, &selector).await;
@@ -155,7 +163,6 @@ async fn region_queries_answer_exactly_the_region_in_pages_and_bad_ones_are_refu
     assert_eq!(got, want, "in id order across pages");
     assert_eq!(got.iter().collect::<BTreeSet<_>>().len(), got.len());
 
-    tokio::time::sleep(Duration::from_millis(1100)).await;
     let replies = query(&player, &format!("{key}?box=1e6,1e6,1.0001e6,1.0001e6")).await;
     assert_eq!(replies.len(), 1);
     assert!(replies[0].as_ref().unwrap().0.gaussians.is_empty());
@@ -197,6 +204,7 @@ async fn paged_node(name: &str) -> (Drive, Keys, RunningNode, std::path::PathBuf
             ..FusionConfig::default()
         },
         paging: Some(Paging { radius_m: 1.0 }),
+        limits: any_rate(),
         ..NodeConfig::default()
     })
     .await;
@@ -210,7 +218,6 @@ async fn a_region_over_tiles_paged_to_disk_is_answered_from_their_files() {
     let key = keys.snapshot_request();
     let in_memory = query(&player, &key).await;
     let in_memory = in_memory[0].as_ref().unwrap().0.gaussians.len();
-    tokio::time::sleep(Duration::from_millis(1100)).await;
     let replies = query(&player, &format!("{key}?box=-1e4,-1e4,1e4,1e4")).await;
     let got = pages_ids(&replies, usize::MAX);
     let summary = node.stop().await;

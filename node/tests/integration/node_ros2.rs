@@ -88,7 +88,8 @@ async fn in_ros2_mode_the_node_speaks_rmw_zenoh() {
     }
 
     let player = open(&node.client()).await.unwrap();
-    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    let left = keys.key(node::transport::keys::LEFT_IMAGE);
+    assert!(drive_support::net_support::sees_a_subscriber(&player, &left).await);
     let replayed = replay(
         &player,
         &keys,

@@ -44,7 +44,9 @@ async fn ros2_outlet_publishes_on_rmw_zenoh_keys_with_attachments() {
     let outlet = Outlet::declare(&a, &keys, "stereosplat_node", &PUBLISHES, &SUBSCRIBES)
         .await
         .unwrap();
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    for topic in [BIN_MAP, LATENCY] {
+        assert!(net_support::sees_a_subscriber(&a, &keys.key(topic)).await);
+    }
 
     let before = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -105,11 +107,15 @@ async fn ros2_outlet_announces_node_and_topics_until_dropped() {
         .await
         .unwrap();
     assert_eq!(outlet.token_keys().len(), 1 + 3 + 2);
-    tokio::time::sleep(Duration::from_millis(300)).await;
 
-    let live = live_tokens(&b).await;
     let mut expected: Vec<String> = outlet.token_keys().to_vec();
     expected.sort();
+    // The tokens reach the other session in their own time: asked until all are there.
+    let deadline = std::time::Instant::now() + Duration::from_secs(60);
+    let mut live = live_tokens(&b).await;
+    while live != expected && std::time::Instant::now() < deadline {
+        live = live_tokens(&b).await;
+    }
     assert_eq!(live, expected);
 
     let zid = a.zid().to_string();
@@ -191,7 +197,7 @@ async fn plain_outlet_has_plain_keys_no_attachment_no_tokens() {
         .unwrap();
     assert!(outlet.token_keys().is_empty());
     assert_eq!(outlet.gid(BIN_MAP), None);
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert!(net_support::sees_a_subscriber(&a, &keys.key(DIAGNOSTICS)).await);
     outlet.put(DIAGNOSTICS, vec![7]).await.unwrap();
     let sample = tokio::time::timeout(WAIT, sub.recv_async())
         .await

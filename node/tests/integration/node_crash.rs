@@ -447,7 +447,7 @@ async fn a_recorder_killed_with_sigkill_leaves_a_recording_that_replays() {
     .await;
     assert!(ready, "{}", recorder.stderr());
     let session = open(&drive_support::client_of(&endpoint)).await.unwrap();
-    tokio::time::sleep(Duration::from_secs(1)).await;
+    assert!(drive_support::net_support::sees_a_subscriber(&session, &keys.pose()).await);
     const SENT: u64 = 150;
     let publish = |range: std::ops::Range<u64>| {
         let (session, key) = (&session, keys.pose());

@@ -25,7 +25,7 @@ use node::msg::Message;
 use node::pipeline::binner::BinnerConfig;
 use node::pipeline::sync::SyncConfig;
 use node::pipeline::worker::RenderWith;
-use node::service::{run, NodeConfig};
+use node::service::{run_announced, NodeConfig};
 use node::transport::Keys;
 use node::transport::{open, TransportConfig};
 
@@ -72,10 +72,17 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
         ..NodeConfig::default()
     };
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let node = tokio::spawn(run(node_config, async {
-        let _ = stop_rx.await;
-    }));
-    tokio::time::sleep(Duration::from_millis(500)).await;
+    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel::<zenoh::Session>();
+    let node = tokio::spawn(run_announced(
+        node_config,
+        async {
+            let _ = stop_rx.await;
+        },
+        move |session| {
+            let _ = ready_tx.send(session.clone());
+        },
+    ));
+    let node_session = ready_rx.await.expect("the node is ready");
 
     let client = TransportConfig {
         connect: vec![endpoint],
@@ -94,7 +101,19 @@ async fn a_replayed_drive_comes_out_as_bin_maps_latency_and_a_global_map() {
         .unwrap();
     let bevs = listener.declare_subscriber(keys.map_bev()).await.unwrap();
     let player = open(&client).await.unwrap();
-    tokio::time::sleep(Duration::from_millis(500)).await;
+    for key in [
+        keys.bin_map(),
+        keys.latency(),
+        keys.map_update(),
+        keys.bin_render(),
+        keys.map_bev(),
+    ] {
+        assert!(
+            net_support::sees_a_subscriber(&node_session, &key).await,
+            "{key}"
+        );
+    }
+    assert!(net_support::sees_a_subscriber(&player, &keys.left_image()).await);
 
     // A malformed message on an input key first: counted, the node keeps going.
     player

@@ -5,7 +5,7 @@
 //! (`docs/architecture.md` has the table, and a test holds the code to it):
 //!
 //! - the node's commands: [`cli`] (what a user operates), [`research`] (generated data,
-//!   training, evaluation), [`bench`] (benchmarks printing JSON); [`untrusted_input`]:
+//!   training, evaluation), [`mod@bench`] (benchmarks printing JSON); [`untrusted_input`]:
 //!   every decoder of outside input as one entry point on raw bytes (what the fuzz targets
 //!   and the decoders' mutation test call).
 //! - around a running node: [`clients`] (replay, record, monitor, a loopback drive),

@@ -15,7 +15,6 @@ use crate::msg::tf2_msgs::frame_to;
 use crate::msg::Message;
 use crate::pipeline::self_check::CheckAction;
 use crate::pipeline::worker::{now_ns, Output};
-use crate::store::map_store::MapStore;
 use crate::transport::keys;
 
 impl Outputs<'_> {
@@ -29,13 +28,13 @@ impl Outputs<'_> {
             self.closed_ns.remove(&out.bin_id);
             return Ok(());
         }
-        if out.result.is_ok() && std::mem::take(&mut self.resume_pending) {
+        if out.result.is_ok() && std::mem::take(&mut self.fused.resume_pending) {
             let header = Header::new(out.stamps.source_ns, &self.world_frame);
-            self.put_encoded_update(self.snapshot(header)).await?;
+            self.put_encoded_update(self.fused.snapshot(header)).await?;
         }
         let bin = self.fuse(out);
         self.held.push(bin);
-        if self.store.as_ref().is_some_and(MapStore::failing) {
+        if self.fused.failing() {
             if self.held.len() == 1 {
                 eprintln!(
                     "the map's journal is not durable: bins are held back from publishing \
@@ -67,22 +66,17 @@ impl Outputs<'_> {
         } else {
             set
         };
-        if let Some(store) = &mut self.store {
-            if let Err(e) = store.prepare(&mut self.map, out.bin_to_world.translation) {
-                eprintln!("reading paged tiles back failed: {e}");
-                self.counters.add("error/checkpoint", 1);
-            }
-        }
-        let fused = self.map.insert_bin(out.bin_id, to_fuse, out.bin_to_world);
-        self.latest_source_ns = out.stamps.source_ns;
-        if let Ok(inc) = &fused {
-            self.journal(inc);
-        }
+        let fused = self.fused.fuse(
+            out.bin_id,
+            to_fuse,
+            out.bin_to_world,
+            out.stamps.source_ns,
+            &mut self.counters,
+        );
         out.stamps.map_fused_ns = now_ns();
-        let sequence = self.map.increments();
         FusedBin {
             out,
-            fused: Some(fused.map(|inc| (inc, sequence)).map_err(|_| ())),
+            fused: Some(fused.map_err(|_| ())),
             render: None,
         }
     }
@@ -93,10 +87,8 @@ impl Outputs<'_> {
         if self.held.is_empty() {
             return Ok(());
         }
-        if let Some(store) = &mut self.store {
-            if store.flush(&self.map).is_err() {
-                return Ok(());
-            }
+        if !self.fused.flush() {
+            return Ok(());
         }
         eprintln!(
             "the map's journal is durable again: publishing {} held bins",
@@ -159,7 +151,7 @@ impl Outputs<'_> {
                                 "sequence": sequence,
                                 "added": inc.added.len(),
                                 "removed": inc.removed.len(),
-                                "total": self.map.total_len(),
+                                "total": self.fused.map.total_len(),
                             });
                             let origin = out.bin_to_world.translation;
                             f.map_increment(summary, &inc.added, origin, stamps.source_ns);
@@ -172,7 +164,7 @@ impl Outputs<'_> {
                                 .bins_published
                                 .is_multiple_of(self.snapshot_every);
                         if due {
-                            self.put_encoded_update(self.snapshot(header(&world)))
+                            self.put_encoded_update(self.fused.snapshot(header(&world)))
                                 .await?;
                         }
                     }

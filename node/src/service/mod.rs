@@ -7,6 +7,7 @@
 //! summarises the per-bin latency the node publishes.
 
 pub mod error;
+mod fused_map;
 mod held;
 mod input_image;
 mod input_thread;

@@ -538,14 +538,14 @@ async fn finish(
         outputs.counters.set("dropped/at_stop", unfinished as u64);
     }
     outputs.finish(drops).await?;
-    outputs.close_store();
+    outputs.fused.close_store(&mut outputs.counters);
     // A map that never held a bin (nothing arrived, nothing was resumed) leaves no files:
     // an empty checkpoint would only shadow a later run's start.
-    if let (Some(dir), Some(_)) = (&config.out_dir, outputs.map.last_bin_id()) {
-        export(&outputs.map, dir, config.map_format)?;
+    if let (Some(dir), Some(_)) = (&config.out_dir, outputs.fused.map.last_bin_id()) {
+        export(&outputs.fused.map, dir, config.map_format)?;
     }
     let mut summary = std::mem::take(&mut outputs.summary);
-    summary.global_gaussians = outputs.map.total_len() as usize;
+    summary.global_gaussians = outputs.fused.map.total_len() as usize;
     summary.counters = std::mem::take(&mut outputs.counters);
     Ok(summary)
 }

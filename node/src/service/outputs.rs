@@ -28,6 +28,9 @@
 //! With a Foxglove server ([`crate::foxglove`]) the same outputs go to it too, handed over
 //! without blocking: the bin map, its frame, the fused map's new points, the render, the
 //! camera, the latency and the counters (with the server's own).
+//!
+//! The map fused into, its store and what is read from it are [`super::fused_map`]; this
+//! module publishes.
 
 use glam::DVec2;
 use std::collections::{BTreeMap, BTreeSet};
@@ -35,15 +38,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use super::error::ServiceError;
 use super::held::Held;
 use super::inputs::CameraPose;
-use super::region::RegionQuery;
 use super::static_frames::StaticFrames;
 use crate::counters::Counters;
 use crate::foxglove::messages::latency_json;
 use crate::foxglove::Foxglove;
-use crate::fusion::{
-    bev_image, encode_map_snapshot, snapshot_message, BevView, GaussianId, GlobalMap, Increment,
-    Snapshot, WorldGaussian,
-};
+use crate::fusion::{bev_image, BevView, GlobalMap};
 use crate::memory::Releaser;
 use crate::msg::image::image_from_rgb;
 use crate::msg::latency::{BinLatency, Diagnostics};
@@ -54,13 +53,14 @@ use crate::msg::tf2_msgs::{frame_to, TfMessage, WORLD};
 use crate::msg::Message;
 use crate::pipeline::self_check::{verdict_code, CheckAction, CheckOutcome};
 use crate::pipeline::worker::{now_ns, Rendered, Stamps, WorkerEvent};
-use crate::store::map_files::{gaussians_in_whole, RegionReadError};
-use crate::store::map_store::{MapStore, Recorded};
+use crate::store::map_store::MapStore;
 use crate::transport::keys::{self, Topic};
 use crate::transport::Outlet;
 
 #[path = "bin_publish.rs"]
 mod bin_publish;
+
+pub(super) use super::fused_map::FusedMap;
 
 /// What a run of the node did.
 #[derive(Clone, Debug, Default)]
@@ -73,38 +73,21 @@ pub struct NodeSummary {
     pub counters: Counters,
 }
 
-/// A region's Gaussians cut into pages ([`Outputs::region_pages`]).
-pub(super) struct RegionPages {
-    /// The pages, in id order.
-    pub pages: Vec<Vec<(GaussianId, WorldGaussian)>>,
-    /// Gaussians in all pages.
-    pub total: usize,
-}
-
 /// The bird's-eye view published per bin: 256 x 256 pixels at 0.25 m, 64 m square around
 /// the latest bin's origin.
 const BEV: (u32, f64) = (256, 0.25);
-
-/// Paged tiles a whole-map snapshot reply lists at most (about 30 bytes each).
-pub const MAX_LISTED_TILES: usize = 100_000;
 
 /// The node's outputs and the state they are made from.
 pub(super) struct Outputs<'a> {
     outlet: &'a Outlet,
     /// The Foxglove server, when the node runs one.
     foxglove: Option<&'a Foxglove>,
-    /// The fused global map.
-    pub map: GlobalMap,
+    /// The fused global map and what keeps it on disk.
+    pub fused: FusedMap,
     /// Publish the bird's-eye view per bin.
     bev: bool,
     /// Snapshot period in bins (0: on request only).
     snapshot_every: u64,
-    /// The map's journal, when the node has an out folder.
-    store: Option<MapStore>,
-    /// The thread returning freed memory to the system, when the node runs one.
-    releaser: Option<Releaser>,
-    /// A resumed map's snapshot is still to be published (before the first increment).
-    resume_pending: bool,
     /// Bins fused whose journal record is not yet durable, not yet published.
     held: Held,
     /// Stamps of closed bins, until their map is published.
@@ -119,9 +102,6 @@ pub(super) struct Outputs<'a> {
     awaiting_render: BTreeSet<u64>,
     /// World -> `bin_<id>` of the most recent bins published, what `/tf_static` carries.
     static_tf: StaticFrames,
-    /// The source stamp of the latest bin fused (what a snapshot of the map is stamped
-    /// with; 0 before the first).
-    latest_source_ns: i64,
     /// The frame the map, the bin poses and the transforms are in (the poses' frame).
     world_frame: String,
     /// Bad input, drops, errors.
@@ -145,19 +125,15 @@ impl<'a> Outputs<'a> {
         Self {
             outlet,
             foxglove: None,
-            map,
+            fused: FusedMap::new(map, store),
             bev,
             snapshot_every,
-            store,
-            releaser: None,
-            resume_pending: false,
             held: Held::default(),
             closed_ns: BTreeMap::new(),
             published: BTreeMap::new(),
             point_names: Vec::new(),
             awaiting_render: BTreeSet::new(),
             static_tf: StaticFrames::default(),
-            latest_source_ns: 0,
             world_frame: WORLD.into(),
             counters,
             summary: NodeSummary::default(),
@@ -172,7 +148,7 @@ impl<'a> Outputs<'a> {
 
     /// Keeps `releaser` running while the node does, its counters among the node's.
     pub fn with_releaser(mut self, releaser: Option<Releaser>) -> Self {
-        self.releaser = releaser;
+        self.fused.releaser = releaser;
         self
     }
 
@@ -190,7 +166,7 @@ impl<'a> Outputs<'a> {
 
     /// The map was resumed: publish its snapshot before the first increment.
     pub fn announce_resume(&mut self) {
-        self.resume_pending = true;
+        self.fused.resume_pending = true;
     }
 
     /// Publishes what the worker handed back.
@@ -271,68 +247,10 @@ impl<'a> Outputs<'a> {
         self.flush_latency(drops).await
     }
 
-    /// The whole map in memory as an encoded MapUpdate snapshot at the current sequence
-    /// number, written straight from the map ([`encode_map_snapshot`]).
-    pub fn snapshot(&self, header: Header) -> Result<Vec<u8>, crate::msg::ConvertError> {
-        encode_map_snapshot(&self.map, header)
-    }
-
-    /// The attachment of a whole-map snapshot reply: the tiles it does not hold because
-    /// they are paged to disk, so that a subscriber resetting from it knows they exist and
-    /// can ask for them by region: `{"tile_m": side, "paged_tiles": [[x, y, gaussians],
-    /// ...]}` (tile `(x, y)` covers `[x, x + 1) * side` by `[y, y + 1) * side`, world
-    /// metres), at most [`MAX_LISTED_TILES`] of them (`"truncated": true` beyond).
-    pub fn snapshot_attachment(&self) -> String {
-        let paged = self.map.paged_tiles();
-        let listed: Vec<[i64; 3]> = paged
-            .iter()
-            .take(MAX_LISTED_TILES)
-            .map(|(k, t)| [k.0, k.1, t.count as i64])
-            .collect();
-        serde_json::json!({
-            "tile_m": self.map.config().tile_side(),
-            "paged_tiles": listed,
-            "truncated": paged.len() > MAX_LISTED_TILES,
-        })
-        .to_string()
-    }
-
-    /// The Gaussians of `region`, in id order, cut into pages of its page size (one empty
-    /// page when there are none): those in memory and those of the tiles on disk the region
-    /// meets. Refused when the region may hold more than the map's budget in memory.
-    pub fn region_pages(&self, region: &RegionQuery) -> Result<RegionPages, RegionReadError> {
-        let budget = self.map.config().max_gaussians as u64;
-        let tiles = self
-            .store
-            .as_ref()
-            .map(MapStore::tiles_dir)
-            .unwrap_or_default();
-        let found = gaussians_in_whole(&self.map, &tiles, region.min, region.max, budget)?;
-        let total = found.len();
-        let mut pages: Vec<Vec<(GaussianId, WorldGaussian)>> =
-            found.chunks(region.page_size).map(|c| c.to_vec()).collect();
-        if pages.is_empty() {
-            pages.push(Vec::new());
-        }
-        Ok(RegionPages { pages, total })
-    }
-
-    /// One page of a region as a MapUpdate snapshot at the current sequence number.
-    pub fn region_page(
-        &self,
-        page: Vec<(GaussianId, WorldGaussian)>,
-    ) -> Result<MapUpdate, crate::msg::ConvertError> {
-        let snap = Snapshot {
-            last_bin_id: self.map.last_bin_id(),
-            gaussians: page,
-        };
-        snapshot_message(&snap, self.map.increments(), self.snapshot_header())
-    }
-
     /// The header of a snapshot answering a query: the world frame at the latest fused
     /// bin's source stamp (0 before any).
     pub fn snapshot_header(&self) -> Header {
-        Header::new(self.latest_source_ns, &self.world_frame)
+        Header::new(self.fused.latest_source_ns, &self.world_frame)
     }
 
     /// Publishes world -> the left camera of a frame that entered the binner on `/tf`, when
@@ -373,39 +291,6 @@ impl<'a> Outputs<'a> {
         self.put(keys::TF_STATIC, msg.encode()).await
     }
 
-    /// Journals a fused bin's change (and the tiles paged with it) before the bin is
-    /// published; a failure is reported on stderr and counted (`error/checkpoint`), and the
-    /// store keeps the record to write again ([`MapStore::failing`]).
-    fn journal(&mut self, inc: &Increment) {
-        let Some(store) = &mut self.store else {
-            return;
-        };
-        match store.record(&mut self.map, inc) {
-            Ok(Recorded::Durable) => self.counters.add("map/checkpoints", 1),
-            Ok(_) => {}
-            Err(e) => {
-                eprintln!("checkpoint failed: {e}");
-                self.counters.add("error/checkpoint", 1);
-            }
-        }
-        for (name, value) in store.counts() {
-            self.counters.set(name, value);
-        }
-    }
-
-    /// Syncs the journal and waits for its compactor, before the map is saved whole.
-    pub fn close_store(&mut self) {
-        if let Some(mut store) = self.store.take() {
-            if let Err(e) = store.finish() {
-                eprintln!("checkpoint failed: {e}");
-                self.counters.add("error/checkpoint", 1);
-            }
-            for (name, value) in store.counts() {
-                self.counters.set(name, value);
-            }
-        }
-    }
-
     async fn put_update(
         &mut self,
         msg: Result<MapUpdate, crate::msg::ConvertError>,
@@ -428,13 +313,13 @@ impl<'a> Outputs<'a> {
     }
 
     async fn put_bev(&mut self, header: Header) -> Result<(), ServiceError> {
-        let Some(origin) = self.map.latest_origin() else {
+        let Some(origin) = self.fused.map.latest_origin() else {
             return Ok(());
         };
         let view = BevView::square(DVec2::new(origin.x, origin.y), BEV.0, BEV.1);
         // Only the Gaussians near the view: the cost follows the view, not the map.
         let (min, max) = view.ground_box();
-        let near = self.map.gaussians_in(min, max);
+        let near = self.fused.map.gaussians_in(min, max);
         match bev_image(near.into_iter().map(|(_, g)| g), &view) {
             Ok(img) => {
                 let msg = Image {
@@ -507,11 +392,7 @@ impl<'a> Outputs<'a> {
     /// counters taken in first and the counters sent to it too.
     pub fn diagnostics(&mut self) -> Diagnostics {
         let now = now_ns();
-        if let Some(r) = &self.releaser {
-            for (name, value) in r.counts() {
-                self.counters.set(name, value);
-            }
-        }
+        self.fused.releaser_counts_into(&mut self.counters);
         if let Some(f) = self.foxglove {
             f.count_into(&mut self.counters);
             f.counters(&self.counters, now);

@@ -8,7 +8,8 @@ use std::time::Instant;
 use zenoh::query::Query;
 
 use super::error::ServiceError;
-use super::outputs::{Outputs, RegionPages};
+use super::fused_map::RegionPages;
+use super::outputs::Outputs;
 use super::region::RegionQuery;
 use super::snapshot_gate::SnapshotGate;
 use crate::msg::Message;
@@ -45,17 +46,17 @@ pub(super) async fn answer_snapshot(
         return Ok(());
     }
     let Some(region) = region else {
-        match outputs.snapshot(outputs.snapshot_header()) {
+        match outputs.fused.snapshot(outputs.snapshot_header()) {
             Ok(bytes) => q
                 .reply(q.key_expr().clone(), bytes)
-                .attachment(outputs.snapshot_attachment())
+                .attachment(outputs.fused.snapshot_attachment())
                 .await
                 .map_err(TransportError::from)?,
             Err(_) => outputs.counters.add("error/encode_map_update", 1),
         }
         return Ok(());
     };
-    let RegionPages { pages, total } = match outputs.region_pages(&region) {
+    let RegionPages { pages, total } = match outputs.fused.region_pages(&region) {
         Ok(pages) => pages,
         Err(e) => {
             let counter = match e {
@@ -72,7 +73,7 @@ pub(super) async fn answer_snapshot(
     let count = pages.len();
     for (i, page) in pages.into_iter().enumerate() {
         let attachment = region.attachment(i, count, total);
-        match outputs.region_page(page) {
+        match outputs.fused.region_page(page, outputs.snapshot_header()) {
             Ok(m) => q
                 .reply(q.key_expr().clone(), m.encode())
                 .attachment(attachment)

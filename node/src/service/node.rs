@@ -7,7 +7,10 @@ use std::time::Instant;
 
 use renderer::formats::MapFormat;
 use tokio::sync::mpsc;
-use zenoh::sample::Locality;
+use zenoh::handlers::FifoChannelHandler;
+use zenoh::pubsub::Subscriber;
+use zenoh::query::{Query, Queryable};
+use zenoh::sample::{Locality, Sample};
 
 use super::error::ServiceError;
 use super::input_thread::InputThread;
@@ -30,7 +33,7 @@ use crate::pipeline::self_check::OnCheckFail;
 use crate::pipeline::sync::SyncConfig;
 use crate::pipeline::worker::{RenderWith, Worker, WorkerEvent};
 use crate::remote::{Dispatch, Fingerprint, Pool, PoolConfig, Slot};
-use crate::store::map_files::{export, start_map, StartMap};
+use crate::store::map_files::{export, start_map, Start, StartMap};
 use crate::store::map_store::{Compaction, MapStore, Paging};
 use crate::tf::{PoseSource, PoseSourceConfig};
 use crate::transport::keys::{Direction, Keys, Topic, DIAGNOSTICS, TOPICS};
@@ -284,33 +287,15 @@ pub async fn run_with(
         binner.first_bin_id = binner.first_bin_id.max(last + 1);
     }
     // Bound before the zenoh session opens, so an address in use fails first.
-    let foxglove = match &config.foxglove {
-        Some(c) => {
-            let f = Foxglove::start(c, &config.keys.namespace, &config.world_frame).await?;
-            eprintln!("foxglove ready: {}", f.url());
-            Some(f)
-        }
-        None => None,
-    };
+    let foxglove = start_foxglove(&config).await?;
     let session = open(&config.transport).await?;
     let keys = &config.keys;
     let (inputs, outputs): (Vec<Topic>, Vec<Topic>) =
         TOPICS.iter().partition(|t| t.direction == Direction::Input);
     let outlet = Outlet::declare(&session, keys, &config.name, &outputs, &inputs).await?;
+    let (input, snapshot_requests) = declare_inputs(&session, keys).await?;
     // Input keys looked up per sample, built once.
     let input_keys: HashMap<String, Topic> = inputs.iter().map(|&t| (keys.key(t), t)).collect();
-    // One subscriber for every input key keeps the samples in arrival order across keys,
-    // so left, right and pose of a frame reach the synchroniser together. Samples this
-    // session publishes itself are not delivered to it.
-    let input = session
-        .declare_subscriber(keys.input_wildcard())
-        .allowed_origin(Locality::Remote)
-        .await
-        .map_err(zenoh_err)?;
-    let snapshot_requests = session
-        .declare_queryable(keys.snapshot_request())
-        .await
-        .map_err(zenoh_err)?;
 
     let (pool, mut pool_rx) = Pool::start(&session, keys, config.pool_config()?).await?;
     let mut dispatch = Dispatch::new(config.queue_capacity, config.workers.local);
@@ -340,53 +325,12 @@ pub async fn run_with(
         InputThread::spawn(Inputs::new(config.sync, binner, config.limits, pose_source));
     let mut snapshot_gate =
         SnapshotGate::new(keys.snapshot_request(), config.limits.snapshot_interval);
-    let bev = config.renders != RenderWith::Off;
-    let store = match config.out_dir.clone() {
-        Some(dir) => Some(MapStore::new(
-            dir,
-            &start.map,
-            config.checkpoint_every,
-            config.compaction,
-            config.paging,
-        )?),
-        None => None,
-    };
-    let resumed = start.resumed_from.is_some();
-    if !config.release_memory_every.is_zero() {
-        limit_arenas_to_cores();
-    }
-    let releaser =
-        Releaser::start(config.release_memory_every).map_err(ServiceError::MemoryRelease)?;
-    let mut outputs = Outputs::new(&outlet, start.map, bev, config.snapshot_every, store)
-        .with_releaser(releaser)
-        .with_foxglove(foxglove.as_ref())
-        .with_world_frame(&config.world_frame)
-        .with_points(point_names.clone());
-    if resumed {
-        outputs.announce_resume();
-    }
-    // Listen endpoints other machines can reach (each also warned about on stderr).
-    let exposed = config.transport.exposure_warnings()?.len() as u64;
-    if exposed > 0 {
-        outputs.counters.set("warning/exposed_listen", exposed);
-    }
-    if foxglove
-        .as_ref()
-        .is_some_and(|f| !f.addr().ip().is_loopback())
-    {
-        outputs.counters.set("warning/exposed_foxglove", 1);
-    }
+    let mut outputs = open_outputs(&config, &outlet, start, foxglove.as_ref(), &point_names)?;
     ready(&session);
     tokio::pin!(stop);
     let diagnostics_on = !config.diagnostics_every.is_zero();
-    let mut diagnostics = tokio::time::interval(
-        config
-            .diagnostics_every
-            .max(std::time::Duration::from_millis(1)),
-    );
-    diagnostics.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut stall_check = tokio::time::interval(STALL_CHECK);
-    stall_check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut diagnostics = delayed_interval(config.diagnostics_every);
+    let mut stall_check = delayed_interval(STALL_CHECK);
     // After `stop`: no more inputs; the bins in hand are finished (for a worker
     // process's timeout at most) and published.
     let mut stopping: Option<Instant> = None;
@@ -493,6 +437,94 @@ pub async fn run_with(
     // Closing (rather than dropping) the session flushes what is still queued for peers.
     session.close().await.map_err(zenoh_err)?;
     Ok(summary)
+}
+
+/// The Foxglove server `config` asks for, started (its address bound).
+async fn start_foxglove(config: &NodeConfig) -> Result<Option<Foxglove>, ServiceError> {
+    let Some(c) = &config.foxglove else {
+        return Ok(None);
+    };
+    let f = Foxglove::start(c, &config.keys.namespace, &config.world_frame).await?;
+    eprintln!("foxglove ready: {}", f.url());
+    Ok(Some(f))
+}
+
+/// The node's input subscriber and its snapshot queryable on `session`. One subscriber for
+/// every input key keeps the samples in arrival order across keys, so left, right and pose
+/// of a frame reach the synchroniser together; samples this session publishes itself are
+/// not delivered to it.
+async fn declare_inputs(
+    session: &zenoh::Session,
+    keys: &Keys,
+) -> Result<
+    (
+        Subscriber<FifoChannelHandler<Sample>>,
+        Queryable<FifoChannelHandler<Query>>,
+    ),
+    ServiceError,
+> {
+    let input = session
+        .declare_subscriber(keys.input_wildcard())
+        .allowed_origin(Locality::Remote)
+        .await
+        .map_err(zenoh_err)?;
+    let snapshot_requests = session
+        .declare_queryable(keys.snapshot_request())
+        .await
+        .map_err(zenoh_err)?;
+    Ok((input, snapshot_requests))
+}
+
+/// The node's outputs on `outlet`, fusing into the started map: its store in the out folder,
+/// the memory releaser, Foxglove, and the warnings about endpoints others can reach counted.
+fn open_outputs<'a>(
+    config: &NodeConfig,
+    outlet: &'a Outlet,
+    start: Start,
+    foxglove: Option<&'a Foxglove>,
+    point_names: &[String],
+) -> Result<Outputs<'a>, ServiceError> {
+    let bev = config.renders != RenderWith::Off;
+    let store = match config.out_dir.clone() {
+        Some(dir) => Some(MapStore::new(
+            dir,
+            &start.map,
+            config.checkpoint_every,
+            config.compaction,
+            config.paging,
+        )?),
+        None => None,
+    };
+    if !config.release_memory_every.is_zero() {
+        limit_arenas_to_cores();
+    }
+    let releaser =
+        Releaser::start(config.release_memory_every).map_err(ServiceError::MemoryRelease)?;
+    let resumed = start.resumed_from.is_some();
+    let mut outputs = Outputs::new(outlet, start.map, bev, config.snapshot_every, store)
+        .with_releaser(releaser)
+        .with_foxglove(foxglove)
+        .with_world_frame(&config.world_frame)
+        .with_points(point_names.to_vec());
+    if resumed {
+        outputs.announce_resume();
+    }
+    // Listen endpoints other machines can reach (each also warned about on stderr).
+    let exposed = config.transport.exposure_warnings()?.len() as u64;
+    if exposed > 0 {
+        outputs.counters.set("warning/exposed_listen", exposed);
+    }
+    if foxglove.is_some_and(|f| !f.addr().ip().is_loopback()) {
+        outputs.counters.set("warning/exposed_foxglove", 1);
+    }
+    Ok(outputs)
+}
+
+/// A timer ticking every `period` (at least 1 ms), its missed ticks delayed, not bunched.
+fn delayed_interval(period: std::time::Duration) -> tokio::time::Interval {
+    let mut interval = tokio::time::interval(period.max(std::time::Duration::from_millis(1)));
+    interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    interval
 }
 
 /// Takes the input thread's steps: bins opened go to the dispatcher, bins closed and camera

@@ -8,8 +8,14 @@
 //!   weight file is given; with `--set progressive=true`, StereoSplat+'s progressive pass
 //!   around it (`model::progressive`) with the `tiny` enhancer
 //!   (`model/weights/enhancer_tiny.safetensors`) unless `enhancer=false`.
+//!
+//! A [`MethodSpec`] names one as a value (method, preset, weights, settings): what the
+//! command line's flags, the node's config, an operating point and a worker's fingerprint
+//! all carry.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
 
 use crate::baseline::{SgmConfig, SgmReconstructor};
 use crate::enhance;
@@ -62,6 +68,75 @@ pub enum MethodError {
     },
 }
 
+/// A reconstructor as one value: the method ([`NAMES`]), a learned method's preset (`None`:
+/// [`DEFAULT_PRESET`]) and weights (`None`: the preset's shipped file), and `KEY=VALUE`
+/// settings ([`build`] says what each means).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MethodSpec {
+    /// The method ([`NAMES`]).
+    pub method: String,
+    /// A learned method's preset.
+    pub preset: Option<String>,
+    /// A learned method's weight file.
+    pub weights: Option<PathBuf>,
+    /// `KEY=VALUE` settings, in the order given.
+    pub settings: Vec<String>,
+}
+
+impl Default for MethodSpec {
+    /// [`DEFAULT`] with its preset's shipped weights and no settings.
+    fn default() -> Self {
+        Self::from(DEFAULT)
+    }
+}
+
+impl From<&str> for MethodSpec {
+    /// The method `name` with its defaults.
+    fn from(name: &str) -> Self {
+        Self {
+            method: name.to_string(),
+            preset: None,
+            weights: None,
+            settings: Vec::new(),
+        }
+    }
+}
+
+impl MethodSpec {
+    /// The reconstructor this names ([`build`]).
+    pub fn build(&self) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
+        build(
+            &self.method,
+            self.preset.as_deref(),
+            self.weights.as_deref(),
+            &self.settings,
+        )
+    }
+
+    /// Whether it is the learned method (which has a preset and weights).
+    pub fn learned(&self) -> bool {
+        self.method == "stereosplat"
+    }
+
+    /// The preset a learned method runs ([`DEFAULT_PRESET`] when none is named); `None` for
+    /// a classical one.
+    pub fn preset_name(&self) -> Option<&str> {
+        self.learned()
+            .then(|| self.preset.as_deref().unwrap_or(DEFAULT_PRESET))
+    }
+
+    /// The weight file a learned method loads (its own, or the preset's shipped file);
+    /// `None` for a classical one.
+    pub fn weights_file(&self) -> Option<PathBuf> {
+        let preset = self.preset_name()?;
+        Some(
+            self.weights
+                .clone()
+                .unwrap_or_else(|| default_weights(preset)),
+        )
+    }
+}
+
 /// The reconstructor called `name`, with its default settings.
 pub fn by_name(name: &str) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
     build(name, None, None, &[])
@@ -112,5 +187,35 @@ pub fn build(
             )))
         }
         other => Err(MethodError::Unknown(other.to_string())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spec_names_its_preset_and_weights_only_for_the_learned_method() {
+        let default = MethodSpec::default();
+        assert_eq!(default.method, DEFAULT);
+        assert_eq!(default.preset_name(), Some(DEFAULT_PRESET));
+        assert_eq!(
+            default.weights_file(),
+            Some(default_weights(DEFAULT_PRESET))
+        );
+        let own = MethodSpec {
+            preset: Some("tiny-3d".into()),
+            weights: Some("w.safetensors".into()),
+            ..MethodSpec::default()
+        };
+        assert_eq!(own.preset_name(), Some("tiny-3d"));
+        assert_eq!(own.weights_file(), Some(PathBuf::from("w.safetensors")));
+        let sgm = MethodSpec::from("sgm");
+        assert_eq!((sgm.preset_name(), sgm.weights_file()), (None, None));
+        assert!(sgm.build().is_ok());
+        assert!(matches!(
+            MethodSpec::from("nope").build(),
+            Err(MethodError::Unknown(_))
+        ));
     }
 }

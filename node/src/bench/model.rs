@@ -39,7 +39,7 @@ use crate::memory::peak_rss_bytes;
 #[derive(Args, Clone, Debug)]
 pub struct BenchModelArgs {
     /// Preset to measure, `all`, or `sgm` (the classical baseline).
-    #[arg(long, default_value = "tiny")]
+    #[arg(long, default_value = model::methods::DEFAULT_PRESET)]
     preset: String,
     /// Change a preset setting, `KEY=VALUE` (repeatable), e.g. `--set volume_branch=true`.
     #[arg(long = "set", value_name = "KEY=VALUE")]

@@ -40,14 +40,9 @@ pub fn run(args: &WorkerArgs) -> Result<()> {
         // candle and rayon read it when they first size their pools: before any work.
         std::env::set_var("RAYON_NUM_THREADS", n.to_string());
     }
-    let m = &args.method;
-    let runner = PointRunner::whole(m.build()?);
-    let fingerprint = Fingerprint::of(
-        &m.method,
-        m.preset.as_deref(),
-        m.weights.as_deref(),
-        &m.settings,
-    )?;
+    let spec = args.method.spec();
+    let runner = PointRunner::whole(spec.build()?);
+    let fingerprint = Fingerprint::of(&spec)?;
     let id = match &args.id {
         Some(id) => id.clone(),
         None => format!("{}-{}", host_name(), std::process::id()),

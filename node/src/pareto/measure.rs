@@ -47,7 +47,7 @@ pub fn measure_points(
             });
             continue;
         }
-        let inner = match build(point) {
+        let inner = match point.method.build() {
             Ok(r) => r,
             Err(e) => {
                 // The first line: a backend error may carry a backtrace after it.
@@ -99,14 +99,4 @@ pub fn measure_points(
         measured.points.push(result);
     }
     Ok(measured)
-}
-
-/// The reconstructor a point names.
-fn build(point: &OperatingPoint) -> Result<Box<dyn Reconstructor + Send>> {
-    Ok(model::methods::build(
-        &point.method,
-        point.preset.as_deref(),
-        point.weights.as_deref(),
-        &point.set,
-    )?)
 }

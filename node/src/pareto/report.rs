@@ -246,16 +246,16 @@ pub fn front_mark(on_front: bool) -> &'static str {
 
 /// A point's knobs in one cell: method, preset, settings, scale and pairs where not default.
 fn settings_text(p: &OperatingPoint) -> String {
-    let mut parts = vec![p.method.clone()];
-    parts.extend(p.preset.clone());
-    parts.extend(p.set.iter().map(|s| format!("`{s}`")));
+    let mut parts = vec![p.method.method.clone()];
+    parts.extend(p.method.preset.clone());
+    parts.extend(p.method.settings.iter().map(|s| format!("`{s}`")));
     if p.scale != 1.0 {
         parts.push(format!("scale {}", p.scale));
     }
     if p.pairs != 1 {
         parts.push(format!("{} pairs", p.pairs));
     }
-    if let Some(w) = &p.weights {
+    if let Some(w) = &p.method.weights {
         parts.push(format!("weights `{}`", w.display()));
     }
     parts.join(", ")

@@ -48,7 +48,6 @@ use renderer::gaussians::LengthMismatch;
 use renderer::GaussianSet;
 
 use super::fingerprint::Fingerprint;
-use super::pool::PoolConfig;
 use crate::pipeline::self_check::{CheckAction, CheckOutcome, OnCheckFail, LOWERED_FACTOR};
 use crate::pipeline::worker::{Job, Output, Rendered};
 
@@ -139,12 +138,13 @@ pub struct Rules {
 }
 
 impl Rules {
-    /// The rules of a node asking `config` of its workers.
-    pub fn of(config: &PoolConfig) -> Self {
+    /// The rules of a node whose workers must run `fingerprint` and treat a failing map as
+    /// `on_check_fail` says.
+    pub fn of(fingerprint: &Fingerprint, on_check_fail: OnCheckFail) -> Self {
         Self {
-            on_check_fail: config.on_check_fail,
-            sgm_method: config.fingerprint.method == "sgm",
-            max_gaussians: max_gaussians(&config.fingerprint),
+            on_check_fail,
+            sgm_method: fingerprint.method == "sgm",
+            max_gaussians: max_gaussians(fingerprint),
         }
     }
 

@@ -4,6 +4,7 @@
 //! a worker whose fingerprint differs from the node's is refused rather than let mix
 //! another network's maps into the node's.
 
+use model::methods::MethodSpec;
 use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
@@ -35,29 +36,17 @@ pub struct FingerprintError {
 }
 
 impl Fingerprint {
-    /// The fingerprint of what `model::methods::build(method, preset, weights, settings)`
-    /// makes: a learned method's preset defaults to `tiny` and its weights to the preset's
-    /// shipped file, as there.
-    pub fn of(
-        method: &str,
-        preset: Option<&str>,
-        weights: Option<&Path>,
-        settings: &[String],
-    ) -> Result<Self, FingerprintError> {
-        let learned = method == "stereosplat";
-        let preset = match learned {
-            true => preset.unwrap_or(model::methods::DEFAULT_PRESET).to_string(),
-            false => String::new(),
-        };
-        let weights_sha256 = match (learned, weights) {
-            (false, _) => String::new(),
-            (true, Some(path)) => sha256_file(path)?,
-            (true, None) => sha256_file(&model::net::default_weights(&preset))?,
+    /// The fingerprint of what `spec` builds ([`MethodSpec::build`]): a learned method's
+    /// preset defaults to `tiny` and its weights to the preset's shipped file, as there.
+    pub fn of(spec: &MethodSpec) -> Result<Self, FingerprintError> {
+        let weights_sha256 = match spec.weights_file() {
+            Some(path) => sha256_file(&path)?,
+            None => String::new(),
         };
         Ok(Self {
-            method: method.to_string(),
-            preset,
-            settings: settings.to_vec(),
+            method: spec.method.clone(),
+            preset: spec.preset_name().unwrap_or_default().to_string(),
+            settings: spec.settings.clone(),
             weights_sha256,
         })
     }

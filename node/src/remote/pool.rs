@@ -207,7 +207,7 @@ impl Pool {
         let pool = Self {
             session: session.clone(),
             keys: keys.clone(),
-            rules: Rules::of(&config),
+            rules: Rules::of(&config.fingerprint, config.on_check_fail),
             config,
             tx,
             repliers: Arc::default(),

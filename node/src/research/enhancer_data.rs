@@ -40,7 +40,7 @@ pub struct EnhancerDataArgs {
     #[arg(long = "weights", value_name = "LABEL=PATH[@SETTINGS]")]
     weights: Vec<String>,
     /// StereoSplat preset of every weights file.
-    #[arg(long, default_value = "tiny")]
+    #[arg(long, default_value = model::methods::DEFAULT_PRESET)]
     preset: String,
     /// Distance between a bin's first and last frames, metres (as `train --bin-length`: 8
     /// for streets, 0.5 for rooms, 0.1 for desks).

@@ -20,7 +20,7 @@ pub struct EvalEnhancerArgs {
     #[arg(long)]
     pairs: PathBuf,
     /// Enhancer preset.
-    #[arg(long, default_value = "tiny")]
+    #[arg(long, default_value = model::methods::ENHANCER_PRESET)]
     preset: String,
     /// Enhancer weights (default: the shipped `model/weights/enhancer_<preset>.safetensors`).
     #[arg(long)]

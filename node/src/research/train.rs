@@ -25,7 +25,7 @@ pub struct TrainArgs {
     #[arg(long, required = true)]
     data: Vec<PathBuf>,
     /// Network preset (tiny, small, paper).
-    #[arg(long, default_value = "tiny")]
+    #[arg(long, default_value = model::methods::DEFAULT_PRESET)]
     preset: String,
     /// Change a preset setting, `KEY=VALUE` (repeatable), e.g. `--set candidates=48`;
     /// give the same settings again when resuming and when evaluating the weights.

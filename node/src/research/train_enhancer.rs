@@ -20,7 +20,7 @@ pub struct TrainEnhancerArgs {
     #[arg(long)]
     pairs: PathBuf,
     /// Enhancer preset (tiny, small).
-    #[arg(long, default_value = "tiny")]
+    #[arg(long, default_value = model::methods::ENHANCER_PRESET)]
     preset: String,
     /// Run directory: checkpoint/, log.csv, loss_curve.png, the exported weights.
     #[arg(long)]

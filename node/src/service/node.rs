@@ -5,6 +5,7 @@ use std::future::Future;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use model::methods::MethodSpec;
 use renderer::formats::MapFormat;
 use tokio::sync::mpsc;
 use zenoh::handlers::FifoChannelHandler;
@@ -52,15 +53,9 @@ pub struct NodeConfig {
     pub binner: BinnerConfig,
     /// Bins waiting for the worker at most (then the oldest waiting is dropped).
     pub queue_capacity: usize,
-    /// The reconstructor (see `model::methods`).
-    pub method: String,
-    /// A learned method's preset (`None`: `model::methods::DEFAULT_PRESET`); `tiny-plus`
-    /// runs StereoSplat+'s progressive pass per bin.
-    pub preset: Option<String>,
-    /// A learned method's weights (`None`: the preset's shipped file).
-    pub weights: Option<PathBuf>,
-    /// A learned method's `KEY=VALUE` preset settings (`Config::with_settings`).
-    pub settings: Vec<String>,
+    /// The reconstructor: method, preset, weights and settings (`model::methods`); a
+    /// learned method's `tiny-plus` preset runs StereoSplat+'s progressive pass per bin.
+    pub method: MethodSpec,
     /// What to do with a bin whose map fails its self-check (see
     /// [`crate::pipeline::self_check`]).
     pub on_check_fail: OnCheckFail,
@@ -140,27 +135,17 @@ impl Default for WorkersConfig {
 }
 
 impl NodeConfig {
-    /// The reconstructor the method, preset, weights and settings name.
+    /// The reconstructor [`NodeConfig::method`] names.
     pub fn reconstructor(
         &self,
     ) -> Result<Box<dyn model::reconstruct::Reconstructor + Send>, model::methods::MethodError>
     {
-        model::methods::build(
-            &self.method,
-            self.preset.as_deref(),
-            self.weights.as_deref(),
-            &self.settings,
-        )
+        self.method.build()
     }
 
     /// What worker processes must run to take this node's bins.
     pub fn fingerprint(&self) -> Result<Fingerprint, crate::remote::FingerprintError> {
-        Fingerprint::of(
-            &self.method,
-            self.preset.as_deref(),
-            self.weights.as_deref(),
-            &self.settings,
-        )
+        Fingerprint::of(&self.method)
     }
 
     /// What the node asks of its worker processes: its reconstructor, self-check policy and
@@ -213,10 +198,7 @@ impl Default for NodeConfig {
             sync: SyncConfig::default(),
             binner: BinnerConfig::default(),
             queue_capacity: DEFAULT_QUEUE,
-            method: model::methods::DEFAULT.into(),
-            preset: None,
-            weights: None,
-            settings: Vec::new(),
+            method: MethodSpec::default(),
             on_check_fail: OnCheckFail::default(),
             fusion: FusionConfig::default(),
             out_dir: None,

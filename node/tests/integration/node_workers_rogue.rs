@@ -60,7 +60,7 @@ async fn node(tag: &str) -> RunningNode {
 }
 
 fn fingerprint() -> Fingerprint {
-    Fingerprint::of("sgm", None, None, &[]).unwrap()
+    Fingerprint::of(&"sgm".into()).unwrap()
 }
 
 /// 64 opaque Gaussians 6 m ahead of the bin's camera, each of `confidence`, and a passing

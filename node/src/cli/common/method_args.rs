@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use model::methods::MethodError;
+use model::methods::{MethodError, MethodSpec};
 use model::reconstruct::Reconstructor;
 
 use crate::service::NodeConfig;
@@ -32,23 +32,25 @@ pub struct MethodArgs {
 }
 
 impl MethodArgs {
-    /// The reconstructor these flags name ([`model::methods::build`]).
+    /// The reconstructor these flags name, as one value.
+    pub fn spec(&self) -> MethodSpec {
+        MethodSpec {
+            method: self.method.clone(),
+            preset: self.preset.clone(),
+            weights: self.weights.clone(),
+            settings: self.settings.clone(),
+        }
+    }
+
+    /// The reconstructor these flags name ([`MethodSpec::build`]).
     pub fn build(&self) -> Result<Box<dyn Reconstructor + Send>, MethodError> {
-        model::methods::build(
-            &self.method,
-            self.preset.as_deref(),
-            self.weights.as_deref(),
-            &self.settings,
-        )
+        self.spec().build()
     }
 
     /// `config` with the node's reconstructor set to what these flags name.
     pub fn node_config(&self, config: NodeConfig) -> NodeConfig {
         NodeConfig {
-            method: self.method.clone(),
-            preset: self.preset.clone(),
-            weights: self.weights.clone(),
-            settings: self.settings.clone(),
+            method: self.spec(),
             ..config
         }
     }

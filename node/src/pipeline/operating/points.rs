@@ -18,36 +18,74 @@
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use model::net::default_weights;
+use model::methods::MethodSpec;
 use serde::{Deserialize, Serialize};
 
 /// One operating point: a reconstructor and the inference-time knobs it runs with.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "PointFields", into = "PointFields")]
 pub struct OperatingPoint {
     /// Unique name, used as the label on the chart and the row in the table.
     pub name: String,
-    /// The reconstructor ([`model::methods::NAMES`]).
-    #[serde(default = "default_method")]
-    pub method: String,
-    /// Network preset of a learned method (default `tiny`).
-    #[serde(default)]
-    pub preset: Option<String>,
-    /// Weight file of a learned method (default: the preset's shipped file); relative paths
-    /// are taken from the working directory, as on the command line.
-    #[serde(default)]
-    pub weights: Option<PathBuf>,
-    /// Preset settings, `KEY=VALUE` as `--set` takes them.
-    #[serde(default)]
-    pub set: Vec<String>,
+    /// The reconstructor: method, preset, weights (relative paths are taken from the working
+    /// directory, as on the command line) and settings.
+    pub method: MethodSpec,
     /// Input resolution scale in (0, 1]: the stereo pair and its cameras are downsized by
     /// it before the reconstructor (as the node does to `--working-pixels`); the map is
     /// still rendered and scored at the full size.
-    #[serde(default = "one")]
     pub scale: f64,
     /// Input stereo pairs per bin (the bin's first frames).
-    #[serde(default = "one_pair")]
     pub pairs: usize,
+}
+
+/// An operating point as its files spell it (the module documentation's keys), every key
+/// at the top level of its table and an unknown key an error.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointFields {
+    name: String,
+    #[serde(default = "default_method")]
+    method: String,
+    #[serde(default)]
+    preset: Option<String>,
+    #[serde(default)]
+    weights: Option<PathBuf>,
+    #[serde(default)]
+    set: Vec<String>,
+    #[serde(default = "one")]
+    scale: f64,
+    #[serde(default = "one_pair")]
+    pairs: usize,
+}
+
+impl From<PointFields> for OperatingPoint {
+    fn from(f: PointFields) -> Self {
+        Self {
+            name: f.name,
+            method: MethodSpec {
+                method: f.method,
+                preset: f.preset,
+                weights: f.weights,
+                settings: f.set,
+            },
+            scale: f.scale,
+            pairs: f.pairs,
+        }
+    }
+}
+
+impl From<OperatingPoint> for PointFields {
+    fn from(p: OperatingPoint) -> Self {
+        Self {
+            name: p.name,
+            method: p.method.method,
+            preset: p.method.preset,
+            weights: p.method.weights,
+            set: p.method.settings,
+            scale: p.scale,
+            pairs: p.pairs,
+        }
+    }
 }
 
 fn default_method() -> String {
@@ -112,25 +150,10 @@ pub enum Availability {
 impl OperatingPoint {
     /// Whether this point's weights exist (methods without weights are always ready).
     pub fn availability(&self) -> Availability {
-        if self.method != "stereosplat" {
-            return Availability::Ready;
+        match self.method.weights_file() {
+            Some(path) if !model::assets::exists(&path) => Availability::Missing(path),
+            _ => Availability::Ready,
         }
-        let path = self.weights_path();
-        match model::assets::exists(&path) {
-            true => Availability::Ready,
-            false => Availability::Missing(path),
-        }
-    }
-
-    /// The weight file a learned point loads.
-    pub fn weights_path(&self) -> PathBuf {
-        self.weights.clone().unwrap_or_else(|| {
-            default_weights(
-                self.preset
-                    .as_deref()
-                    .unwrap_or(model::methods::DEFAULT_PRESET),
-            )
-        })
     }
 
     /// Whether the point's fields are in range: a name, a known method, a scale in (0, 1]
@@ -145,10 +168,10 @@ impl OperatingPoint {
         if self.name.trim().is_empty() {
             return invalid("the name is empty".into());
         }
-        if !model::methods::NAMES.contains(&self.method.as_str()) {
+        if !model::methods::NAMES.contains(&self.method.method.as_str()) {
             return invalid(format!(
                 "unknown method `{}` (known: {})",
-                self.method,
+                self.method.method,
                 model::methods::NAMES.join(", ")
             ));
         }
@@ -208,10 +231,10 @@ mod tests {
         )
         .unwrap();
         assert_eq!(points.len(), 2);
-        assert_eq!(points[0].method, "sgm");
+        assert_eq!(points[0].method, MethodSpec::from("sgm"));
         assert_eq!((points[0].scale, points[0].pairs), (1.0, 1));
-        assert_eq!(points[1].method, "stereosplat");
-        assert_eq!(points[1].set, vec!["candidates=16".to_string()]);
+        assert_eq!(points[1].method.method, "stereosplat");
+        assert_eq!(points[1].method.settings, vec!["candidates=16".to_string()]);
         assert_eq!((points[1].scale, points[1].pairs), (0.5, 2));
         assert_eq!(points[0].availability(), Availability::Ready);
     }
@@ -264,7 +287,7 @@ mod tests {
         let points = load_points(&root.join("launch/pareto.toml")).unwrap();
         assert!(points.len() >= 20, "{}", points.len());
         for p in &points {
-            if let Some(w) = &p.weights {
+            if let Some(w) = &p.method.weights {
                 assert!(root.join(w).is_file(), "{}: {}", p.name, w.display());
             }
         }

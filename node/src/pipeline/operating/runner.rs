@@ -35,12 +35,7 @@ impl PointRunner {
     pub fn build(point: &OperatingPoint) -> Result<Self, MethodError> {
         Ok(Self {
             name: point.name.clone(),
-            reconstructor: model::methods::build(
-                &point.method,
-                point.preset.as_deref(),
-                point.weights.as_deref(),
-                &point.set,
-            )?,
+            reconstructor: point.method.build()?,
             scale: point.scale,
         })
     }

@@ -301,9 +301,10 @@ async fn three_drives_with_the_same_stamps_at_once_are_never_paired_across() {
     println!("same stamps: {bins} bins, counters {:?}", s.counters);
     // Most frames met another source's: refused and counted, as a conflict, or as late
     // when the node lags behind the three players (a loaded machine: 9 conflicts and 174
-    // late once beside two training runs); `at_once` checked that none was paired across.
+    // late once beside two training runs, 0 and 180 beside two busy loops, so which of the
+    // two is not asserted; the synchroniser's unit tests hold the conflict itself);
+    // `at_once` checked that none was paired across.
     let refused = s.counters.get("sync/conflict") + s.counters.get("sync/late");
-    assert!(s.counters.get("sync/conflict") > 0, "{:?}", s.counters);
     assert!(refused > 30, "{:?}", s.counters);
     assert_eq!(s.counters.get("sync/reset"), 0);
 }

@@ -282,10 +282,16 @@ async fn a_stalled_worker_bin_goes_to_another_and_its_late_answer_is_discarded()
     tokio::join!(thaw, feed(&node, &outputs, &drive));
     let (summary, ..) = finish(node, &outputs, &drive).await;
     let c = &summary.counters;
-    assert_eq!(c.get("workers/stalled"), 1, "{c:?}");
-    assert_eq!(c.get("workers/reassigned"), 1);
-    assert_eq!(c.get("discarded/late_bin"), 1);
-    assert_eq!(c.get("workers/left"), 0);
+    // On a loaded machine `b` too can hold a bin past the 1 s timeout (seen beside two busy
+    // loops: 2 stalls, 2 reassigned, 2 late answers): each stall then goes the same way.
+    let stalled = c.get("workers/stalled");
+    assert!(stalled >= 1, "{c:?}");
+    assert_eq!(c.get("workers/reassigned"), stalled, "{c:?}");
+    assert!(
+        (1..=stalled).contains(&c.get("discarded/late_bin")),
+        "{c:?}"
+    );
+    assert_eq!(c.get("workers/left"), 0, "{c:?}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
